@@ -1,1 +1,261 @@
-//! TODO
+//! Per-frame feature maps: lazy `.npy` sources (one file per frame, or one
+//! stacked `N x H x W x D` array), validation against the frames' images, and
+//! optional PCA compression applied while the maps are read, so that never
+//! all maps are held at full dimension at once.
+
+mod eigen;
+mod pca;
+
+use std::path::{Path, PathBuf};
+
+use half::f16;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+pub use pca::{Pca, PcaTarget};
+
+use crate::error::DatasetError;
+use crate::npy::NpyInfo;
+use crate::scene::FeatureMap;
+
+/// Pixels sampled (over all maps) to fit a PCA basis.
+const PCA_SAMPLES: usize = 8192;
+
+/// Feature maps of a scene, one per frame, possibly PCA-compressed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeatureSet {
+    /// One map per frame; `dim` is `k` when compressed.
+    pub maps: Vec<FeatureMap>,
+    /// The basis the maps were compressed with.
+    pub pca: Option<Pca>,
+    /// Dimension of the original features (D).
+    pub full_dim: usize,
+}
+
+impl FeatureSet {
+    /// Wraps in-memory maps, fitting PCA on a seeded sample of their pixels
+    /// and compressing them when `pca` is given. All maps must share `dim`.
+    pub fn from_maps(
+        maps: Vec<FeatureMap>,
+        pca: Option<PcaTarget>,
+        seed: u64,
+    ) -> Result<Self, DatasetError> {
+        let full_dim = maps.first().map_or(0, |m| m.dim);
+        if let Some(i) = maps.iter().position(|m| m.dim != full_dim) {
+            return Err(DatasetError::invalid(
+                "<feature maps>",
+                format!("map {i} has dim {} but map 0 has {full_dim}", maps[i].dim),
+            ));
+        }
+        let Some(target) = pca else {
+            return Ok(Self { maps, pca: None, full_dim });
+        };
+        let sizes: Vec<usize> = maps.iter().map(|m| (m.width * m.height) as usize).collect();
+        let picks = sample_plan(&sizes, seed);
+        let mut samples = Vec::new();
+        for (m, idx) in maps.iter().zip(&picks) {
+            for &p in idx {
+                samples.extend(m.data[p * full_dim..(p + 1) * full_dim].iter().map(|h| h.to_f32()));
+            }
+        }
+        let basis = Pca::fit(&samples, full_dim, target)?;
+        let maps = maps.iter().map(|m| compress(m, &basis)).collect();
+        Ok(Self { maps, pca: Some(basis), full_dim })
+    }
+
+    /// Channels per map pixel (k when compressed, else D).
+    pub fn dim(&self) -> usize {
+        self.pca.as_ref().map_or(self.full_dim, |p| p.k)
+    }
+}
+
+/// Which pixels of each map feed the PCA fit: about `PCA_SAMPLES` in all,
+/// spread evenly over the maps, drawn with a seeded generator.
+fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5ca1_ab1e);
+    let per = PCA_SAMPLES.div_ceil(sizes.len().max(1));
+    sizes
+        .iter()
+        .map(|&n| {
+            if n <= per {
+                (0..n).collect()
+            } else {
+                (0..per).map(|_| rng.random_range(0..n)).collect()
+            }
+        })
+        .collect()
+}
+
+/// A map projected onto `pca`'s `k` components.
+fn compress(map: &FeatureMap, pca: &Pca) -> FeatureMap {
+    let full: Vec<f32> = map.data.iter().map(|h| h.to_f32()).collect();
+    FeatureMap {
+        width: map.width,
+        height: map.height,
+        dim: pca.k,
+        data: pca.project(&full).into_iter().map(f16::from_f32).collect(),
+    }
+}
+
+/// Where a scene's feature maps are stored on disk.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FeatureSource {
+    /// One `H x W x D` `.npy` per frame, in frame order.
+    PerFrame(Vec<PathBuf>),
+    /// One `N x H x W x D` `.npy` holding all frames.
+    Stacked(PathBuf),
+}
+
+impl FeatureSource {
+    /// Finds the maps for `frame_names` at `path`: a file is a stacked array;
+    /// a directory holds `<frame name>.npy` per frame or, failing that,
+    /// exactly one `.npy` per frame (taken in sorted order).
+    pub fn discover(path: &Path, frame_names: &[String]) -> Result<Self, DatasetError> {
+        if path.is_file() {
+            return Ok(Self::Stacked(path.to_path_buf()));
+        }
+        if !path.is_dir() {
+            return Err(DatasetError::invalid(path, "feature path does not exist"));
+        }
+        let named: Vec<PathBuf> = frame_names.iter().map(|n| path.join(format!("{n}.npy"))).collect();
+        if named.iter().all(|p| p.is_file()) {
+            return Ok(Self::PerFrame(named));
+        }
+        let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+            .map_err(|e| DatasetError::io(path, e))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x == "npy"))
+            .collect();
+        files.sort();
+        if files.len() != frame_names.len() {
+            return Err(DatasetError::invalid(
+                path,
+                format!(
+                    "{} feature maps (.npy files) but {} frames",
+                    files.len(),
+                    frame_names.len()
+                ),
+            ));
+        }
+        Ok(Self::PerFrame(files))
+    }
+}
+
+/// One map's location: the file, its element offset, and `(h, w, d)`.
+struct MapSlot {
+    info: NpyInfo,
+    offset: usize,
+    h: usize,
+    w: usize,
+    d: usize,
+}
+
+impl MapSlot {
+    fn read(&self) -> Result<FeatureMap, DatasetError> {
+        let data = self.info.read_f16_range(self.offset, self.h * self.w * self.d)?;
+        if data.iter().any(|v| !v.is_finite()) {
+            return Err(DatasetError::invalid(
+                &self.info.path,
+                "feature map contains NaN or infinite values",
+            ));
+        }
+        Ok(FeatureMap {
+            width: self.w as u32,
+            height: self.h as u32,
+            dim: self.d,
+            data,
+        })
+    }
+}
+
+/// Validates headers against `image_sizes` (`(width, height)` per frame):
+/// counts agree, dims agree, aspect ratios match within a pixel.
+fn plan(source: &FeatureSource, image_sizes: &[(u32, u32)]) -> Result<Vec<MapSlot>, DatasetError> {
+    let mut slots = Vec::new();
+    match source {
+        FeatureSource::Stacked(path) => {
+            let info = NpyInfo::open(path)?;
+            info.expect_rank(4, "frames x height x width x dim")?;
+            let [n, h, w, d] = [info.shape[0], info.shape[1], info.shape[2], info.shape[3]];
+            if n != image_sizes.len() {
+                return Err(DatasetError::invalid(
+                    path,
+                    format!("{n} feature maps but {} frames", image_sizes.len()),
+                ));
+            }
+            for i in 0..n {
+                slots.push(MapSlot { info: info.clone(), offset: i * h * w * d, h, w, d });
+            }
+        }
+        FeatureSource::PerFrame(paths) => {
+            if paths.len() != image_sizes.len() {
+                return Err(DatasetError::invalid(
+                    paths.first().map_or(Path::new("<features>"), |p| p.as_path()),
+                    format!("{} feature maps but {} frames", paths.len(), image_sizes.len()),
+                ));
+            }
+            for p in paths {
+                let info = NpyInfo::open(p)?;
+                info.expect_rank(3, "height x width x dim")?;
+                let [h, w, d] = [info.shape[0], info.shape[1], info.shape[2]];
+                slots.push(MapSlot { info, offset: 0, h, w, d });
+            }
+        }
+    }
+    for (s, &(iw, ih)) in slots.iter().zip(image_sizes) {
+        let path = &s.info.path;
+        if s.h == 0 || s.w == 0 || s.d == 0 {
+            return Err(DatasetError::invalid(path, "feature map is empty"));
+        }
+        if s.d != slots[0].d {
+            return Err(DatasetError::invalid(
+                path,
+                format!("feature dim {} differs from the first map's {}", s.d, slots[0].d),
+            ));
+        }
+        // The map height implied by the image's aspect ratio at the map's width.
+        let expect_h = s.w as f64 * ih as f64 / iw as f64;
+        if (expect_h - s.h as f64).abs() > 1.0 {
+            return Err(DatasetError::invalid(
+                path,
+                format!(
+                    "feature map aspect ratio ({}x{}) does not match its image ({iw}x{ih})",
+                    s.w, s.h
+                ),
+            ));
+        }
+    }
+    Ok(slots)
+}
+
+/// Loads the maps of `source` for frames of `image_sizes` (`(width, height)`),
+/// one map at a time. With `pca`, a first pass samples pixels to fit the
+/// basis and a second pass compresses each map as it is read.
+pub fn load_features(
+    source: &FeatureSource,
+    image_sizes: &[(u32, u32)],
+    pca: Option<PcaTarget>,
+    seed: u64,
+) -> Result<FeatureSet, DatasetError> {
+    let slots = plan(source, image_sizes)?;
+    let full_dim = slots.first().map_or(0, |s| s.d);
+    let Some(target) = pca else {
+        let maps = slots.iter().map(MapSlot::read).collect::<Result<_, _>>()?;
+        return Ok(FeatureSet { maps, pca: None, full_dim });
+    };
+    let sizes: Vec<usize> = slots.iter().map(|s| s.h * s.w).collect();
+    let picks = sample_plan(&sizes, seed);
+    let mut samples = Vec::new();
+    for (s, idx) in slots.iter().zip(&picks) {
+        let m = s.read()?;
+        for &p in idx {
+            samples.extend(m.data[p * full_dim..(p + 1) * full_dim].iter().map(|h| h.to_f32()));
+        }
+    }
+    let basis = Pca::fit(&samples, full_dim, target)?;
+    let maps = slots
+        .iter()
+        .map(|s| s.read().map(|m| compress(&m, &basis)))
+        .collect::<Result<_, _>>()?;
+    Ok(FeatureSet { maps, pca: Some(basis), full_dim })
+}

@@ -1,1 +1,15 @@
-//! eval crate.
+//! Evaluation of trained OpenNeRF runs: loading run directories, rendering
+//! views, projecting points into views, zero-shot 3D semantic segmentation
+//! with its metrics, and relevancy queries.
+#![warn(missing_docs)]
+
+pub mod cameras;
+pub mod colormap;
+pub mod error;
+pub mod metrics;
+pub mod project;
+pub mod render;
+pub mod run;
+pub mod similarity;
+
+pub use error::EvalError;

@@ -1,6 +1,18 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
-//! Mip-NeRF encodings, sampling, compositing, the MLP with its stop-gradient
-//! open-set head, coarse/fine rendering and the losses. No file I/O.
+//! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
+//! ([`render`]), the MLP with its stop-gradient open-set head ([`field`]),
+//! coarse/fine rendering ([`nerf`]) and the losses ([`loss`]). No file I/O.
 #![warn(missing_docs)]
 
+pub mod field;
 pub mod geometry;
+pub mod loss;
+pub mod mip;
+pub mod nerf;
+pub mod render;
+pub mod sampling;
+
+pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
+pub use loss::{depth_huber, open_set_cosine, rgb_mse};
+pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, RenderOutputs, Rays};
+pub use render::Composite;

@@ -1,1 +1,83 @@
-//! train crate.
+//! Training of OpenNeRF fields: configuration, learning-rate schedule, ray
+//! batches, the one training step shared by every backend, checkpoints,
+//! held-out evaluation and the training loop that writes a run directory.
+//!
+//! A run directory holds `config.json` (this crate's [`config::TrainConfig`];
+//! its `"model"` key is the field's configuration), `model.bpk` (weights),
+//! `scene.json`, `split.json`, `metrics.jsonl`, `summary.json`, `renders/`
+//! and `checkpoints/`.
+#![warn(missing_docs)]
+
+pub mod backend;
+pub mod batch;
+pub mod checkpoint;
+pub mod cli;
+pub mod config;
+pub mod data;
+pub mod error;
+pub mod evaluate;
+pub mod metrics;
+pub mod run;
+pub mod schedule;
+pub mod step;
+
+pub use backend::BackendKind;
+pub use config::TrainConfig;
+pub use error::TrainError;
+pub use run::{RunOutcome, SessionOptions, resume, train_new};
+
+use std::path::PathBuf;
+
+/// Runs the command line: a new run, or `--resume`. Returns the outcome
+/// (the binary prints where the results are).
+pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
+    let session = SessionOptions {
+        backend: cli.backend,
+        device_index: cli.device,
+        time_budget: cli.time_budget,
+        stop_at: cli.stop_at,
+        progress: !cli.quiet,
+        final_render: true,
+    };
+    if let Some(dir) = &cli.resume {
+        return resume(dir, cli.iters, &session);
+    }
+    let source = data::source_from_cli(cli)?;
+    eprintln!("loading scene ({})", data::run_name(&source));
+    let scene = data::load(&source)?;
+    let dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let mut config = match &cli.config {
+        Some(path) => TrainConfig::from_file(path)?,
+        None => TrainConfig::default_run(dim),
+    };
+    config.apply(&config::Overrides {
+        iters: cli.iters,
+        rays: cli.rays,
+        samples: cli.samples,
+        width: cli.width,
+        depth: cli.depth,
+        lambda_open: cli.lambda_open,
+        lambda_depth: cli.lambda_depth,
+        lr: cli.lr,
+        seed: cli.seed,
+    });
+    let out = cli.out.clone().unwrap_or_else(|| {
+        let secs = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        PathBuf::from("runs").join(format!("{}-{secs}", data::run_name(&source)))
+    });
+    eprintln!(
+        "scene {}: {} frames, features: {}; training {} iterations on {} into {}",
+        scene.name,
+        scene.frames.len(),
+        scene
+            .features
+            .as_ref()
+            .map_or("none".to_string(), |f| format!("{} channels", f.dim())),
+        config.schedule.iterations,
+        cli.backend,
+        out.display()
+    );
+    train_new(&scene, config, cli.holdout_every, &out, &session)
+}

@@ -1,0 +1,278 @@
+//! The built-in benchmark scene: a seeded procedural room (floor, ceiling,
+//! walls, furniture and tiny objects labelled with Replica class names),
+//! ray-traced colour, z-depth and labels along a camera loop, a labelled
+//! surface point cloud, and feature maps from the simulated VLM
+//! ([`crate::extractor::SimulatedExtractor`]). Everything is a function of
+//! `(seed, size)`.
+
+pub mod classes;
+pub mod render;
+pub mod room;
+
+use std::f64::consts::PI;
+use std::fmt;
+use std::str::FromStr;
+
+use half::f16;
+use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+pub use classes::{CLASSES, SizeGroup, class_embeddings, try_class_embeddings};
+pub use room::{Room, build_room};
+
+use crate::error::DatasetError;
+use crate::extractor::{FeatureExtractor, SimulatedExtractor};
+use crate::features::{FeatureSet, Pca, PcaTarget};
+use crate::points::PointCloud;
+use crate::scene::{FeatureMap, Frame, Scene, SceneSource};
+
+/// Size presets of the synthetic scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SceneSize {
+    /// About 20 views at 96x54: builds in well under a second, for tests.
+    Ci,
+    /// 200 views at 320x180, for benchmark runs.
+    Bench,
+}
+
+impl SceneSize {
+    /// `(views, width, height)` of the preset.
+    pub fn views(self) -> (usize, u32, u32) {
+        match self {
+            SceneSize::Ci => (20, 96, 54),
+            SceneSize::Bench => (200, 320, 180),
+        }
+    }
+
+    /// Surface points per square metre and minimum candidates per box face.
+    fn point_density(self) -> (f64, usize) {
+        match self {
+            SceneSize::Ci => (30.0, 3),
+            SceneSize::Bench => (250.0, 8),
+        }
+    }
+
+    /// PCA compression of the feature targets (none for the small preset).
+    pub fn pca_target(self) -> Option<PcaTarget> {
+        match self {
+            SceneSize::Ci => None,
+            SceneSize::Bench => Some(PcaTarget::ExplainedVariance(0.99)),
+        }
+    }
+}
+
+impl fmt::Display for SceneSize {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            SceneSize::Ci => "ci",
+            SceneSize::Bench => "bench",
+        })
+    }
+}
+
+impl FromStr for SceneSize {
+    type Err = DatasetError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "ci" => Ok(SceneSize::Ci),
+            "bench" => Ok(SceneSize::Bench),
+            other => Err(DatasetError::invalid(
+                "<synthetic scene>",
+                format!("unknown size {other:?} (expected \"ci\" or \"bench\")"),
+            )),
+        }
+    }
+}
+
+/// Horizontal field of view of the synthetic camera (that of Replica's).
+pub const FOV_X: f64 = PI / 2.0;
+
+/// The camera loop: positions on an ellipse around the room's middle at
+/// varying height, looking across the room with a yaw that swings towards
+/// the walls and a varying pitch. Seeded jitter; cameras keep clear of objects.
+pub fn trajectory(room: &Room, size: SceneSize, seed: u64) -> Result<Vec<Camera>, DatasetError> {
+    let (n, w, h) = size.views();
+    let intrinsics = Intrinsics::from_fov_x(w, h, FOV_X);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7a_3ec7);
+    let (a, b) = (0.6 * room.max[0], 0.55 * room.max[1]);
+    let phase = rng.random_range(0.0..2.0 * PI);
+    let mut cameras = Vec::with_capacity(n);
+    for i in 0..n {
+        let theta = phase + 2.0 * PI * i as f64 / n as f64 + rng.random_range(-0.05..0.05);
+        let mut pos = [
+            a * theta.cos(),
+            b * theta.sin(),
+            1.55 + 0.2 * (3.0 * theta).sin() + rng.random_range(-0.05..0.05),
+        ];
+        if !room.is_free(pos, 0.2) {
+            pos[2] = 1.8;
+        }
+        let yaw = theta + PI + 1.4 * (5.0 * theta).sin() + rng.random_range(-0.1..0.1);
+        let target = [
+            pos[0] + 2.0 * yaw.cos(),
+            pos[1] + 2.0 * yaw.sin(),
+            0.75 + 0.45 * (4.0 * theta).cos(),
+        ];
+        let pose = look_at(pos, target, [0.0, 0.0, 1.0])
+            .map_err(|e| DatasetError::invalid("<synthetic scene>", format!("camera {i}: {e}")))?;
+        cameras.push(Camera { intrinsics, pose });
+    }
+    Ok(cameras)
+}
+
+/// Expected image colour of each class: its albedo under the average shading.
+pub fn class_prototypes(seed: u64) -> Vec<[f32; 3]> {
+    classes::palette(seed)
+        .iter()
+        .map(|c| c.map(|v| (v * 0.8) as f32))
+        .collect()
+}
+
+/// The simulated VLM of scene `(seed, size)`, for running rendered novel
+/// views through the same extractor as the training frames.
+pub fn extractor_for(seed: u64, size: SceneSize) -> SimulatedExtractor {
+    let salt = match size {
+        SceneSize::Ci => 0,
+        SceneSize::Bench => 1,
+    };
+    SimulatedExtractor::new(class_embeddings(), class_prototypes(seed), seed.wrapping_mul(2) + salt)
+        .unwrap_or_else(|_| unreachable_extractor())
+}
+
+/// The prototypes and embeddings always agree in count, so construction
+/// cannot fail; this only keeps the signature total.
+fn unreachable_extractor() -> SimulatedExtractor {
+    let e = classes::fallback_embeddings();
+    let p = vec![[0.5f32; 3]; e.len()];
+    match SimulatedExtractor::new(e, p, 0) {
+        Ok(x) => x,
+        Err(e) => panic!("built-in extractor is inconsistent: {e}"),
+    }
+}
+
+/// The labelled surface point cloud of a scene (labels = class indices).
+pub fn surface_points(room: &Room, seed: u64, size: SceneSize) -> PointCloud {
+    let (density, min_per_face) = size.point_density();
+    let pts = render::sample_surface(room, &classes::palette(seed), density, min_per_face, seed);
+    PointCloud {
+        positions: pts.iter().map(|p| p.position).collect(),
+        colors: Some(pts.iter().map(|p| p.color).collect()),
+        labels: Some(pts.iter().map(|p| p.class as i64).collect()),
+    }
+}
+
+/// Generates the scene `(seed, size)`: frames with colour, depth and labels,
+/// simulated feature maps (PCA-compressed for [`SceneSize::Bench`], fitted on
+/// every 10th frame and applied map by map, so all maps are never held at
+/// full dimension), the labelled point cloud and the class embeddings.
+pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
+    let room = build_room(seed);
+    let palette = classes::palette(seed);
+    let cameras = trajectory(&room, size, seed)?;
+    let rendered = render::render_views(&room, &palette, &cameras);
+    let extractor = extractor_for(seed, size);
+    let frames: Vec<Frame> = rendered
+        .into_iter()
+        .zip(&cameras)
+        .enumerate()
+        .map(|(i, (r, camera))| Frame {
+            name: format!("frame{i:06}"),
+            camera: *camera,
+            rgb: r.rgb,
+            depth: Some(r.depth),
+            depth_weight: 1.0,
+            labels: Some(r.labels),
+        })
+        .collect();
+    let features = extract_all(&extractor, &frames, size.pca_target(), seed)?;
+    let points = surface_points(&room, seed, size);
+    let corners = (0..8).map(|c| {
+        [0, 1, 2].map(|k| if c >> k & 1 == 1 { room.max[k] } else { room.min[k] })
+    });
+    let centres = cameras.iter().map(|c| c.pose.center());
+    let scene_box = SceneBox::from_points(corners.chain(centres), 0.02)
+        .ok_or_else(|| DatasetError::invalid("<synthetic scene>", "empty scene box"))?;
+    Ok(Scene {
+        name: format!("synthetic-{size}-{seed}"),
+        frames,
+        features: Some(features),
+        scene_box,
+        background: None,
+        points: Some(points),
+        classes: Some(extractor.embeddings().clone()),
+        source: SceneSource::Synthetic {
+            seed,
+            size: size.to_string(),
+        },
+    })
+}
+
+/// Runs the extractor on every frame in parallel threads; with a PCA target,
+/// fits the basis on every 10th frame and compresses each map right after
+/// extraction.
+fn extract_all(
+    extractor: &SimulatedExtractor,
+    frames: &[Frame],
+    pca: Option<PcaTarget>,
+    seed: u64,
+) -> Result<FeatureSet, DatasetError> {
+    let full_dim = extractor.dim();
+    let Some(target) = pca else {
+        let maps = parallel_maps(frames, |f| extractor.extract(&f.rgb))?;
+        return FeatureSet::from_maps(maps, None, seed);
+    };
+    let fit_frames: Vec<Frame> = frames.iter().step_by(10).cloned().collect();
+    let fit_maps = parallel_maps(&fit_frames, |f| extractor.extract(&f.rgb))?;
+    let basis = FeatureSet::from_maps(fit_maps, Some(target), seed)?
+        .pca
+        .ok_or_else(|| DatasetError::invalid("<synthetic scene>", "PCA fit returned no basis"))?;
+    let maps = parallel_maps(frames, |f| {
+        let m = extractor.extract(&f.rgb)?;
+        Ok(compress(&m, &basis))
+    })?;
+    Ok(FeatureSet {
+        maps,
+        pca: Some(basis),
+        full_dim,
+    })
+}
+
+/// A map projected onto `pca`'s components.
+fn compress(map: &FeatureMap, pca: &Pca) -> FeatureMap {
+    let full: Vec<f32> = map.data.iter().map(|h| h.to_f32()).collect();
+    FeatureMap {
+        width: map.width,
+        height: map.height,
+        dim: pca.k,
+        data: pca.project(&full).into_iter().map(f16::from_f32).collect(),
+    }
+}
+
+/// `f` over all frames in scoped threads, results in frame order.
+fn parallel_maps<F>(frames: &[Frame], f: F) -> Result<Vec<FeatureMap>, DatasetError>
+where
+    F: Fn(&Frame) -> Result<FeatureMap, DatasetError> + Sync,
+{
+    let threads = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .clamp(1, 16);
+    let chunk = frames.len().div_ceil(threads).max(1);
+    let f = &f;
+    std::thread::scope(|s| {
+        let handles: Vec<_> = frames
+            .chunks(chunk)
+            .map(|part| s.spawn(move || part.iter().map(f).collect::<Result<Vec<_>, _>>()))
+            .collect();
+        let mut out = Vec::with_capacity(frames.len());
+        for h in handles {
+            let part = h
+                .join()
+                .map_err(|_| DatasetError::invalid("<synthetic scene>", "feature thread panicked"))??;
+            out.extend(part);
+        }
+        Ok(out)
+    })
+}

@@ -1,0 +1,205 @@
+//! Run directories: the file layout written by training and read back here.
+//!
+//! A run directory holds `config.json` (the full training configuration; its
+//! top-level `"model"` key is the [`OpenNerfConfig`]), `model.bpk` (the
+//! weights, burnpack), `scene.json` ([`SceneMeta`]) and `split.json`
+//! ([`Split`]), plus training logs and renders.
+
+use std::path::{Path, PathBuf};
+
+use burn::module::Module;
+use burn::tensor::Device;
+use datasets::SceneMeta;
+use model::{OpenNerf, OpenNerfConfig};
+
+use crate::error::EvalError;
+
+/// The paths of the files in a run directory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RunDir {
+    /// The directory itself.
+    pub dir: PathBuf,
+}
+
+impl RunDir {
+    /// A run directory rooted at `dir` (nothing is checked or created).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self { dir: dir.into() }
+    }
+
+    /// `config.json`: the full training configuration.
+    pub fn config(&self) -> PathBuf {
+        self.dir.join("config.json")
+    }
+
+    /// `model.bpk`: the model weights (burnpack).
+    pub fn weights(&self) -> PathBuf {
+        self.dir.join("model.bpk")
+    }
+
+    /// `scene.json`: how to rebuild the scene, its box and PCA basis.
+    pub fn scene(&self) -> PathBuf {
+        self.dir.join("scene.json")
+    }
+
+    /// `split.json`: training and held-out frame indices.
+    pub fn split(&self) -> PathBuf {
+        self.dir.join("split.json")
+    }
+
+    /// `metrics.jsonl`: one JSON object per logged training step.
+    pub fn metrics(&self) -> PathBuf {
+        self.dir.join("metrics.jsonl")
+    }
+
+    /// `summary.json`: final training figures.
+    pub fn summary(&self) -> PathBuf {
+        self.dir.join("summary.json")
+    }
+
+    /// `renders/`: images written during and after training.
+    pub fn renders(&self) -> PathBuf {
+        self.dir.join("renders")
+    }
+
+    /// `checkpoints/`: intermediate weights.
+    pub fn checkpoints(&self) -> PathBuf {
+        self.dir.join("checkpoints")
+    }
+
+    /// `segmentation.json`: the default output of the `segment` command.
+    pub fn segmentation(&self) -> PathBuf {
+        self.dir.join("segmentation.json")
+    }
+}
+
+/// Which frames of the scene were trained on and which were held out.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Split {
+    /// Indices of the training frames.
+    pub train: Vec<usize>,
+    /// Indices of the held-out frames.
+    pub heldout: Vec<usize>,
+}
+
+/// A trained run loaded back into memory.
+#[derive(Debug)]
+pub struct LoadedRun {
+    /// The field with its trained weights.
+    pub model: OpenNerf,
+    /// The model configuration it was built from.
+    pub config: OpenNerfConfig,
+    /// What the run recorded about its scene.
+    pub meta: SceneMeta,
+    /// The train / held-out split.
+    pub split: Split,
+    /// The run directory.
+    pub dir: RunDir,
+}
+
+/// Reads and parses a JSON file into `T`, naming the file in every error.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, EvalError> {
+    let text = read_text(path)?;
+    serde_json::from_str(&text).map_err(|e| EvalError::json(path, e))
+}
+
+/// Writes `value` as pretty JSON to `path`.
+pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), EvalError> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| EvalError::json(path, e))?;
+    std::fs::write(path, text).map_err(|e| EvalError::io(path, e))
+}
+
+fn read_text(path: &Path) -> Result<String, EvalError> {
+    std::fs::read_to_string(path).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::NotFound {
+            EvalError::Missing {
+                path: path.to_path_buf(),
+                what: "required file of a run directory".into(),
+            }
+        } else {
+            EvalError::io(path, e)
+        }
+    })
+}
+
+/// The model configuration stored under the `"model"` key of `config.json`.
+pub fn read_model_config(path: &Path) -> Result<OpenNerfConfig, EvalError> {
+    let value: serde_json::Value = read_json(path)?;
+    let model = value
+        .get("model")
+        .ok_or_else(|| EvalError::json(path, "no top-level \"model\" key"))?;
+    serde_json::from_value(model.clone()).map_err(|e| EvalError::json(path, format!("model: {e}")))
+}
+
+/// Loads a trained run: configuration, weights, scene metadata and split.
+///
+/// The split file is optional (an empty split is used without it), so runs
+/// exported without one can still be rendered and segmented.
+pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
+    let run = RunDir::new(dir);
+    let config = read_model_config(&run.config())?;
+    let meta: SceneMeta = read_json(&run.scene())?;
+    let split = if run.split().exists() {
+        read_json(&run.split())?
+    } else {
+        Split::default()
+    };
+    let weights = run.weights();
+    if !weights.exists() {
+        return Err(EvalError::Missing {
+            path: weights,
+            what: "model weights (burnpack)".into(),
+        });
+    }
+    let model = config
+        .init(device)
+        .try_load_file(&weights)
+        .map_err(|e| EvalError::Weights {
+            path: weights.clone(),
+            message: e.to_string(),
+        })?;
+    Ok(LoadedRun {
+        model,
+        config,
+        meta,
+        split,
+        dir: run,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_dir_paths() {
+        let r = RunDir::new("/tmp/x");
+        assert_eq!(r.config(), PathBuf::from("/tmp/x/config.json"));
+        assert_eq!(r.weights(), PathBuf::from("/tmp/x/model.bpk"));
+        assert_eq!(r.scene(), PathBuf::from("/tmp/x/scene.json"));
+        assert_eq!(r.split(), PathBuf::from("/tmp/x/split.json"));
+    }
+
+    #[test]
+    fn missing_run_is_a_typed_error_naming_the_file() {
+        let dir = std::env::temp_dir().join("eval-missing-run-dir-does-not-exist");
+        let err = load_run(&dir, &Device::flex()).unwrap_err();
+        match err {
+            EvalError::Missing { path, .. } => assert!(path.ends_with("config.json")),
+            other => panic!("unexpected error {other}"),
+        }
+    }
+
+    #[test]
+    fn config_without_model_key_is_rejected() {
+        let dir = std::env::temp_dir().join(format!("eval-run-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("config.json");
+        std::fs::write(&path, r#"{"iterations": 3}"#).unwrap();
+        let err = read_model_config(&path).unwrap_err();
+        assert!(err.to_string().contains("model"), "{err}");
+        std::fs::write(&path, "{not json").unwrap();
+        assert!(matches!(read_model_config(&path), Err(EvalError::Json { .. })));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

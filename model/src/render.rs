@@ -1,0 +1,123 @@
+//! Volume-rendering compositing in the numerically stable form: the
+//! transmittance is `exp` of an exclusive cumulative sum of optical depths,
+//! never a product of `1 - alpha` or a `log(1 - alpha)`, so it stays exact for
+//! densities from 0 to 1e10 and for zero-length intervals.
+
+use burn::tensor::{Tensor, TensorData};
+
+/// Floor on the accumulated opacity when normalising the expected depth.
+pub const DEPTH_ACC_EPS: f32 = 1e-10;
+
+/// Result of compositing one level.
+#[derive(Debug, Clone)]
+pub struct Composite {
+    /// Compositing weights `w_i = alpha_i T_i`, `[rays, samples]`.
+    pub weights: Tensor<2>,
+    /// Colour, with `(1 - acc) * background` when a background is given, `[rays, 3]`.
+    pub rgb: Tensor<2>,
+    /// Expected metric depth `sum w t_mid / max(acc, eps)`, `[rays, 1]`.
+    pub depth: Tensor<2>,
+    /// Accumulated opacity `sum w`, `[rays, 1]`.
+    pub acc: Tensor<2>,
+}
+
+/// Compositing weights from densities and fence posts.
+///
+/// `delta_i = (t_{i+1} - t_i) |d|`, `tau_i = sigma_i delta_i`,
+/// `T_i = exp(-sum_{j<i} tau_j)`, `w_i = (1 - exp(-tau_i)) T_i`.
+///
+/// # Shapes
+/// - `density`: `[rays, samples]`, non-negative.
+/// - `t_vals`: `[rays, samples + 1]`.
+/// - `dir_norm`: `[rays, 1]` length of the (unnormalised) direction.
+/// - output: `[rays, samples]`.
+pub fn compute_weights(density: Tensor<2>, t_vals: Tensor<2>, dir_norm: Tensor<2>) -> Tensor<2> {
+    let [rays, s] = density.dims();
+    let delta = t_vals
+        .clone()
+        .slice_dim(1, 1..s + 1)
+        .sub(t_vals.slice_dim(1, 0..s))
+        .mul(dir_norm);
+    let tau = density.mul(delta);
+    let alpha = tau.clone().neg().exp().neg().add_scalar(1.0);
+    // Exclusive scan by shifting (an inclusive scan minus tau would cancel
+    // catastrophically after a huge tau).
+    let device = tau.device();
+    let exclusive = if s > 1 {
+        Tensor::cat(
+            vec![
+                Tensor::zeros([rays, 1], &device),
+                tau.slice_dim(1, 0..s - 1).cumsum(1),
+            ],
+            1,
+        )
+    } else {
+        Tensor::zeros([rays, 1], &device)
+    };
+    alpha.mul(exclusive.neg().exp())
+}
+
+/// Midpoints of consecutive fence posts.
+///
+/// # Shapes
+/// - `t_vals`: `[rays, samples + 1]`; output: `[rays, samples]`.
+pub fn t_mids(t_vals: Tensor<2>) -> Tensor<2> {
+    let [_, posts] = t_vals.dims();
+    t_vals
+        .clone()
+        .slice_dim(1, 0..posts - 1)
+        .add(t_vals.slice_dim(1, 1..posts))
+        .mul_scalar(0.5)
+}
+
+/// Composites per-sample values `[rays, samples, c]` with `weights`
+/// `[rays, samples]` into `[rays, c]` (`sum_i w_i v_i`).
+pub fn composite_values(weights: Tensor<2>, values: Tensor<3>) -> Tensor<2> {
+    let [rays, _, c] = values.dims();
+    weights
+        .unsqueeze_dim::<3>(1)
+        .matmul(values)
+        .reshape([rays, c])
+}
+
+/// Composites features with given weights, which are detached first so that
+/// the feature loss never reaches density.
+///
+/// # Shapes
+/// - `weights`: `[rays, samples]`; `features`: `[rays, samples, c]`.
+/// - output: `[rays, c]`.
+pub fn composite_features(weights: Tensor<2>, features: Tensor<3>) -> Tensor<2> {
+    composite_values(weights.detach(), features)
+}
+
+/// Full compositing of one level: weights, colour, depth and opacity.
+///
+/// # Shapes
+/// - `density`: `[rays, samples]`; `rgb`: `[rays, samples, 3]`.
+/// - `t_vals`: `[rays, samples + 1]`; `dir_norm`: `[rays, 1]`.
+pub fn composite(
+    density: Tensor<2>,
+    rgb: Tensor<3>,
+    t_vals: Tensor<2>,
+    dir_norm: Tensor<2>,
+    background: Option<[f32; 3]>,
+) -> Composite {
+    let weights = compute_weights(density, t_vals.clone(), dir_norm);
+    let acc = weights.clone().sum_dim(1);
+    let depth = weights
+        .clone()
+        .mul(t_mids(t_vals))
+        .sum_dim(1)
+        .div(acc.clone().clamp_min(DEPTH_ACC_EPS));
+    let mut color = composite_values(weights.clone(), rgb);
+    if let Some(bg) = background {
+        let bg = Tensor::from_data(TensorData::new(bg.to_vec(), [1, 3]), &color.device());
+        color = color.add(acc.clone().neg().add_scalar(1.0).mul(bg));
+    }
+    Composite {
+        weights,
+        rgb: color,
+        depth,
+        acc,
+    }
+}

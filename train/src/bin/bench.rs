@@ -1,0 +1,197 @@
+//! Training-step benchmark: rays/s, peak memory and achieved GFLOP/s of the
+//! MLP on flex and ndarray side by side, against a plain matrix-product
+//! ceiling measured in the same run, for the composited-hidden feature path
+//! with top-k head evaluation and for the plain per-sample path.
+//!
+//! `cargo run -p train --release --bin bench -- [--quick] [--steps N]`
+
+use std::time::Instant;
+
+use burn::optim::AdamConfig;
+use burn::tensor::{Device, Distribution, Tensor, TensorData};
+use clap::Parser;
+use model::geometry::NormalizedRay;
+use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays};
+use train::backend::{BackendKind, device, peak_memory_bytes};
+use train::batch::BatchTensors;
+use train::config::LossConfig;
+use train::step::{StepRates, train_step_from};
+
+/// Benchmark options.
+#[derive(Debug, Parser)]
+#[command(name = "bench", about = "Training-step throughput on the CPU backends")]
+struct Args {
+    /// Small sizes (256 rays x 32 samples, width 64, 64-d head) for a quick check.
+    #[arg(long)]
+    quick: bool,
+    /// Timed steps per case (after one untimed warm-up step).
+    #[arg(long, default_value_t = 2)]
+    steps: usize,
+    /// Samples whose weights feed the head in the composited path.
+    #[arg(long, default_value_t = 16)]
+    top_k: usize,
+    /// Backends to measure.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendKind::Flex, BackendKind::Ndarray])]
+    backends: Vec<BackendKind>,
+}
+
+/// Sizes of one case.
+#[derive(Debug, Clone, Copy)]
+struct Size {
+    rays: usize,
+    samples: usize,
+    width: usize,
+    depth: usize,
+    head_width: usize,
+    feature_dim: usize,
+}
+
+impl Size {
+    /// Multiply-add FLOPs (x2) of one forward pass of the MLP and head over
+    /// both levels; the backward pass costs twice that, hence x3 per step.
+    fn step_flops(&self, mlp: &MipMlpConfig, path: FeatureMode, top_k: usize) -> f64 {
+        let (w, s, n) = (self.width as f64, self.samples as f64, self.rays as f64);
+        let input = mlp.input_dim() as f64;
+        let view = mlp.view_dim() as f64;
+        let mut per_sample = input * w + (self.depth as f64 - 1.0) * w * w; // trunk
+        if mlp.skip_layer > 0 && mlp.skip_layer < self.depth {
+            per_sample += input * w; // skip injection
+        }
+        per_sample += w + w * w + w * (w / 2.0) + (w / 2.0) * 3.0; // density, bottleneck, view, rgb
+        let per_ray_view = view * (w / 2.0);
+        let hw = self.head_width as f64;
+        let hidden = w * hw + hw * hw; // two hidden head layers
+        let head = match path {
+            FeatureMode::None => 0.0,
+            FeatureMode::PerSample => s * n * (hidden + hw * self.feature_dim as f64),
+            FeatureMode::Composited => {
+                let k = if top_k > 0 { (top_k as f64).min(s) } else { s };
+                k * n * hidden + n * hw * self.feature_dim as f64
+            }
+        };
+        3.0 * 2.0 * (2.0 * (n * s * per_sample + n * per_ray_view) + head)
+    }
+}
+
+fn rays(n: usize, device: &Device, seed: u64) -> Rays {
+    let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
+    };
+    let v: Vec<NormalizedRay> = (0..n)
+        .map(|_| NormalizedRay {
+            origin: [next() * 2.0 - 1.0, next() * 2.0 - 1.0, -2.5],
+            direction: [next() - 0.5, next() - 0.5, 1.0],
+            radius: 0.003,
+            near: 0.2,
+            far: 4.5,
+        })
+        .collect();
+    Rays::from_normalized(&v, device)
+}
+
+/// Resets the peak-RSS counter (Linux `clear_refs` 5); ignored elsewhere.
+fn reset_peak() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// GFLOP/s of a `[4096, w] x [w, w]` product loop on `device`.
+fn matmul_ceiling(device: &Device, w: usize) -> f64 {
+    let a = Tensor::<2>::random([4096, w], Distribution::Default, device);
+    let b = Tensor::<2>::random([w, w], Distribution::Default, device);
+    let _ = a.clone().matmul(b.clone()).sum().into_scalar::<f32>();
+    let reps = 20;
+    let start = Instant::now();
+    let mut acc = Tensor::<1>::zeros([1], device);
+    for _ in 0..reps {
+        acc = acc + a.clone().matmul(b.clone()).sum();
+    }
+    let _ = acc.into_scalar::<f32>();
+    let secs = start.elapsed().as_secs_f64();
+    reps as f64 * 2.0 * 4096.0 * (w * w) as f64 / secs / 1e9
+}
+
+fn main() {
+    let args = Args::parse();
+    let size = if args.quick {
+        Size { rays: 256, samples: 32, width: 64, depth: 4, head_width: 64, feature_dim: 64 }
+    } else {
+        Size { rays: 1024, samples: 64, width: 256, depth: 8, head_width: 256, feature_dim: 768 }
+    };
+    let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
+    let mlp = MipMlpConfig::new()
+        .with_width(size.width)
+        .with_depth(size.depth)
+        .with_skip_layer(skip);
+    println!(
+        "step: {} rays x {}+{} samples, trunk {} x {}, head 2 x {} -> {}, Adam; {} timed steps",
+        size.rays, size.samples, size.samples, size.depth, size.width, size.head_width,
+        size.feature_dim, args.steps
+    );
+    println!(
+        "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
+        "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
+    );
+    for &backend in &args.backends {
+        let plain = device(backend, None);
+        let ceiling = matmul_ceiling(&plain, size.width);
+        let ad = plain.clone().autodiff();
+        for (label, path, top_k) in [
+            ("composited + top-k", FeatureMode::Composited, args.top_k),
+            ("per-sample (plain)", FeatureMode::PerSample, 0),
+        ] {
+            reset_peak();
+            ad.seed(0);
+            let config = OpenNerfConfig::new(
+                FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width),
+            )
+            .with_mlp(mlp.clone())
+            .with_num_samples(size.samples)
+            .with_head_top_k((top_k > 0).then_some(top_k));
+            let mut model = config.init(&ad);
+            let mut optim = AdamConfig::new().init();
+            let n = size.rays;
+            let target = |c: usize| {
+                Tensor::<2>::from_data(
+                    TensorData::new(vec![0.5f32; n * c], [n, c]),
+                    &ad,
+                )
+            };
+            let batch = BatchTensors {
+                rays: rays(n, &ad, 1),
+                rgb: target(3),
+                depth: None,
+                feature: Some(target(size.feature_dim)),
+            };
+            let rates = StepRates { base: 1e-4, head: 1e-4 };
+            let mut times = Vec::new();
+            for step in 0..=args.steps {
+                let start = Instant::now();
+                let out = model.render_with(&batch.rays, true, None, path);
+                let (next, report) =
+                    train_step_from(model, &mut optim, out, &batch, &LossConfig::default(), rates);
+                model = next;
+                let secs = start.elapsed().as_secs_f64();
+                assert!(report.applied, "benchmark step produced a non-finite loss");
+                if step > 0 {
+                    times.push(secs);
+                }
+            }
+            let secs = times.iter().sum::<f64>() / times.len().max(1) as f64;
+            let flops = size.step_flops(&mlp, path, top_k);
+            println!(
+                "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
+                backend.name(),
+                if top_k > 0 { format!("{label} (k={top_k})") } else { label.to_string() },
+                secs,
+                n as f64 / secs,
+                flops / 1e9,
+                flops / secs / 1e9,
+                ceiling,
+                peak_memory_bytes().unwrap_or(0) as f64 / 1e6
+            );
+        }
+    }
+    println!("matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device", w = size.width);
+}

@@ -1,0 +1,279 @@
+//! Checkpoint files: model weights, optimiser state and the training
+//! position in one self-checking file, written atomically.
+//!
+//! Layout (all integers little-endian):
+//!
+//! ```text
+//! magic "ONERFCK1" | u64 state_len | u64 model_len | u64 optim_len | u64 checksum
+//! state (JSON) | model (burnpack bytes) | optimiser (burnpack bytes)
+//! ```
+//!
+//! The checksum is FNV-1a (64 bit) over everything after the header, so a
+//! truncated file or one overwritten with garbage is reported as corrupt
+//! before any of it is decoded.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+
+const MAGIC: &[u8; 8] = b"ONERFCK1";
+const HEADER_LEN: usize = 8 + 4 * 8;
+/// File extension of checkpoint files.
+pub const EXTENSION: &str = "onck";
+
+/// Where the training loop stood when the checkpoint was taken.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CheckpointState {
+    /// Iterations completed (the next step to run has this index).
+    pub iteration: usize,
+    /// Base seed of the run; the ray sampler and the stratified jitter of
+    /// iteration `i` are seeded from `(seed, i)`, so this plus `iteration`
+    /// is the whole sampler position.
+    pub seed: u64,
+    /// Steps skipped so far because of a non-finite loss or gradient.
+    pub skipped_steps: usize,
+    /// Wall-clock seconds of the run before this checkpoint (training,
+    /// periodic evaluations and checkpoints).
+    pub wall_seconds: f64,
+    /// Of those, seconds spent in training steps.
+    pub train_seconds: f64,
+    /// Rays processed before this checkpoint.
+    pub rays_processed: u64,
+}
+
+/// A decoded checkpoint: position plus the two serialised records.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checkpoint {
+    /// Training position.
+    pub state: CheckpointState,
+    /// Model record (burnpack bytes from `Module::into_record().into_bytes()`).
+    pub model: Vec<u8>,
+    /// Optimiser record (burnpack bytes from `ModuleOptimizer::into_bytes()`).
+    pub optimizer: Vec<u8>,
+}
+
+/// FNV-1a, 64 bit: cheap and good enough to catch truncation and garbage.
+fn fnv1a(parts: &[&[u8]]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for part in parts {
+        for &b in *part {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+impl Checkpoint {
+    /// Serialises the checkpoint to its on-disk form.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        // Serialising a plain struct of numbers cannot fail.
+        let state = serde_json::to_vec(&self.state).unwrap_or_default();
+        let mut out =
+            Vec::with_capacity(HEADER_LEN + state.len() + self.model.len() + self.optimizer.len());
+        out.extend_from_slice(MAGIC);
+        for len in [state.len(), self.model.len(), self.optimizer.len()] {
+            out.extend_from_slice(&(len as u64).to_le_bytes());
+        }
+        let sum = fnv1a(&[&state, &self.model, &self.optimizer]);
+        out.extend_from_slice(&sum.to_le_bytes());
+        out.extend_from_slice(&state);
+        out.extend_from_slice(&self.model);
+        out.extend_from_slice(&self.optimizer);
+        out
+    }
+
+    /// Parses and verifies the on-disk form; `path` is only used in errors.
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, TrainError> {
+        let bad = |m: String| TrainError::checkpoint(path, m);
+        if bytes.len() < HEADER_LEN {
+            return Err(bad(format!(
+                "file is {} bytes, shorter than the {HEADER_LEN}-byte header (truncated?)",
+                bytes.len()
+            )));
+        }
+        if &bytes[..8] != MAGIC {
+            return Err(bad("not a checkpoint file (bad magic bytes)".into()));
+        }
+        let word = |i: usize| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&bytes[8 + 8 * i..16 + 8 * i]);
+            u64::from_le_bytes(b)
+        };
+        let (state_len, model_len, optim_len, sum) = (word(0), word(1), word(2), word(3));
+        let body = (bytes.len() - HEADER_LEN) as u64;
+        let expected = state_len
+            .checked_add(model_len)
+            .and_then(|v| v.checked_add(optim_len));
+        if expected != Some(body) {
+            return Err(bad(format!(
+                "header announces {state_len} + {model_len} + {optim_len} bytes but the file holds {body} (truncated or overwritten)"
+            )));
+        }
+        let (s, m) = (state_len as usize, model_len as usize);
+        let rest = &bytes[HEADER_LEN..];
+        let (state, rest) = rest.split_at(s);
+        let (model, optimizer) = rest.split_at(m);
+        if fnv1a(&[state, model, optimizer]) != sum {
+            return Err(bad("checksum mismatch (file damaged)".into()));
+        }
+        let state: CheckpointState = serde_json::from_slice(state)
+            .map_err(|e| bad(format!("training state is not valid JSON: {e}")))?;
+        Ok(Self {
+            state,
+            model: model.to_vec(),
+            optimizer: optimizer.to_vec(),
+        })
+    }
+
+    /// Writes the checkpoint to `path` atomically: a temporary file in the
+    /// same directory is written, flushed to disk and renamed over `path`,
+    /// so a crash never leaves a half-written checkpoint under the real name.
+    pub fn write(&self, path: &Path) -> Result<(), TrainError> {
+        write_atomic(path, &self.to_bytes())
+    }
+
+    /// Reads and verifies the checkpoint at `path`.
+    pub fn read(path: &Path) -> Result<Self, TrainError> {
+        let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e))?;
+        Self::from_bytes(&bytes, path)
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+    let dir = path.parent().unwrap_or_else(|| Path::new("."));
+    std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "file".into());
+    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(TrainError::io(&tmp, e));
+    }
+    std::fs::rename(&tmp, path).map_err(|e| TrainError::io(path, e))
+}
+
+/// The checkpoint file name for `iteration` inside `dir`
+/// (`ckpt-00001200.onck`; zero-padded so names sort by iteration).
+pub fn checkpoint_path(dir: &Path, iteration: usize) -> PathBuf {
+    dir.join(format!("ckpt-{iteration:08}.{EXTENSION}"))
+}
+
+/// All checkpoints in `dir` with their iteration, oldest first.
+pub fn list_checkpoints(dir: &Path) -> Result<Vec<(usize, PathBuf)>, TrainError> {
+    if !dir.exists() {
+        return Ok(Vec::new());
+    }
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| TrainError::io(dir, e))? {
+        let path = entry.map_err(|e| TrainError::io(dir, e))?.path();
+        let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+            continue;
+        };
+        let iteration = name
+            .strip_prefix("ckpt-")
+            .and_then(|n| n.strip_suffix(&format!(".{EXTENSION}")))
+            .and_then(|n| n.parse::<usize>().ok());
+        if let Some(i) = iteration {
+            found.push((i, path));
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// Deletes all but the newest `keep` checkpoints in `dir` (keeping at least
+/// one earlier good checkpoint next to the newest one guards against a
+/// damaged newest file).
+pub fn prune_checkpoints(dir: &Path, keep: usize) -> Result<(), TrainError> {
+    let all = list_checkpoints(dir)?;
+    let n = all.len().saturating_sub(keep.max(1));
+    for (_, path) in &all[..n] {
+        std::fs::remove_file(path).map_err(|e| TrainError::io(path, e))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Checkpoint {
+        Checkpoint {
+            state: CheckpointState {
+                iteration: 40,
+                seed: 7,
+                skipped_steps: 1,
+                wall_seconds: 2.5,
+                train_seconds: 2.0,
+                rays_processed: 1 << 20,
+            },
+            model: (0..=255u8).cycle().take(1000).collect(),
+            optimizer: vec![9; 77],
+        }
+    }
+
+    fn tmpdir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("train-ckpt-{tag}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn roundtrip_through_a_file() {
+        let d = tmpdir("rt");
+        let p = checkpoint_path(&d, 40);
+        sample().write(&p).unwrap();
+        assert_eq!(Checkpoint::read(&p).unwrap(), sample());
+        // No temporary file is left behind.
+        assert_eq!(std::fs::read_dir(&d).unwrap().count(), 1);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn every_truncation_and_a_flipped_byte_are_rejected() {
+        let bytes = sample().to_bytes();
+        let p = Path::new("/x/ckpt.onck");
+        for cut in [0, 7, HEADER_LEN - 1, HEADER_LEN, bytes.len() / 2, bytes.len() - 1] {
+            let err = Checkpoint::from_bytes(&bytes[..cut], p).unwrap_err();
+            assert!(err.to_string().contains("/x/ckpt.onck"), "{err}");
+        }
+        for pos in [3, HEADER_LEN + 2, bytes.len() - 5] {
+            let mut b = bytes.clone();
+            b[pos] ^= 0x5a;
+            assert!(matches!(
+                Checkpoint::from_bytes(&b, p),
+                Err(TrainError::Checkpoint { .. })
+            ));
+        }
+        let garbage: Vec<u8> = (0..500u32).map(|i| (i * 31 % 251) as u8).collect();
+        assert!(Checkpoint::from_bytes(&garbage, p).is_err());
+    }
+
+    #[test]
+    fn listing_sorts_by_iteration_and_pruning_keeps_the_newest() {
+        let d = tmpdir("list");
+        for i in [300, 20, 1000] {
+            sample().write(&checkpoint_path(&d, i)).unwrap();
+        }
+        std::fs::write(d.join("notes.txt"), "x").unwrap();
+        let its: Vec<usize> = list_checkpoints(&d).unwrap().iter().map(|c| c.0).collect();
+        assert_eq!(its, vec![20, 300, 1000]);
+        prune_checkpoints(&d, 2).unwrap();
+        let its: Vec<usize> = list_checkpoints(&d).unwrap().iter().map(|c| c.0).collect();
+        assert_eq!(its, vec![300, 1000]);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}

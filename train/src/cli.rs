@@ -1,0 +1,200 @@
+//! The command line of the `train` binary.
+
+use std::path::PathBuf;
+
+use clap::Parser;
+
+use crate::backend::BackendKind;
+
+/// Which kind of scene to train on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum DatasetKind {
+    /// The built-in generated room (no files needed).
+    #[default]
+    Synthetic,
+    /// Nice-SLAM Replica (`results/`, `traj.txt`, `cam_params.json`).
+    Replica,
+    /// Blender / nerfstudio `transforms*.json`.
+    Blender,
+    /// LLFF `poses_bounds.npy` with `images_N/`.
+    Llff,
+}
+
+impl DatasetKind {
+    /// Lower-case name as used on the command line and in run names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Synthetic => "synthetic",
+            Self::Replica => "replica",
+            Self::Blender => "blender",
+            Self::Llff => "llff",
+        }
+    }
+}
+
+/// Size preset of the synthetic scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum SceneSizeArg {
+    /// Small: what the tests and the default run use.
+    #[default]
+    Ci,
+    /// Larger, for benchmarks.
+    Bench,
+}
+
+/// An image size `WxH`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Resolution {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl std::str::FromStr for Resolution {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let (w, h) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| format!("expected WxH (e.g. 320x180), got {s:?}"))?;
+        let parse = |v: &str| {
+            v.trim()
+                .parse::<u32>()
+                .ok()
+                .filter(|&n| n > 0)
+                .ok_or_else(|| format!("expected a positive integer in {s:?}, got {v:?}"))
+        };
+        Ok(Self {
+            width: parse(w)?,
+            height: parse(h)?,
+        })
+    }
+}
+
+/// Train an OpenNeRF field (colour, depth and an open-set feature head) on a
+/// posed capture or on the built-in synthetic room.
+///
+/// Without arguments it trains a small model on the synthetic CI scene for a
+/// few minutes on the CPU and prints where the results are.
+#[derive(Debug, Clone, Parser)]
+#[command(name = "train", version, about, long_about = None)]
+pub struct Cli {
+    /// Compute backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
+    pub backend: BackendKind,
+    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
+    #[arg(long)]
+    pub device: Option<usize>,
+
+    /// Scene source.
+    #[arg(long, value_enum, default_value_t = DatasetKind::Synthetic)]
+    pub dataset: DatasetKind,
+    /// Scene directory (required for replica, blender, llff).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Synthetic scene: generator seed.
+    #[arg(long, default_value_t = 0)]
+    pub scene_seed: u64,
+    /// Synthetic scene: size preset.
+    #[arg(long, value_enum, default_value_t = SceneSizeArg::Ci)]
+    pub scene_size: SceneSizeArg,
+    /// Feature maps (`.npy` directory or stacked file) for a scene on disk [default: none].
+    #[arg(long)]
+    pub features: Option<PathBuf>,
+    /// Keep every Nth frame of the capture [default: the loader's].
+    #[arg(long)]
+    pub stride: Option<usize>,
+    /// Resize images to WxH (intrinsics scaled) [default: the loader's].
+    #[arg(long, conflicts_with = "downscale")]
+    pub resolution: Option<Resolution>,
+    /// Divide the image size by N [default: the loader's].
+    #[arg(long)]
+    pub downscale: Option<u32>,
+    /// Hold out every Nth frame (frames 0, N, 2N, ...) for evaluation; 0 = none.
+    #[arg(long, default_value_t = 8)]
+    pub holdout_every: usize,
+
+    /// Full training configuration (JSON: model, sampler, losses, optimiser,
+    /// schedule, logging) [default: built-in, sized for a 2-core CPU].
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Override: total training iterations (the schedule's length).
+    #[arg(long)]
+    pub iters: Option<usize>,
+    /// Override: rays per batch.
+    #[arg(long)]
+    pub rays: Option<usize>,
+    /// Override: samples per ray at each level (coarse and fine).
+    #[arg(long)]
+    pub samples: Option<usize>,
+    /// Override: width of the MLP trunk.
+    #[arg(long)]
+    pub width: Option<usize>,
+    /// Override: number of trunk layers.
+    #[arg(long)]
+    pub depth: Option<usize>,
+    /// Override: weight of the open-set feature loss.
+    #[arg(long)]
+    pub lambda_open: Option<f32>,
+    /// Override: weight of the depth loss (0 disables it).
+    #[arg(long)]
+    pub lambda_depth: Option<f32>,
+    /// Override: initial learning rate (the final rate keeps its ratio to it).
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Override: seed of the initialisation, the ray sampler and the jitter.
+    #[arg(long)]
+    pub seed: Option<u64>,
+
+    /// Stop cleanly after this many seconds of training, then evaluate and save.
+    #[arg(long)]
+    pub time_budget: Option<f64>,
+    /// Stop cleanly after this iteration although the schedule is longer
+    /// (e.g. to be resumed later with the same schedule).
+    #[arg(long)]
+    pub stop_at: Option<usize>,
+    /// Run directory [default: runs/<dataset>-<unix time>].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Continue the run in DIR from its newest checkpoint (same configuration,
+    /// schedule and sampler stream; `--iters`, `--time-budget` and `--stop-at`
+    /// may be given, other options are taken from the run).
+    #[arg(long, conflicts_with_all = ["config", "out", "data"])]
+    pub resume: Option<PathBuf>,
+    /// No progress bar (log lines only).
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn resolution_parses_and_rejects() {
+        let r: Resolution = "320x180".parse().unwrap();
+        assert_eq!((r.width, r.height), (320, 180));
+        assert!("320".parse::<Resolution>().is_err());
+        assert!("0x10".parse::<Resolution>().is_err());
+        assert!("ax10".parse::<Resolution>().is_err());
+    }
+
+    #[test]
+    fn cli_is_consistent_and_defaults_to_synthetic_flex() {
+        Cli::command().debug_assert();
+        let cli = Cli::try_parse_from(["train"]).unwrap();
+        assert_eq!(cli.backend, BackendKind::Flex);
+        assert_eq!(cli.dataset, DatasetKind::Synthetic);
+        assert!(cli.resume.is_none());
+        let cli = Cli::try_parse_from([
+            "train", "--dataset", "blender", "--data", "/d", "--downscale", "8", "--iters",
+            "100", "--backend", "ndarray",
+        ])
+        .unwrap();
+        assert_eq!(cli.downscale, Some(8));
+        assert_eq!(cli.iters, Some(100));
+        assert_eq!(cli.backend, BackendKind::Ndarray);
+        assert!(Cli::try_parse_from(["train", "--resolution", "1x1", "--downscale", "2"]).is_err());
+    }
+}

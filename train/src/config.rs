@@ -1,0 +1,380 @@
+//! The full training configuration (`config.json` of a run directory) and
+//! its presets.
+
+use std::path::Path;
+
+use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+use crate::schedule::ScheduleConfig;
+
+/// How training rays are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SamplerSettings {
+    /// Rays per batch.
+    pub rays_per_batch: usize,
+    /// Pixels within this distance of the image border are never drawn.
+    pub border_margin: u32,
+    /// Lower bound on the ray parameter (metres), keeping samples off the lens.
+    pub min_near: f64,
+}
+
+impl Default for SamplerSettings {
+    fn default() -> Self {
+        Self {
+            rays_per_batch: 256,
+            border_margin: 10,
+            min_near: 0.05,
+        }
+    }
+}
+
+/// Weights of the loss terms (SPEC 4).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LossConfig {
+    /// Weight of the open-set cosine loss.
+    pub lambda_open: f32,
+    /// Weight of the depth Huber loss (0 = off).
+    pub lambda_depth: f32,
+    /// Weight of the coarse level's colour and depth terms.
+    pub coarse_weight: f32,
+    /// Huber threshold in metres.
+    pub huber_delta: f32,
+}
+
+impl Default for LossConfig {
+    fn default() -> Self {
+        Self {
+            lambda_open: 1.0,
+            lambda_depth: 0.1,
+            coarse_weight: 0.1,
+            huber_delta: 0.2,
+        }
+    }
+}
+
+/// Adam settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct OptimiserConfig {
+    /// First-moment decay.
+    pub beta_1: f32,
+    /// Second-moment decay.
+    pub beta_2: f32,
+    /// Denominator floor.
+    pub epsilon: f32,
+    /// The feature head's learning rate relative to the scheduled rate (the
+    /// head only sees the detached trunk, so it can take larger steps).
+    pub head_lr_scale: f64,
+}
+
+impl Default for OptimiserConfig {
+    fn default() -> Self {
+        Self {
+            beta_1: 0.9,
+            beta_2: 0.999,
+            epsilon: 1e-8,
+            head_lr_scale: 1.0,
+        }
+    }
+}
+
+/// How often the loop logs, evaluates and saves.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LoggingConfig {
+    /// A `metrics.jsonl` line every this many iterations.
+    pub log_every: usize,
+    /// A held-out evaluation every this many iterations (0 = only at the start and end).
+    pub eval_every: usize,
+    /// A checkpoint every this many iterations (0 = only at the end).
+    pub checkpoint_every: usize,
+    /// Checkpoints kept (the newest ones).
+    pub keep_checkpoints: usize,
+    /// Held-out pixels measured by the periodic evaluation.
+    pub eval_pixels: usize,
+    /// Rays rendered at once at inference.
+    pub render_chunk: usize,
+    /// Consecutive non-finite steps tolerated before training stops.
+    pub max_nonfinite_steps: usize,
+}
+
+impl Default for LoggingConfig {
+    fn default() -> Self {
+        Self {
+            log_every: 25,
+            eval_every: 500,
+            checkpoint_every: 500,
+            keep_checkpoints: 2,
+            eval_pixels: 2048,
+            render_chunk: 2048,
+            max_nonfinite_steps: 20,
+        }
+    }
+}
+
+/// Everything a run is configured by; serialised as `config.json` (the
+/// `"model"` key is what evaluation reads back).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TrainConfig {
+    /// The field.
+    pub model: OpenNerfConfig,
+    /// Ray batches.
+    #[serde(default)]
+    pub sampler: SamplerSettings,
+    /// Loss weights.
+    #[serde(default)]
+    pub losses: LossConfig,
+    /// Adam.
+    #[serde(default)]
+    pub optimiser: OptimiserConfig,
+    /// Learning-rate schedule and length.
+    #[serde(default)]
+    pub schedule: ScheduleConfig,
+    /// Logging, evaluation and checkpoint cadence.
+    #[serde(default)]
+    pub logging: LoggingConfig,
+    /// Seed of the initialisation, the ray sampler and the stratified jitter.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// Command-line overrides applied on top of a configuration.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Overrides {
+    /// Total iterations.
+    pub iters: Option<usize>,
+    /// Rays per batch.
+    pub rays: Option<usize>,
+    /// Samples per ray per level.
+    pub samples: Option<usize>,
+    /// Trunk width.
+    pub width: Option<usize>,
+    /// Trunk depth.
+    pub depth: Option<usize>,
+    /// Open-set loss weight.
+    pub lambda_open: Option<f32>,
+    /// Depth loss weight.
+    pub lambda_depth: Option<f32>,
+    /// Initial learning rate.
+    pub lr: Option<f64>,
+    /// Seed.
+    pub seed: Option<u64>,
+}
+
+impl TrainConfig {
+    /// A small model that trains the CI-sized synthetic scene in about a
+    /// minute on two cores (tests). `feature_dim` is the head's output size
+    /// (0 when the scene has no features: the head is then kept minimal).
+    pub fn tiny(feature_dim: usize) -> Self {
+        let mlp = MipMlpConfig::new()
+            .with_width(64)
+            .with_depth(4)
+            .with_skip_layer(2)
+            .with_max_deg(10);
+        Self {
+            model: OpenNerfConfig::new(head_config(feature_dim, 64))
+                .with_mlp(mlp)
+                .with_num_samples(32),
+            sampler: SamplerSettings {
+                rays_per_batch: 256,
+                ..Default::default()
+            },
+            losses: LossConfig::default(),
+            optimiser: OptimiserConfig::default(),
+            schedule: ScheduleConfig {
+                iterations: 300,
+                lr_init: 5e-3,
+                lr_final: 5e-4,
+                warmup_iters: 20,
+                warmup_factor: 0.1,
+            },
+            logging: LoggingConfig {
+                log_every: 10,
+                eval_every: 100,
+                checkpoint_every: 100,
+                eval_pixels: 512,
+                ..Default::default()
+            },
+            seed: 0,
+        }
+    }
+
+    /// The default run (no arguments): a few minutes on a 2-core CPU.
+    pub fn default_run(feature_dim: usize) -> Self {
+        let mut c = Self::tiny(feature_dim);
+        c.model.mlp = c.model.mlp.clone().with_width(96).with_max_deg(12);
+        c.model.num_samples = 48;
+        c.schedule.iterations = 1500;
+        c.schedule.warmup_iters = 50;
+        c.logging = LoggingConfig {
+            log_every: 25,
+            eval_every: 250,
+            checkpoint_every: 500,
+            eval_pixels: 1024,
+            ..Default::default()
+        };
+        c
+    }
+
+    /// The paper-sized model (Mip-NeRF 8 x 256, 64 + 64 samples, 1024 rays,
+    /// head 2 x 256).
+    pub fn paper(feature_dim: usize) -> Self {
+        Self {
+            model: OpenNerfConfig::new(head_config(feature_dim, 256)),
+            sampler: SamplerSettings {
+                rays_per_batch: 1024,
+                ..Default::default()
+            },
+            losses: LossConfig::default(),
+            optimiser: OptimiserConfig::default(),
+            schedule: ScheduleConfig {
+                iterations: 200_000,
+                lr_init: 5e-4,
+                lr_final: 5e-6,
+                warmup_iters: 2500,
+                warmup_factor: 0.01,
+            },
+            logging: LoggingConfig::default(),
+            seed: 0,
+        }
+    }
+
+    /// Reads a configuration file; the `model.head.out_dim` it names is
+    /// replaced by the scene's feature dimension later.
+    pub fn from_file(path: &Path) -> Result<Self, TrainError> {
+        let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
+        serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))
+    }
+
+    /// Sets the head's output size to the scene's feature dimension (a
+    /// minimal head when the scene has no features).
+    pub fn set_feature_dim(&mut self, feature_dim: usize) {
+        if feature_dim == 0 {
+            self.model.head = head_config(0, 8);
+        } else {
+            self.model.head.out_dim = feature_dim;
+        }
+    }
+
+    /// Applies command-line overrides. A new initial rate keeps the ratio of
+    /// the final rate to it.
+    pub fn apply(&mut self, o: &Overrides) {
+        if let Some(v) = o.iters {
+            self.schedule.iterations = v;
+        }
+        if let Some(v) = o.rays {
+            self.sampler.rays_per_batch = v;
+        }
+        if let Some(v) = o.samples {
+            self.model.num_samples = v;
+        }
+        if let Some(v) = o.width {
+            self.model.mlp.width = v;
+        }
+        if let Some(v) = o.depth {
+            self.model.mlp.depth = v;
+        }
+        if let Some(v) = o.lambda_open {
+            self.losses.lambda_open = v;
+        }
+        if let Some(v) = o.lambda_depth {
+            self.losses.lambda_depth = v;
+        }
+        if let Some(v) = o.lr {
+            let ratio = self.schedule.lr_final / self.schedule.lr_init;
+            self.schedule.lr_init = v;
+            self.schedule.lr_final = v * ratio;
+        }
+        if let Some(v) = o.seed {
+            self.seed = v;
+        }
+    }
+
+    /// Checks ranges; the message names the offending key.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        let bad = |m: String| Err(TrainError::Config(m));
+        if self.sampler.rays_per_batch == 0 {
+            return bad("sampler.rays_per_batch must be at least 1".into());
+        }
+        if self.model.num_samples == 0 {
+            return bad("model.num_samples must be at least 1".into());
+        }
+        if self.model.mlp.width == 0 || self.model.mlp.depth == 0 {
+            return bad("model.mlp.width and model.mlp.depth must be at least 1".into());
+        }
+        for (k, v) in [
+            ("losses.lambda_open", self.losses.lambda_open),
+            ("losses.lambda_depth", self.losses.lambda_depth),
+            ("losses.coarse_weight", self.losses.coarse_weight),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{k} must be finite and non-negative, got {v}"));
+            }
+        }
+        if !(self.optimiser.head_lr_scale.is_finite() && self.optimiser.head_lr_scale > 0.0) {
+            return bad("optimiser.head_lr_scale must be positive".into());
+        }
+        if self.logging.render_chunk == 0 {
+            return bad("logging.render_chunk must be at least 1".into());
+        }
+        self.schedule.validate().map_err(TrainError::Config)
+    }
+}
+
+/// A head of `layers = 2` hidden layers of `width` with `out_dim` outputs
+/// (a one-layer, width-8 stub when there are no features).
+fn head_config(out_dim: usize, width: usize) -> FeatureHeadConfig {
+    if out_dim == 0 {
+        FeatureHeadConfig::new(1).with_width(8).with_layers(1)
+    } else {
+        FeatureHeadConfig::new(out_dim).with_width(width)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_roundtrip_and_partial_files_take_defaults() {
+        let c = TrainConfig::tiny(16);
+        let text = serde_json::to_string(&c).unwrap();
+        let back: TrainConfig = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.model.head.out_dim, 16);
+        assert_eq!(back.model.mlp.width, 64);
+        assert_eq!(back.schedule, c.schedule);
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert!(v.get("model").is_some());
+        let partial: TrainConfig =
+            serde_json::from_str(r#"{"model": {"head": {"out_dim": 4}}, "losses": {"lambda_open": 0.5}}"#)
+                .unwrap();
+        assert_eq!(partial.losses.lambda_open, 0.5);
+        assert_eq!(partial.losses.coarse_weight, 0.1);
+        assert_eq!(partial.model.num_samples, 64);
+        assert_eq!(partial.sampler.border_margin, 10);
+    }
+
+    #[test]
+    fn overrides_apply_and_validation_names_the_key() {
+        let mut c = TrainConfig::tiny(8);
+        c.apply(&Overrides {
+            iters: Some(7),
+            lr: Some(1e-2),
+            width: Some(32),
+            samples: Some(5),
+            ..Default::default()
+        });
+        assert_eq!(c.schedule.iterations, 7);
+        assert_eq!(c.model.mlp.width, 32);
+        assert_eq!(c.model.num_samples, 5);
+        assert!((c.schedule.lr_final - 1e-3).abs() < 1e-12);
+        c.validate().unwrap();
+        c.losses.lambda_depth = -1.0;
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains("losses.lambda_depth"), "{e}");
+    }
+}

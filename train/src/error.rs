@@ -1,0 +1,93 @@
+//! Typed errors of the training crate; every variant names the file or the
+//! input at fault.
+
+use std::path::{Path, PathBuf};
+
+/// Everything that can stop a training run.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// Reading or writing a file failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A JSON file could not be parsed or has the wrong shape.
+    #[error("{path}: invalid JSON: {message}")]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A checkpoint file is truncated, overwritten with garbage or does not
+    /// match the model it is loaded into.
+    #[error("{path}: corrupt or incompatible checkpoint: {message}")]
+    Checkpoint {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// The run directory given to `--resume` has no checkpoint.
+    #[error("{path}: no checkpoint to resume from (expected checkpoints/ckpt-*.onck)")]
+    NoCheckpoint {
+        /// The run directory.
+        path: PathBuf,
+    },
+    /// Too many consecutive steps had a non-finite loss or gradient.
+    #[error(
+        "training diverged: {count} consecutive steps with a non-finite loss or gradient \
+         (last at iteration {iteration}); the last good checkpoint is intact{}",
+        last_checkpoint.as_ref().map(|p| format!(" at {}", p.display())).unwrap_or_default()
+    )]
+    Diverged {
+        /// Consecutive non-finite steps.
+        count: usize,
+        /// Iteration of the last one.
+        iteration: usize,
+        /// The last checkpoint written, if any.
+        last_checkpoint: Option<PathBuf>,
+    },
+    /// A dataset could not be loaded.
+    #[error(transparent)]
+    Dataset(#[from] datasets::DatasetError),
+    /// Rendering or writing the evaluation outputs failed.
+    #[error(transparent)]
+    Eval(#[from] eval::error::EvalError),
+    /// An option or configuration value is out of range or inconsistent.
+    #[error("invalid configuration: {0}")]
+    Config(String),
+    /// The compute device could not be used.
+    #[error("device error: {0}")]
+    Device(String),
+}
+
+impl TrainError {
+    /// A [`TrainError::Io`] for `path`.
+    pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
+        Self::Io {
+            path: path.as_ref().to_path_buf(),
+            source,
+        }
+    }
+
+    /// A [`TrainError::Json`] for `path`.
+    pub fn json(path: impl AsRef<Path>, message: impl ToString) -> Self {
+        Self::Json {
+            path: path.as_ref().to_path_buf(),
+            message: message.to_string(),
+        }
+    }
+
+    /// A [`TrainError::Checkpoint`] for `path`.
+    pub fn checkpoint(path: impl AsRef<Path>, message: impl ToString) -> Self {
+        Self::Checkpoint {
+            path: path.as_ref().to_path_buf(),
+            message: message.to_string(),
+        }
+    }
+}

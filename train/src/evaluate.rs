@@ -1,0 +1,181 @@
+//! Held-out evaluation: a fixed pixel subset for the periodic checks during
+//! training, and full views (rendered with [`eval::render`]) at the end.
+
+use std::path::Path;
+
+use burn::tensor::Device;
+use datasets::Scene;
+use model::OpenNerf;
+use model::geometry::NormalizedRay;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::TrainError;
+use crate::metrics::{EvalAccumulator, EvalMetrics};
+
+/// A fixed set of held-out pixels with their targets, drawn once per run so
+/// that every periodic evaluation (and the one at initialisation) measures
+/// the same pixels.
+#[derive(Debug, Clone)]
+pub struct EvalPixels {
+    /// Normalised rays.
+    pub rays: Vec<NormalizedRay>,
+    /// Target colours.
+    pub rgb: Vec<[f32; 3]>,
+    /// Target z-depths (0 = invalid), when the scene has depth.
+    pub depth: Option<Vec<f32>>,
+    /// Target features, `rays.len() * dim` values, when the scene has features.
+    pub feature: Option<Vec<f32>>,
+}
+
+/// Draws up to `count` pixels (at least `margin` pixels from the border)
+/// uniformly from `frames` of `scene`, with a fixed `seed`.
+pub fn eval_pixels(
+    scene: &Scene,
+    frames: &[usize],
+    count: usize,
+    margin: u32,
+    min_near: f64,
+    seed: u64,
+) -> EvalPixels {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xe7a1_0000);
+    let has_depth = frames.iter().any(|&f| scene.frames[f].depth.is_some());
+    let mut out = EvalPixels {
+        rays: Vec::new(),
+        rgb: Vec::new(),
+        depth: has_depth.then(Vec::new),
+        feature: scene.features.as_ref().map(|_| Vec::new()),
+    };
+    if frames.is_empty() {
+        return out;
+    }
+    for _ in 0..count {
+        let f = frames[rng.random_range(0..frames.len())];
+        let frame = &scene.frames[f];
+        let (w, h) = (frame.rgb.width, frame.rgb.height);
+        let m = margin.min((w.saturating_sub(1)) / 2).min((h.saturating_sub(1)) / 2);
+        let x = rng.random_range(m..w - m);
+        let y = rng.random_range(m..h - m);
+        let ray = frame.camera.ray(x as f64, y as f64);
+        out.rays.push(scene.scene_box.normalize_ray(&ray, min_near));
+        out.rgb.push(frame.rgb.get(x, y));
+        if let Some(d) = out.depth.as_mut() {
+            d.push(frame.depth.as_ref().map_or(0.0, |img| img.get(x, y)));
+        }
+        if let (Some(fs), Some(dst)) = (scene.features.as_ref(), out.feature.as_mut()) {
+            let v = fs.maps[f].lookup(x as f64, y as f64, w, h);
+            dst.extend(v.iter().map(|h| h.to_f32()));
+        }
+    }
+    out
+}
+
+/// Lifts PCA coefficients to the full feature space when the scene's
+/// features were compressed (cosines are reported in the space the text
+/// embeddings live in); otherwise returns the input.
+pub fn lift_features(scene: &Scene, values: Vec<f32>) -> Vec<f32> {
+    match scene.features.as_ref().and_then(|f| f.pca.as_ref()) {
+        Some(pca) => pca.lift(&values),
+        None => values,
+    }
+}
+
+/// Renders the fixed pixels with `model` (an inference model, see
+/// `Module::valid`) and measures them.
+pub fn evaluate_pixels(
+    model: &OpenNerf,
+    scene: &Scene,
+    pixels: &EvalPixels,
+    chunk: usize,
+    device: &Device,
+) -> EvalMetrics {
+    let mut acc = EvalAccumulator::default();
+    let dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let mut start = 0;
+    for part in pixels.rays.chunks(chunk.max(1)) {
+        let rays = model::Rays::from_normalized(part, device);
+        let out = model.render_inference(&rays, chunk, scene.background).fine;
+        let rgb = eval::render::tensor_to_vec(out.rgb);
+        let depth = eval::render::tensor_to_vec(out.depth);
+        let feat = match (out.feature, pixels.feature.as_ref()) {
+            (Some(f), Some(_)) => Some(lift_features(scene, eval::render::tensor_to_vec(f))),
+            _ => None,
+        };
+        let target_feat = pixels.feature.as_ref().map(|t| {
+            lift_features(scene, t[start * dim..(start + part.len()) * dim].to_vec())
+        });
+        let full = scene.features.as_ref().map_or(0, |f| f.full_dim);
+        for i in 0..part.len() {
+            let g = start + i;
+            let d = pixels.depth.as_ref().map(|d| (depth[i], d[g]));
+            let f = match (&feat, &target_feat) {
+                (Some(f), Some(t)) => Some((&f[i * full..(i + 1) * full], &t[i * full..(i + 1) * full])),
+                _ => None,
+            };
+            acc.add(
+                [rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]],
+                pixels.rgb[g],
+                d,
+                f,
+            );
+        }
+        start += part.len();
+    }
+    acc.finish()
+}
+
+/// Renders every held-out view in full, writes its PNGs into `renders_dir`
+/// and returns the metrics over all their pixels.
+pub fn evaluate_views(
+    model: &OpenNerf,
+    scene: &Scene,
+    frames: &[usize],
+    chunk: usize,
+    device: &Device,
+    renders_dir: &Path,
+) -> Result<EvalMetrics, TrainError> {
+    let mut acc = EvalAccumulator::default();
+    for &f in frames {
+        let frame = &scene.frames[f];
+        let view = eval::render::render_view(
+            model,
+            &frame.camera,
+            &scene.scene_box,
+            scene.background,
+            chunk,
+            device,
+        );
+        eval::render::save_view_pngs(&view, renders_dir, &frame.name)?;
+        let (w, h) = (view.width, view.height);
+        let lifted = (view.feature_dim > 0).then(|| lift_features(scene, view.feature.clone()));
+        let full = scene.features.as_ref().map_or(0, |fs| fs.full_dim);
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y * w + x) as usize;
+                let depth = frame.depth.as_ref().map(|d| (view.depth[p], d.get(x, y)));
+                let target = scene
+                    .features
+                    .as_ref()
+                    .map(|fs| {
+                        let t: Vec<f32> = fs.maps[f]
+                            .lookup(x as f64, y as f64, w, h)
+                            .iter()
+                            .map(|v| v.to_f32())
+                            .collect();
+                        lift_features(scene, t)
+                    });
+                let feature = match (&lifted, &target) {
+                    (Some(l), Some(t)) => Some((&l[p * full..(p + 1) * full], t.as_slice())),
+                    _ => None,
+                };
+                acc.add(
+                    [view.rgb[3 * p], view.rgb[3 * p + 1], view.rgb[3 * p + 2]],
+                    frame.rgb.get(x, y),
+                    depth,
+                    feature,
+                );
+            }
+        }
+    }
+    Ok(acc.finish())
+}

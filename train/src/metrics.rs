@@ -1,0 +1,230 @@
+//! Plain-number metrics and the run's log files (`metrics.jsonl`,
+//! `summary.json`, `split.json`).
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::TrainError;
+
+/// PSNR in dB of a mean squared error of colours in `[0, 1]`.
+pub fn psnr(mse: f64) -> f64 {
+    -10.0 * mse.max(1e-20).log10()
+}
+
+/// Cosine similarity of two vectors; 0 when either has (near) zero norm.
+pub fn cosine(a: &[f32], b: &[f32]) -> f64 {
+    let (mut ab, mut aa, mut bb) = (0.0f64, 0.0f64, 0.0f64);
+    for (&x, &y) in a.iter().zip(b) {
+        let (x, y) = (x as f64, y as f64);
+        ab += x * y;
+        aa += x * x;
+        bb += y * y;
+    }
+    if aa <= 1e-24 || bb <= 1e-24 {
+        0.0
+    } else {
+        ab / (aa.sqrt() * bb.sqrt())
+    }
+}
+
+/// Running sums of the held-out metrics.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct EvalAccumulator {
+    /// Sum of squared colour errors over channels.
+    pub sq_err: f64,
+    /// Number of colour channel values summed.
+    pub rgb_values: u64,
+    /// Sum of absolute depth errors (metres) over pixels with valid depth.
+    pub depth_abs_err: f64,
+    /// Pixels with valid depth.
+    pub depth_pixels: u64,
+    /// Sum of feature cosine similarities.
+    pub cosine: f64,
+    /// Pixels with a non-zero feature target.
+    pub feature_pixels: u64,
+}
+
+impl EvalAccumulator {
+    /// Adds one pixel: rendered vs target colour, depth (`target <= 0` or
+    /// non-finite = no depth) and feature (`None` = no features).
+    pub fn add(
+        &mut self,
+        rgb: [f32; 3],
+        target_rgb: [f32; 3],
+        depth: Option<(f32, f32)>,
+        feature: Option<(&[f32], &[f32])>,
+    ) {
+        for k in 0..3 {
+            let d = (rgb[k] - target_rgb[k]) as f64;
+            self.sq_err += d * d;
+        }
+        self.rgb_values += 3;
+        if let Some((d, t)) = depth
+            && t > 0.0
+            && t.is_finite()
+        {
+            self.depth_abs_err += (d as f64 - t as f64).abs();
+            self.depth_pixels += 1;
+        }
+        if let Some((f, t)) = feature
+            && t.iter().any(|v| v.abs() > 1e-6)
+        {
+            self.cosine += cosine(f, t);
+            self.feature_pixels += 1;
+        }
+    }
+
+    /// The finished metrics.
+    pub fn finish(&self) -> EvalMetrics {
+        EvalMetrics {
+            psnr: psnr(self.sq_err / self.rgb_values.max(1) as f64),
+            depth_mae: (self.depth_pixels > 0)
+                .then(|| self.depth_abs_err / self.depth_pixels as f64),
+            feature_cosine: (self.feature_pixels > 0)
+                .then(|| self.cosine / self.feature_pixels as f64),
+            pixels: self.rgb_values / 3,
+        }
+    }
+}
+
+/// Held-out metrics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EvalMetrics {
+    /// Colour PSNR in dB.
+    pub psnr: f64,
+    /// Mean absolute depth error in metres (`None` without depth).
+    pub depth_mae: Option<f64>,
+    /// Mean cosine similarity of rendered vs target features (`None` without features).
+    pub feature_cosine: Option<f64>,
+    /// Pixels evaluated.
+    pub pixels: u64,
+}
+
+/// `summary.json`: the final figures of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Iterations completed.
+    pub iterations: usize,
+    /// Held-out PSNR (dB) over all pixels of the held-out views (or of the
+    /// training views when nothing is held out).
+    pub heldout_psnr: f64,
+    /// Held-out mean absolute depth error (metres), `null` without depth.
+    pub heldout_depth_mae: Option<f64>,
+    /// Held-out mean feature cosine similarity, `null` without features.
+    pub heldout_feature_cosine: Option<f64>,
+    /// Training wall-clock seconds (all sessions of a resumed run).
+    pub wall_seconds: f64,
+    /// Training rays per second (rays processed / training seconds).
+    pub rays_per_second: f64,
+    /// Peak resident memory of the process (`VmHWM`), bytes.
+    pub peak_memory_bytes: Option<u64>,
+    /// Held-out metrics of the untrained field (same pixels as the periodic
+    /// evaluations), for comparison.
+    pub initial_psnr: Option<f64>,
+    /// Feature cosine of the untrained field.
+    pub initial_feature_cosine: Option<f64>,
+    /// Steps skipped because of a non-finite loss or gradient.
+    pub skipped_steps: usize,
+    /// Backend used.
+    pub backend: String,
+    /// Held-out frame indices the figures refer to.
+    pub heldout_frames: Vec<usize>,
+}
+
+/// Frames `0, n, 2n, ...` are held out (none when `n` is 0 or there are
+/// fewer than two frames); the rest are trained on.
+pub fn split_frames(frames: usize, holdout_every: usize) -> eval::run::Split {
+    let mut split = eval::run::Split::default();
+    for i in 0..frames {
+        if holdout_every > 0 && frames > 1 && i % holdout_every == 0 {
+            split.heldout.push(i);
+        } else {
+            split.train.push(i);
+        }
+    }
+    split
+}
+
+/// Appends JSON lines to `metrics.jsonl`.
+#[derive(Debug)]
+pub struct MetricsLog {
+    path: PathBuf,
+    file: std::fs::File,
+}
+
+impl MetricsLog {
+    /// Opens (creating or appending to) the log at `path`.
+    pub fn open(path: &Path) -> Result<Self, TrainError> {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|e| TrainError::io(path, e))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            file,
+        })
+    }
+
+    /// Writes one JSON object as a line.
+    pub fn write(&mut self, value: &serde_json::Value) -> Result<(), TrainError> {
+        let mut line = value.to_string();
+        line.push('\n');
+        self.file
+            .write_all(line.as_bytes())
+            .map_err(|e| TrainError::io(&self.path, e))
+    }
+}
+
+/// Writes `value` as pretty JSON to `path` (atomically).
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| TrainError::json(path, e))?;
+    crate::checkpoint::write_atomic(path, text.as_bytes())
+}
+
+/// Reads a JSON file into `T`, naming the file in errors.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, TrainError> {
+    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn psnr_and_cosine_closed_forms() {
+        assert!((psnr(0.01) - 20.0).abs() < 1e-12);
+        assert!((psnr(1.0)).abs() < 1e-12);
+        assert!((cosine(&[1.0, 0.0], &[1.0, 1.0]) - 0.5f64.sqrt()).abs() < 1e-7);
+        assert_eq!(cosine(&[0.0, 0.0], &[1.0, 1.0]), 0.0);
+        assert!((cosine(&[2.0, -1.0], &[-4.0, 2.0]) + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn accumulator_skips_invalid_depth_and_zero_features() {
+        let mut acc = EvalAccumulator::default();
+        acc.add([0.5; 3], [0.6; 3], Some((2.0, 2.5)), Some((&[1.0, 0.0], &[1.0, 0.0])));
+        acc.add([0.5; 3], [0.4; 3], Some((2.0, 0.0)), Some((&[1.0, 0.0], &[0.0, 0.0])));
+        acc.add([0.5; 3], [0.5; 3], None, Some((&[1.0, 0.0], &[0.0, 1.0])));
+        let m = acc.finish();
+        // Squared errors: 3 * 0.01 twice, 0 once, over 9 values.
+        assert!((m.psnr - psnr(0.06 / 9.0)).abs() < 1e-9);
+        assert!((m.depth_mae.unwrap() - 0.5).abs() < 1e-12);
+        assert!((m.feature_cosine.unwrap() - 0.5).abs() < 1e-12);
+        assert_eq!(m.pixels, 3);
+        let empty = EvalAccumulator::default().finish();
+        assert!(empty.depth_mae.is_none() && empty.feature_cosine.is_none());
+    }
+
+    #[test]
+    fn split_holds_out_every_nth_frame() {
+        let s = split_frames(10, 4);
+        assert_eq!(s.heldout, vec![0, 4, 8]);
+        assert_eq!(s.train, vec![1, 2, 3, 5, 6, 7, 9]);
+        assert!(split_frames(10, 0).heldout.is_empty());
+        assert_eq!(split_frames(1, 1).train, vec![0]);
+    }
+}

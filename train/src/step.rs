@@ -1,0 +1,323 @@
+//! One training step — render, losses, backward, non-finite guard, Adam —
+//! written once for every device (the device is a runtime value).
+
+use burn::module::{Module, ModuleVisitor, Param, ParamGroup};
+use burn::optim::lr_scheduler::module_lr_scheduler::ModuleLrScheduler;
+use burn::optim::{GradientsParams, ModuleOptimizer};
+use burn::tensor::Tensor;
+use model::{FeatureMode, OpenNerf, RenderOutputs};
+
+use crate::batch::BatchTensors;
+use crate::config::LossConfig;
+
+/// The loss and its terms as tensors (each `[1]`).
+#[derive(Debug, Clone)]
+pub struct LossTerms {
+    /// The weighted total that is differentiated.
+    pub total: Tensor<1>,
+    /// Fine colour MSE.
+    pub rgb: Tensor<1>,
+    /// Coarse colour MSE.
+    pub coarse_rgb: Tensor<1>,
+    /// Fine depth Huber (zero without depth targets).
+    pub depth: Tensor<1>,
+    /// Fine open-set cosine loss (zero without features).
+    pub open: Tensor<1>,
+}
+
+/// `L = L_rgb + lambda_open L_open + lambda_depth L_depth + c (L_rgb^c +
+/// lambda_depth L_depth^c)` with `c = coarse_weight` (SPEC 4). Depth only
+/// where the target is valid (> 0); features only where the target is non-zero.
+pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
+    let device = batch.rgb.device();
+    let zero = || Tensor::<1>::zeros([1], &device);
+    let rgb = model::rgb_mse(out.fine.rgb.clone(), batch.rgb.clone());
+    let coarse_rgb = model::rgb_mse(out.coarse.rgb.clone(), batch.rgb.clone());
+    let mut total = rgb.clone() + coarse_rgb.clone().mul_scalar(cfg.coarse_weight);
+    let mut depth = zero();
+    if let Some((target, weight)) = batch.depth.as_ref()
+        && cfg.lambda_depth > 0.0
+    {
+        let d = |pred: Tensor<2>| {
+            model::depth_huber(pred, target.clone(), weight.clone(), cfg.huber_delta)
+        };
+        depth = d(out.fine.depth.clone());
+        let coarse = d(out.coarse.depth.clone());
+        total = total
+            + depth.clone().mul_scalar(cfg.lambda_depth)
+            + coarse.mul_scalar(cfg.lambda_depth * cfg.coarse_weight);
+    }
+    let mut open = zero();
+    if let (Some(pred), Some(target)) = (out.fine.feature.as_ref(), batch.feature.as_ref())
+        && cfg.lambda_open > 0.0
+    {
+        open = model::open_set_cosine(pred.clone(), target.clone());
+        total = total + open.clone().mul_scalar(cfg.lambda_open);
+    }
+    LossTerms {
+        total,
+        rgb,
+        coarse_rgb,
+        depth,
+        open,
+    }
+}
+
+/// Scheduled learning rates of one step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepRates {
+    /// Rate of the MLP (trunk, density, colour).
+    pub base: f64,
+    /// Rate of the open-set head.
+    pub head: f64,
+}
+
+/// What one step measured (host numbers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    /// Total loss.
+    pub loss: f64,
+    /// Fine colour MSE.
+    pub rgb_mse: f64,
+    /// Fine depth Huber.
+    pub depth: f64,
+    /// Open-set loss.
+    pub open: f64,
+    /// Sum of absolute gradient values over all parameters.
+    pub grad_l1: f64,
+    /// Whether the update was applied (false: non-finite loss or gradient).
+    pub applied: bool,
+}
+
+impl StepReport {
+    /// PSNR of the batch's fine colour.
+    pub fn psnr(&self) -> f64 {
+        crate::metrics::psnr(self.rgb_mse)
+    }
+}
+
+/// Sums `|g|` over the gradients of every float parameter of a module.
+struct GradL1<'a> {
+    grads: &'a GradientsParams,
+    sum: Option<Tensor<1>>,
+}
+
+impl ModuleVisitor for GradL1<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(g) = self.grads.get::<D>(param.id) {
+            let s = g.abs().sum();
+            self.sum = Some(match self.sum.take() {
+                Some(acc) => acc + s,
+                None => s,
+            });
+        }
+    }
+}
+
+/// The parameter group of the open-set head (by parameter id, which
+/// survives saving and loading).
+pub fn head_group(model: &OpenNerf) -> ParamGroup {
+    ParamGroup::ids_from_module(model.head.clone())
+}
+
+/// One step: render the batch (stratified jitter on) over `background`,
+/// compute the losses, backpropagate, and — only when the loss and every
+/// gradient are finite — apply Adam with the head at its own rate. Returns
+/// the (possibly unchanged) model and what was measured. One device read
+/// per step.
+pub fn train_step(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    batch: &BatchTensors,
+    background: Option<[f32; 3]>,
+    cfg: &LossConfig,
+    rates: StepRates,
+) -> (OpenNerf, StepReport) {
+    let mode = if batch.feature.is_some() && cfg.lambda_open > 0.0 {
+        FeatureMode::Composited
+    } else {
+        FeatureMode::None
+    };
+    let out = model.render_with(&batch.rays, true, background, mode);
+    train_step_from(model, optim, out, batch, cfg, rates)
+}
+
+/// [`train_step`] for outputs already rendered (e.g. with a background
+/// colour or another feature path).
+pub fn train_step_from(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    out: RenderOutputs,
+    batch: &BatchTensors,
+    cfg: &LossConfig,
+    rates: StepRates,
+) -> (OpenNerf, StepReport) {
+    let terms = losses(&out, batch, cfg);
+    let grads = terms.total.backward();
+    let grads = GradientsParams::from_grads(grads, &model);
+    let mut visitor = GradL1 {
+        grads: &grads,
+        sum: None,
+    };
+    model.visit(&mut visitor);
+    let device = terms.total.device();
+    let grad_l1 = visitor
+        .sum
+        .unwrap_or_else(|| Tensor::zeros([1], &device))
+        .inner();
+    let values = Tensor::cat(
+        vec![
+            terms.total.inner(),
+            terms.rgb.inner(),
+            terms.depth.inner(),
+            terms.open.inner(),
+            grad_l1,
+        ],
+        0,
+    );
+    let v: Vec<f32> = eval::render::tensor_to_vec(values);
+    let mut report = StepReport {
+        loss: v[0] as f64,
+        rgb_mse: v[1] as f64,
+        depth: v[2] as f64,
+        open: v[3] as f64,
+        grad_l1: v[4] as f64,
+        applied: false,
+    };
+    if !v.iter().all(|x| x.is_finite()) {
+        return (model, report);
+    }
+    let lr = ModuleLrScheduler::new(rates.base)
+        .with_group(head_group(&model), rates.head)
+        .step();
+    let model = optim.step(lr, model, grads);
+    report.applied = true;
+    (model, report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::optim::AdamConfig;
+    use burn::tensor::{Device, TensorData};
+    use model::geometry::NormalizedRay;
+    use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig, Rays};
+
+    fn tiny_model(device: &Device) -> OpenNerf {
+        device.seed(3);
+        OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
+            .with_mlp(MipMlpConfig::new().with_width(16).with_depth(2).with_skip_layer(1).with_max_deg(4))
+            .with_num_samples(8)
+            .init(device)
+    }
+
+    fn batch(device: &Device, rgb: f32) -> BatchTensors {
+        let n = 16;
+        let rays: Vec<NormalizedRay> = (0..n)
+            .map(|i| NormalizedRay {
+                origin: [0.1 * i as f32 - 0.8, 0.0, -2.0],
+                direction: [0.0, 0.05, 1.0],
+                radius: 0.01,
+                near: 0.5,
+                far: 3.5,
+            })
+            .collect();
+        let t = |v: Vec<f32>, c: usize| Tensor::<2>::from_data(TensorData::new(v, [n, c]), device);
+        BatchTensors {
+            rays: Rays::from_normalized(&rays, device),
+            rgb: t(vec![rgb; n * 3], 3),
+            depth: Some((t(vec![2.0; n], 1), t(vec![1.0; n], 1))),
+            feature: Some(t((0..n * 4).map(|i| (i % 3) as f32 - 1.0).collect(), 4)),
+        }
+    }
+
+    /// Parameter values of a module, flattened in visiting order.
+    fn values(m: &impl Module) -> Vec<Vec<f32>> {
+        struct V(Vec<Vec<f32>>);
+        impl ModuleVisitor for V {
+            fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+                self.0.push(p.val().into_data().to_vec::<f32>().unwrap());
+            }
+        }
+        let mut v = V(Vec::new());
+        m.visit(&mut v);
+        v.0
+    }
+
+    fn mean_abs_change(a: &[Vec<f32>], b: &[Vec<f32>]) -> f64 {
+        let (mut s, mut n) = (0.0, 0usize);
+        for (x, y) in a.iter().zip(b) {
+            for (p, q) in x.iter().zip(y) {
+                s += (p - q).abs() as f64;
+                n += 1;
+            }
+        }
+        s / n.max(1) as f64
+    }
+
+    #[test]
+    fn non_finite_targets_leave_model_and_optimiser_untouched() {
+        let device = Device::flex().autodiff();
+        let model = tiny_model(&device);
+        let before = values(&model);
+        let mut optim = AdamConfig::new().init();
+        let rates = StepRates { base: 1e-2, head: 1e-2 };
+        let cfg = LossConfig::default();
+        let (model, report) = train_step(model, &mut optim, &batch(&device, f32::NAN), None, &cfg, rates);
+        assert!(!report.applied);
+        assert!(report.loss.is_nan());
+        assert_eq!(values(&model), before);
+        let record = format!("{:?}", optim.to_record());
+        assert!(record.contains("num_tensors: 0"), "no optimiser state may be created: {record}");
+        let (model, report) = train_step(model, &mut optim, &batch(&device, 0.5), None, &cfg, rates);
+        assert!(report.applied && report.loss.is_finite() && report.grad_l1 > 0.0);
+        assert_ne!(values(&model), before);
+    }
+
+    #[test]
+    fn the_head_trains_at_its_own_rate() {
+        // Adam's first step moves every parameter with a non-zero gradient
+        // by about the learning rate, so the mean change measures the rate.
+        let device = Device::flex().autodiff();
+        let model = tiny_model(&device);
+        let (mlp0, head0) = (values(&model.mlp), values(&model.head));
+        let mut optim = AdamConfig::new().with_epsilon(1e-12).init();
+        let rates = StepRates { base: 1e-4, head: 1e-2 };
+        let (model, report) =
+            train_step(model, &mut optim, &batch(&device, 0.5), None, &LossConfig::default(), rates);
+        assert!(report.applied);
+        let dm = mean_abs_change(&mlp0, &values(&model.mlp));
+        let dh = mean_abs_change(&head0, &values(&model.head));
+        assert!(dm > 0.3e-4 && dm <= 1.01e-4, "mlp change {dm}");
+        assert!(dh > 0.3e-2 && dh <= 1.01e-2, "head change {dh}");
+    }
+
+    #[test]
+    fn loss_is_the_weighted_sum_of_its_terms() {
+        let device = Device::flex();
+        let model = tiny_model(&device);
+        let b = batch(&device, 0.3);
+        let out = model.render(&b.rays, false, None);
+        let cfg = LossConfig {
+            lambda_open: 0.7,
+            lambda_depth: 0.2,
+            coarse_weight: 0.1,
+            huber_delta: 0.2,
+        };
+        let t = losses(&out, &b, &cfg);
+        let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
+        let coarse_depth = s(model::depth_huber(
+            out.coarse.depth.clone(),
+            b.depth.clone().unwrap().0,
+            b.depth.clone().unwrap().1,
+            0.2,
+        ));
+        let expected = s(t.rgb.clone())
+            + 0.1 * s(t.coarse_rgb.clone())
+            + 0.7 * s(t.open.clone())
+            + 0.2 * s(t.depth.clone())
+            + 0.02 * coarse_depth;
+        assert!((s(t.total) - expected).abs() < 1e-5 * expected.max(1.0));
+        assert!(s(t.open) > 0.0);
+    }
+}
