@@ -104,7 +104,7 @@ impl SimulatedExtractor {
         let noise_basis = (0..NOISE_DIRS)
             .flat_map(|j| {
                 let v: Vec<f32> = (0..dim)
-                    .map(|k| (hash01(seed ^ ((j * dim + k) as u64) << 8 ^ 0xfea7) - 0.5) as f32)
+                    .map(|k| (hash01(seed ^ (((j * dim + k) as u64) << 8) ^ 0xfea7) - 0.5) as f32)
                     .collect();
                 crate::synthetic::classes::normalized(&v)
             })
@@ -145,9 +145,15 @@ impl SimulatedExtractor {
         let (iw, ih) = (image.width as usize, image.height as usize);
         let mut avg = vec![0f32; (w * h * 3) as usize];
         for y in 0..h as usize {
-            let (y0, y1) = (y * ih / h as usize, ((y + 1) * ih / h as usize).max(y * ih / h as usize + 1));
+            let (y0, y1) = (
+                y * ih / h as usize,
+                ((y + 1) * ih / h as usize).max(y * ih / h as usize + 1),
+            );
             for x in 0..w as usize {
-                let (x0, x1) = (x * iw / w as usize, ((x + 1) * iw / w as usize).max(x * iw / w as usize + 1));
+                let (x0, x1) = (
+                    x * iw / w as usize,
+                    ((x + 1) * iw / w as usize).max(x * iw / w as usize + 1),
+                );
                 let mut s = [0f32; 3];
                 for yy in y0..y1 {
                     for xx in x0..x1 {
@@ -217,7 +223,7 @@ impl SimulatedExtractor {
     /// Hash key of a map pixel's position and (8-bit quantised) colour.
     fn pixel_key(&self, color: [f32; 3], x: u32, y: u32) -> u64 {
         let q = color.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u64);
-        let k = (x as u64) << 48 ^ (y as u64) << 32 ^ q[0] << 16 ^ q[1] << 8 ^ q[2];
+        let k = ((x as u64) << 48) ^ ((y as u64) << 32) ^ (q[0] << 16) ^ (q[1] << 8) ^ q[2];
         (hash01(k ^ self.seed.rotate_left(17)) * (1u64 << 53) as f64) as u64
     }
 }
@@ -245,7 +251,7 @@ impl FeatureExtractor for SimulatedExtractor {
                 for (j, dir) in self.noise_basis.chunks_exact(dim).enumerate() {
                     // Uniform in [-1, 1] per direction, scaled so the noise
                     // vector's expected norm is `feature_noise`.
-                    let a = (2.0 * hash01(key ^ (j as u64 + 1) << 40) - 1.0) as f32
+                    let a = (2.0 * hash01(key ^ ((j as u64 + 1) << 40)) - 1.0) as f32
                         * self.feature_noise
                         * (3.0 / NOISE_DIRS as f32).sqrt();
                     f.iter_mut().zip(dir).for_each(|(v, d)| *v += a * d);
@@ -308,8 +314,14 @@ pub fn save_png(image: &RgbImage, path: &Path) -> Result<(), DatasetError> {
         .iter()
         .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
         .collect();
-    image::save_buffer(path, &bytes, image.width, image.height, image::ColorType::Rgb8)
-        .map_err(|e| DatasetError::invalid(path, format!("cannot write image: {e}")))
+    image::save_buffer(
+        path,
+        &bytes,
+        image.width,
+        image.height,
+        image::ColorType::Rgb8,
+    )
+    .map_err(|e| DatasetError::invalid(path, format!("cannot write image: {e}")))
 }
 
 impl CommandExtractor {
@@ -324,7 +336,10 @@ impl CommandExtractor {
 
     /// Runs the command once on several named images and reads the maps back
     /// in the same order.
-    pub fn extract_many(&self, images: &[(&str, &RgbImage)]) -> Result<Vec<FeatureMap>, DatasetError> {
+    pub fn extract_many(
+        &self,
+        images: &[(&str, &RgbImage)],
+    ) -> Result<Vec<FeatureMap>, DatasetError> {
         let scratch = Scratch::new()?;
         let (input, output) = (scratch.0.join("in"), scratch.0.join("out"));
         for (name, image) in images {
@@ -335,7 +350,12 @@ impl CommandExtractor {
             .arg(&input)
             .arg(&output)
             .output()
-            .map_err(|e| DatasetError::invalid(&self.program, format!("cannot run the extractor command: {e}")))?;
+            .map_err(|e| {
+                DatasetError::invalid(
+                    &self.program,
+                    format!("cannot run the extractor command: {e}"),
+                )
+            })?;
         if !result.status.success() {
             return Err(DatasetError::invalid(
                 &self.program,
@@ -355,12 +375,20 @@ impl CommandExtractor {
     /// Reads and validates one output map.
     fn read_map(&self, path: &Path, image: &RgbImage) -> Result<FeatureMap, DatasetError> {
         if !path.is_file() {
-            return Err(DatasetError::invalid(path, "the extractor command wrote no feature map here"));
+            return Err(DatasetError::invalid(
+                path,
+                "the extractor command wrote no feature map here",
+            ));
         }
         let info = NpyInfo::open(path)?;
         info.expect_rank(3, "height x width x dim")?;
         let (h, w, d) = (info.shape[0], info.shape[1], info.shape[2]);
-        if d != self.dim || h == 0 || w == 0 || h > image.height as usize || w > image.width as usize {
+        if d != self.dim
+            || h == 0
+            || w == 0
+            || h > image.height as usize
+            || w > image.width as usize
+        {
             return Err(DatasetError::invalid(
                 path,
                 format!(
@@ -371,7 +399,10 @@ impl CommandExtractor {
         }
         let data = info.read_f16_range(0, h * w * d)?;
         if data.iter().any(|v| !v.is_finite()) {
-            return Err(DatasetError::invalid(path, "feature map contains NaN or infinite values"));
+            return Err(DatasetError::invalid(
+                path,
+                "feature map contains NaN or infinite values",
+            ));
         }
         Ok(FeatureMap {
             width: w as u32,

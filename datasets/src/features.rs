@@ -48,19 +48,31 @@ impl FeatureSet {
             ));
         }
         let Some(target) = pca else {
-            return Ok(Self { maps, pca: None, full_dim });
+            return Ok(Self {
+                maps,
+                pca: None,
+                full_dim,
+            });
         };
         let sizes: Vec<usize> = maps.iter().map(|m| (m.width * m.height) as usize).collect();
         let picks = sample_plan(&sizes, seed);
         let mut samples = Vec::new();
         for (m, idx) in maps.iter().zip(&picks) {
             for &p in idx {
-                samples.extend(m.data[p * full_dim..(p + 1) * full_dim].iter().map(|h| h.to_f32()));
+                samples.extend(
+                    m.data[p * full_dim..(p + 1) * full_dim]
+                        .iter()
+                        .map(|h| h.to_f32()),
+                );
             }
         }
         let basis = Pca::fit(&samples, full_dim, target)?;
         let maps = maps.iter().map(|m| compress(m, &basis)).collect();
-        Ok(Self { maps, pca: Some(basis), full_dim })
+        Ok(Self {
+            maps,
+            pca: Some(basis),
+            full_dim,
+        })
     }
 
     /// Channels per map pixel (k when compressed, else D).
@@ -117,7 +129,10 @@ impl FeatureSource {
         if !path.is_dir() {
             return Err(DatasetError::invalid(path, "feature path does not exist"));
         }
-        let named: Vec<PathBuf> = frame_names.iter().map(|n| path.join(format!("{n}.npy"))).collect();
+        let named: Vec<PathBuf> = frame_names
+            .iter()
+            .map(|n| path.join(format!("{n}.npy")))
+            .collect();
         if named.iter().all(|p| p.is_file()) {
             return Ok(Self::PerFrame(named));
         }
@@ -152,7 +167,9 @@ struct MapSlot {
 
 impl MapSlot {
     fn read(&self) -> Result<FeatureMap, DatasetError> {
-        let data = self.info.read_f16_range(self.offset, self.h * self.w * self.d)?;
+        let data = self
+            .info
+            .read_f16_range(self.offset, self.h * self.w * self.d)?;
         if data.iter().any(|v| !v.is_finite()) {
             return Err(DatasetError::invalid(
                 &self.info.path,
@@ -184,21 +201,39 @@ fn plan(source: &FeatureSource, image_sizes: &[(u32, u32)]) -> Result<Vec<MapSlo
                 ));
             }
             for i in 0..n {
-                slots.push(MapSlot { info: info.clone(), offset: i * h * w * d, h, w, d });
+                slots.push(MapSlot {
+                    info: info.clone(),
+                    offset: i * h * w * d,
+                    h,
+                    w,
+                    d,
+                });
             }
         }
         FeatureSource::PerFrame(paths) => {
             if paths.len() != image_sizes.len() {
                 return Err(DatasetError::invalid(
-                    paths.first().map_or(Path::new("<features>"), |p| p.as_path()),
-                    format!("{} feature maps but {} frames", paths.len(), image_sizes.len()),
+                    paths
+                        .first()
+                        .map_or(Path::new("<features>"), |p| p.as_path()),
+                    format!(
+                        "{} feature maps but {} frames",
+                        paths.len(),
+                        image_sizes.len()
+                    ),
                 ));
             }
             for p in paths {
                 let info = NpyInfo::open(p)?;
                 info.expect_rank(3, "height x width x dim")?;
                 let [h, w, d] = [info.shape[0], info.shape[1], info.shape[2]];
-                slots.push(MapSlot { info, offset: 0, h, w, d });
+                slots.push(MapSlot {
+                    info,
+                    offset: 0,
+                    h,
+                    w,
+                    d,
+                });
             }
         }
     }
@@ -210,7 +245,10 @@ fn plan(source: &FeatureSource, image_sizes: &[(u32, u32)]) -> Result<Vec<MapSlo
         if s.d != slots[0].d {
             return Err(DatasetError::invalid(
                 path,
-                format!("feature dim {} differs from the first map's {}", s.d, slots[0].d),
+                format!(
+                    "feature dim {} differs from the first map's {}",
+                    s.d, slots[0].d
+                ),
             ));
         }
         // The map height implied by the image's aspect ratio at the map's width.
@@ -241,7 +279,11 @@ pub fn load_features(
     let full_dim = slots.first().map_or(0, |s| s.d);
     let Some(target) = pca else {
         let maps = slots.iter().map(MapSlot::read).collect::<Result<_, _>>()?;
-        return Ok(FeatureSet { maps, pca: None, full_dim });
+        return Ok(FeatureSet {
+            maps,
+            pca: None,
+            full_dim,
+        });
     };
     let sizes: Vec<usize> = slots.iter().map(|s| s.h * s.w).collect();
     let picks = sample_plan(&sizes, seed);
@@ -249,7 +291,11 @@ pub fn load_features(
     for (s, idx) in slots.iter().zip(&picks) {
         let m = s.read()?;
         for &p in idx {
-            samples.extend(m.data[p * full_dim..(p + 1) * full_dim].iter().map(|h| h.to_f32()));
+            samples.extend(
+                m.data[p * full_dim..(p + 1) * full_dim]
+                    .iter()
+                    .map(|h| h.to_f32()),
+            );
         }
     }
     let basis = Pca::fit(&samples, full_dim, target)?;
@@ -257,5 +303,9 @@ pub fn load_features(
         .iter()
         .map(|s| s.read().map(|m| compress(&m, &basis)))
         .collect::<Result<_, _>>()?;
-    Ok(FeatureSet { maps, pca: Some(basis), full_dim })
+    Ok(FeatureSet {
+        maps,
+        pca: Some(basis),
+        full_dim,
+    })
 }

@@ -9,9 +9,11 @@ pub mod blender;
 pub mod error;
 pub mod extractor;
 pub mod features;
+pub mod imageio;
 pub mod llff;
 pub mod npy;
 pub mod points;
+mod poses;
 pub mod replica;
 pub mod sampler;
 pub mod scene;
@@ -21,3 +23,55 @@ pub mod writer;
 
 pub use error::DatasetError;
 pub use scene::{DepthImage, FeatureMap, Frame, RgbImage, Scene, SceneMeta, SceneSource};
+
+use std::path::PathBuf;
+
+/// Loads (or generates) the scene `source` describes. Disk formats read
+/// their options from `options` (missing fields take their defaults).
+pub fn load_scene(source: &SceneSource) -> Result<Scene, DatasetError> {
+    match source {
+        SceneSource::Synthetic { seed, size } => synthetic::generate(*seed, size.parse()?),
+        SceneSource::Disk {
+            format,
+            path,
+            options,
+        } => {
+            let opts = |o: &serde_json::Value| -> serde_json::Value {
+                if o.is_null() {
+                    serde_json::json!({})
+                } else {
+                    o.clone()
+                }
+            };
+            let bad = |e: serde_json::Error| {
+                DatasetError::invalid(path, format!("bad {format} loader options: {e}"))
+            };
+            match format.as_str() {
+                "replica" => replica::load_replica(
+                    path,
+                    &serde_json::from_value(opts(options)).map_err(bad)?,
+                ),
+                "blender" => blender::load_blender(
+                    path,
+                    &serde_json::from_value(opts(options)).map_err(bad)?,
+                ),
+                "llff" => {
+                    llff::load_llff(path, &serde_json::from_value(opts(options)).map_err(bad)?)
+                }
+                other => Err(DatasetError::invalid(
+                    path,
+                    format!("unknown scene format {other:?} (expected replica, blender or llff)"),
+                )),
+            }
+        }
+    }
+}
+
+/// Directory of the shared real data: `$OPENNERF_DATA`, else `shared/data`
+/// next to the workspace root.
+pub fn data_dir() -> PathBuf {
+    match std::env::var_os("OPENNERF_DATA") {
+        Some(p) => PathBuf::from(p),
+        None => PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")),
+    }
+}

@@ -68,7 +68,10 @@ impl NpyInfo {
     /// file long enough to hold all elements.
     pub fn open(path: &Path) -> Result<Self, DatasetError> {
         let file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
-        let file_len = file.metadata().map_err(|e| DatasetError::io(path, e))?.len();
+        let file_len = file
+            .metadata()
+            .map_err(|e| DatasetError::io(path, e))?
+            .len();
         let mut reader = Counting {
             inner: BufReader::new(file),
             count: 0,
@@ -240,7 +243,11 @@ fn write_header(w: &mut impl Write, descr: &str, shape: &[usize]) -> std::io::Re
         1 => format!("({},)", shape[0]),
         _ => format!(
             "({})",
-            shape.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")
+            shape
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         ),
     };
     let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {dims}, }}");

@@ -150,7 +150,12 @@ fn parse_header(path: &Path, r: &mut impl BufRead) -> Result<(Format, Vec<Elemen
                     None => return Err(bad("property before any element".into())),
                 }
             }
-            _ => return Err(bad(format!("unrecognised PLY header line '{}'", line.trim()))),
+            _ => {
+                return Err(bad(format!(
+                    "unrecognised PLY header line '{}'",
+                    line.trim()
+                )));
+            }
         }
     }
     let format = format.ok_or_else(|| bad("PLY header has no format line".into()))?;
@@ -175,7 +180,9 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
     }
     let v = &elements[vi];
     if v.props.iter().any(|(_, t)| t.is_none()) {
-        return Err(bad("vertex element has a list property (unsupported)".into()));
+        return Err(bad(
+            "vertex element has a list property (unsupported)".into()
+        ));
     }
     let find = |n: &str| v.props.iter().position(|(p, _)| p == n);
     let xyz = ["x", "y", "z"].map(find);
@@ -201,7 +208,9 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
     for row in 0..v.count {
         if format == Format::Ascii {
             line.clear();
-            let n = r.read_line(&mut line).map_err(|e| DatasetError::io(path, e))?;
+            let n = r
+                .read_line(&mut line)
+                .map_err(|e| DatasetError::io(path, e))?;
             let words: Vec<&str> = line.split_whitespace().collect();
             if n == 0 || words.len() < types.len() {
                 return Err(bad(format!(
@@ -215,9 +224,8 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
                     .map_err(|_| bad(format!("vertex {row}: '{w}' is not a number")))?;
             }
         } else {
-            r.read_exact(&mut buf).map_err(|_| {
-                bad(format!("file is truncated at vertex {row} of {}", v.count))
-            })?;
+            r.read_exact(&mut buf)
+                .map_err(|_| bad(format!("file is truncated at vertex {row} of {}", v.count)))?;
             let mut off = 0;
             for (k, t) in types.iter().enumerate() {
                 values[k] = t.decode_le(&buf[off..off + t.size()]);
@@ -232,7 +240,11 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
         if let Some(colors) = cloud.colors.as_mut() {
             colors.push(rgb.map(|i| {
                 let i = i.unwrap_or(0);
-                let c = if types[i].is_float() { values[i] * 255.0 } else { values[i] };
+                let c = if types[i].is_float() {
+                    values[i] * 255.0
+                } else {
+                    values[i]
+                };
                 c.round().clamp(0.0, 255.0) as u8
             }));
         }
@@ -253,7 +265,8 @@ fn skip_element(
         let mut line = String::new();
         for _ in 0..e.count {
             line.clear();
-            r.read_line(&mut line).map_err(|err| DatasetError::io(path, err))?;
+            r.read_line(&mut line)
+                .map_err(|err| DatasetError::io(path, err))?;
         }
         return Ok(());
     }
@@ -359,7 +372,10 @@ pub fn read_labels_txt(path: &Path, expected_len: usize) -> Result<Vec<i64>, Dat
                 .filter(|v| v.is_finite() && v.fract() == 0.0)
                 .map(|v| v as i64)
                 .ok_or_else(|| {
-                    DatasetError::invalid(path, format!("line {}: '{l}' is not an integer label", i + 1))
+                    DatasetError::invalid(
+                        path,
+                        format!("line {}: '{l}' is not an integer label", i + 1),
+                    )
                 })
         })
         .collect()
@@ -391,7 +407,10 @@ impl ClassMap {
                 continue;
             }
             if index.insert(id, names.len() as u32).is_some() {
-                return Err(DatasetError::invalid(path, format!("class id {id} appears twice")));
+                return Err(DatasetError::invalid(
+                    path,
+                    format!("class id {id} appears twice"),
+                ));
             }
             names.push(name.trim().to_string());
         }

@@ -1,1 +1,197 @@
-//! placeholder
+//! Random ray batches over a scene's frames, with their training targets.
+//!
+//! Batch `b` of a sampler depends only on `(seed, b)`, so training resumes
+//! exactly after [`RaySampler::set_batches_drawn`].
+
+use model::geometry::{Camera, NormalizedRay, SceneBox};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::DatasetError;
+use crate::scene::Scene;
+
+/// Sampler settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SamplerConfig {
+    /// Rays per batch.
+    pub rays_per_batch: usize,
+    /// Pixels this close to the image border are never drawn (10 by default:
+    /// feature maps and resized images are least reliable there). Shrunk for
+    /// images too small to keep any pixel.
+    pub border_margin: u32,
+    /// Seed of the pixel draws.
+    pub seed: u64,
+    /// Lower bound on every ray's near distance, metres.
+    pub min_near: f64,
+}
+
+impl Default for SamplerConfig {
+    fn default() -> Self {
+        Self {
+            rays_per_batch: 4096,
+            border_margin: 10,
+            seed: 0,
+            min_near: 0.05,
+        }
+    }
+}
+
+/// Rays and their targets.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RayBatch {
+    /// Rays in the field's normalised frame.
+    pub rays: Vec<NormalizedRay>,
+    /// Target colours.
+    pub rgb: Vec<[f32; 3]>,
+    /// Target z-depths (0 = invalid), when any frame has depth.
+    pub depth: Option<Vec<f32>>,
+    /// Per-ray depth loss weight (the frame's `depth_weight`, 0 without depth).
+    pub depth_weight: Option<Vec<f32>>,
+    /// `n x feature_dim` feature targets, zeros where a frame has no map.
+    pub features: Option<Vec<f32>>,
+    /// Channels per feature target (0 without features).
+    pub feature_dim: usize,
+    /// `[frame, x, y]` of every ray.
+    pub pixels: Vec<[u32; 3]>,
+}
+
+impl RayBatch {
+    /// Number of rays.
+    pub fn len(&self) -> usize {
+        self.rays.len()
+    }
+
+    /// Whether the batch is empty.
+    pub fn is_empty(&self) -> bool {
+        self.rays.is_empty()
+    }
+}
+
+/// Draws seeded random pixel batches.
+#[derive(Debug, Clone)]
+pub struct RaySampler {
+    config: SamplerConfig,
+    drawn: u64,
+}
+
+impl RaySampler {
+    /// A sampler that has drawn no batch yet.
+    pub fn new(config: SamplerConfig) -> Self {
+        Self { config, drawn: 0 }
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &SamplerConfig {
+        &self.config
+    }
+
+    /// Number of batches drawn so far (the index of the next batch).
+    pub fn batches_drawn(&self) -> u64 {
+        self.drawn
+    }
+
+    /// Continues as if `n` batches had been drawn.
+    pub fn set_batches_drawn(&mut self, n: u64) {
+        self.drawn = n;
+    }
+
+    /// The next batch: pixels uniform over frames, then uniform inside the
+    /// frame's border margin.
+    pub fn next_batch(&mut self, scene: &Scene) -> Result<RayBatch, DatasetError> {
+        let batch = sample_batch(&self.config, scene, self.drawn)?;
+        self.drawn += 1;
+        Ok(batch)
+    }
+}
+
+/// Pixel range `[lo, hi)` along an axis of `size` pixels with `margin`, kept
+/// non-empty by shrinking the margin.
+fn axis_range(size: u32, margin: u32) -> (u32, u32) {
+    let m = margin.min(size.saturating_sub(1) / 2);
+    (m, size - m)
+}
+
+/// Batch number `index` for `config` (pure function of seed and index).
+pub fn sample_batch(
+    config: &SamplerConfig,
+    scene: &Scene,
+    index: u64,
+) -> Result<RayBatch, DatasetError> {
+    let err = |m: &str| DatasetError::invalid(&scene.name, m.to_string());
+    if scene.frames.is_empty() {
+        return Err(err("scene has no frames to sample rays from"));
+    }
+    if let Some(f) = scene
+        .frames
+        .iter()
+        .find(|f| f.rgb.width == 0 || f.rgb.height == 0)
+    {
+        return Err(err(&format!("frame {} has an empty image", f.name)));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    rng.set_stream(index);
+    let n = config.rays_per_batch;
+    let has_depth = scene.frames.iter().any(|f| f.depth.is_some());
+    let feature_dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let mut b = RayBatch {
+        rays: Vec::with_capacity(n),
+        rgb: Vec::with_capacity(n),
+        depth: has_depth.then(|| Vec::with_capacity(n)),
+        depth_weight: has_depth.then(|| Vec::with_capacity(n)),
+        features: scene
+            .features
+            .as_ref()
+            .map(|_| Vec::with_capacity(n * feature_dim)),
+        feature_dim,
+        pixels: Vec::with_capacity(n),
+    };
+    for _ in 0..n {
+        let fi = rng.random_range(0..scene.frames.len());
+        let frame = &scene.frames[fi];
+        let (w, h) = (frame.rgb.width, frame.rgb.height);
+        let (x0, x1) = axis_range(w, config.border_margin);
+        let (y0, y1) = axis_range(h, config.border_margin);
+        let x = rng.random_range(x0..x1);
+        let y = rng.random_range(y0..y1);
+        let ray = frame.camera.ray(x as f64, y as f64);
+        b.rays
+            .push(scene.scene_box.normalize_ray(&ray, config.min_near));
+        b.rgb.push(frame.rgb.get(x, y));
+        b.pixels.push([fi as u32, x, y]);
+        if let (Some(d), Some(dw)) = (b.depth.as_mut(), b.depth_weight.as_mut()) {
+            match &frame.depth {
+                Some(img) => {
+                    d.push(img.get(x, y));
+                    dw.push(frame.depth_weight);
+                }
+                None => {
+                    d.push(0.0);
+                    dw.push(0.0);
+                }
+            }
+        }
+        if let (Some(out), Some(fs)) = (b.features.as_mut(), scene.features.as_ref()) {
+            match fs.maps.get(fi) {
+                Some(map) => out.extend(
+                    map.lookup(x as f64, y as f64, w, h)
+                        .iter()
+                        .map(|v| v.to_f32()),
+                ),
+                None => out.extend(std::iter::repeat_n(0.0, feature_dim)),
+            }
+        }
+    }
+    Ok(b)
+}
+
+/// Rays through every pixel of `camera`'s image, row-major, for rendering.
+pub fn frame_rays(scene_box: &SceneBox, camera: &Camera, min_near: f64) -> Vec<NormalizedRay> {
+    let k = &camera.intrinsics;
+    let mut rays = Vec::with_capacity(k.width as usize * k.height as usize);
+    for y in 0..k.height {
+        for x in 0..k.width {
+            rays.push(scene_box.normalize_ray(&camera.ray(x as f64, y as f64), min_near));
+        }
+    }
+    rays
+}

@@ -34,7 +34,10 @@ impl TextEmbeddings {
         info.expect_rank(2, "classes x embedding dim")?;
         let data = info.read_f32_range(0, info.len())?;
         if data.iter().any(|v| !v.is_finite()) {
-            return Err(DatasetError::invalid(npy, "embeddings contain NaN or infinite values"));
+            return Err(DatasetError::invalid(
+                npy,
+                "embeddings contain NaN or infinite values",
+            ));
         }
         let names = read_lines(labels)?;
         if names.len() != info.shape[0] {

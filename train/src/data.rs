@@ -31,21 +31,61 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             std::io::Error::new(std::io::ErrorKind::NotFound, "scene directory not found"),
         ));
     }
+    let format = cli.dataset.name();
+    let unsupported = |flag: &str| {
+        Err(TrainError::Config(format!(
+            "--{flag} is not supported for --dataset {format}"
+        )))
+    };
     let mut options = serde_json::Map::new();
-    if let Some(s) = cli.stride {
-        options.insert("stride".into(), s.into());
-    }
-    if let Some(r) = cli.resolution {
-        options.insert("resolution".into(), serde_json::json!([r.width, r.height]));
-    }
-    if let Some(d) = cli.downscale {
-        options.insert("downscale".into(), d.into());
-    }
-    if let Some(f) = &cli.features {
-        options.insert("features".into(), f.display().to_string().into());
+    match cli.dataset {
+        DatasetKind::Replica => {
+            if let Some(s) = cli.stride {
+                options.insert("stride".into(), s.into());
+            }
+            if let Some(r) = cli.resolution {
+                options.insert("resolution".into(), serde_json::json!([r.width, r.height]));
+            }
+            if cli.downscale.is_some() {
+                return unsupported("downscale (use --resolution WxH)");
+            }
+            if let Some(f) = &cli.features {
+                options.insert("features".into(), f.display().to_string().into());
+            }
+        }
+        DatasetKind::Blender => {
+            if let Some(d) = cli.downscale {
+                options.insert("downscale".into(), d.into());
+            }
+            if cli.stride.is_some() {
+                return unsupported("stride");
+            }
+            if cli.resolution.is_some() {
+                return unsupported("resolution (use --downscale N)");
+            }
+            if cli.features.is_some() {
+                return unsupported("features");
+            }
+        }
+        DatasetKind::Llff => {
+            // LLFF ships pre-downsampled folders `images_N`.
+            if let Some(d) = cli.downscale {
+                options.insert("images".into(), format!("images_{d}").into());
+            }
+            for (flag, given) in [
+                ("stride", cli.stride.is_some()),
+                ("resolution", cli.resolution.is_some()),
+                ("features", cli.features.is_some()),
+            ] {
+                if given {
+                    return unsupported(flag);
+                }
+            }
+        }
+        DatasetKind::Synthetic => {}
     }
     Ok(SceneSource::Disk {
-        format: cli.dataset.name().into(),
+        format: format.into(),
         path,
         options: serde_json::Value::Object(options),
     })
@@ -53,16 +93,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
 
 /// Builds (generates or loads) the scene described by `source`.
 pub fn load(source: &SceneSource) -> Result<Scene, TrainError> {
-    match source {
-        SceneSource::Synthetic { seed, size } => {
-            let size: datasets::synthetic::SceneSize = size.parse()?;
-            Ok(datasets::synthetic::generate(*seed, size)?)
-        }
-        SceneSource::Disk { format, path, .. } => Err(TrainError::Config(format!(
-            "{}: loading {format} scenes is not available in this build",
-            path.display()
-        ))),
-    }
+    Ok(datasets::load_scene(source)?)
 }
 
 /// What `scene.json` records about `scene`.

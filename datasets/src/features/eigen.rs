@@ -207,7 +207,9 @@ mod tests {
         let mut s = 7u64;
         for i in 0..n {
             for j in i..n {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 let x = ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5;
                 a[i * n + j] = x;
                 a[j * n + i] = x;

@@ -20,7 +20,8 @@ pub struct Pca {
 }
 
 /// How many components to keep.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum PcaTarget {
     /// Exactly this many (at most D).
     Components(usize),

@@ -119,7 +119,10 @@ pub const CLASSES: [ClassInfo; 26] = [
 
 /// Index of the class called `name` in [`CLASSES`].
 pub fn class_index(name: &str) -> Option<u16> {
-    CLASSES.iter().position(|c| c.name == name).map(|i| i as u16)
+    CLASSES
+        .iter()
+        .position(|c| c.name == name)
+        .map(|i| i as u16)
 }
 
 /// Replica class names in label order.
@@ -133,7 +136,10 @@ pub fn palette(seed: u64) -> Vec<[f64; 3]> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x9a1e_77e5);
     CLASSES
         .iter()
-        .map(|c| c.color.map(|v| (v + rng.random_range(-0.03..0.03)).clamp(0.0, 1.0)))
+        .map(|c| {
+            c.color
+                .map(|v| (v + rng.random_range(-0.03..0.03)).clamp(0.0, 1.0))
+        })
         .collect()
 }
 
@@ -188,7 +194,7 @@ pub fn class_embeddings() -> TextEmbeddings {
 /// look-alike group, and a per-class part.
 pub fn fallback_embeddings() -> TextEmbeddings {
     let mut rng = ChaCha8Rng::seed_from_u64(0x0e9e_12f0);
-    let mut gauss = |rng: &mut ChaCha8Rng| -> Vec<f32> {
+    let gauss = |rng: &mut ChaCha8Rng| -> Vec<f32> {
         (0..FALLBACK_DIM)
             .map(|_| {
                 // Sum of uniforms: close enough to Gaussian for random directions.

@@ -137,8 +137,12 @@ pub fn extractor_for(seed: u64, size: SceneSize) -> SimulatedExtractor {
         SceneSize::Ci => 0,
         SceneSize::Bench => 1,
     };
-    SimulatedExtractor::new(class_embeddings(), class_prototypes(seed), seed.wrapping_mul(2) + salt)
-        .unwrap_or_else(|_| unreachable_extractor())
+    SimulatedExtractor::new(
+        class_embeddings(),
+        class_prototypes(seed),
+        seed.wrapping_mul(2) + salt,
+    )
+    .unwrap_or_else(|_| unreachable_extractor())
 }
 
 /// The prototypes and embeddings always agree in count, so construction
@@ -189,7 +193,13 @@ pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
     let features = extract_all(&extractor, &frames, size.pca_target(), seed)?;
     let points = surface_points(&room, seed, size);
     let corners = (0..8).map(|c| {
-        [0, 1, 2].map(|k| if c >> k & 1 == 1 { room.max[k] } else { room.min[k] })
+        [0, 1, 2].map(|k| {
+            if (c >> k) & 1 == 1 {
+                room.max[k]
+            } else {
+                room.min[k]
+            }
+        })
     });
     let centres = cameras.iter().map(|c| c.pose.center());
     let scene_box = SceneBox::from_points(corners.chain(centres), 0.02)
@@ -268,9 +278,9 @@ where
             .collect();
         let mut out = Vec::with_capacity(frames.len());
         for h in handles {
-            let part = h
-                .join()
-                .map_err(|_| DatasetError::invalid("<synthetic scene>", "feature thread panicked"))??;
+            let part = h.join().map_err(|_| {
+                DatasetError::invalid("<synthetic scene>", "feature thread panicked")
+            })??;
             out.extend(part);
         }
         Ok(out)

@@ -37,7 +37,7 @@ fn value_noise(p: Vec3, freq: f64, salt: u64) -> f64 {
     let f = [q[0] - c[0], q[1] - c[1], q[2] - c[2]].map(|t| t * t * (3.0 - 2.0 * t));
     let c = c.map(|v| v as i64);
     let mut sum = 0.0;
-    for corner in 0..8 {
+    for corner in 0..8i64 {
         let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
         let w: f64 = (0..3)
             .map(|k| if o[k] == 1 { f[k] } else { 1.0 - f[k] })
@@ -71,11 +71,19 @@ pub fn albedo(palette: &[[f64; 3]], class: u16, p: Vec3, normal: Vec3) -> [f64; 
             let plank = (u / 0.14).floor() as i64;
             let tint = 0.85 + 0.3 * cell_hash([plank, 0, 0], salt);
             let grain = 0.94 + 0.12 * (v * 35.0 + 4.0 * value_noise(p, 3.0, salt)).sin().abs();
-            let seam = if (u / 0.14).fract().abs() < 0.04 { 0.75 } else { 1.0 };
+            let seam = if (u / 0.14).rem_euclid(1.0) < 0.04 {
+                0.75
+            } else {
+                1.0
+            };
             [tint * grain * seam; 3]
         }
         Pattern::Slats => {
-            let s = if (p[2] / 0.05).rem_euclid(1.0) < 0.2 { 0.8 } else { 1.05 };
+            let s = if (p[2] / 0.05).rem_euclid(1.0) < 0.2 {
+                0.8
+            } else {
+                1.05
+            };
             [s; 3]
         }
         Pattern::Checker => {
@@ -175,7 +183,7 @@ pub fn render_views(room: &Room, palette: &[[f64; 3]], cameras: &[Camera]) -> Ve
             .collect();
         handles
             .into_iter()
-            .flat_map(|h| h.join().unwrap_or_default())
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     })
 }
@@ -227,7 +235,10 @@ pub fn sample_surface(
         })
     });
     for (lo, hi, axis, sign, owner) in shell.into_iter().chain(faces) {
-        let area: f64 = (0..3).filter(|&k| k != axis).map(|k| hi[k] - lo[k]).product();
+        let area: f64 = (0..3)
+            .filter(|&k| k != axis)
+            .map(|k| hi[k] - lo[k])
+            .product();
         let n = ((area * density).round() as usize).max(min_per_face);
         let mut normal = [0.0; 3];
         normal[axis] = sign;

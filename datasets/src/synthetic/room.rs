@@ -230,9 +230,10 @@ impl Room {
     /// grown by `clearance` (where a camera may stand).
     pub fn is_free(&self, p: Vec3, clearance: f64) -> bool {
         (0..3).all(|k| p[k] > self.min[k] + clearance && p[k] < self.max[k] - clearance)
-            && !self.primitives.iter().any(|b| {
-                (0..3).all(|k| p[k] > b.min[k] - clearance && p[k] < b.max[k] + clearance)
-            })
+            && !self
+                .primitives
+                .iter()
+                .any(|b| (0..3).all(|k| p[k] > b.min[k] - clearance && p[k] < b.max[k] + clearance))
     }
 }
 
@@ -275,26 +276,59 @@ pub fn build_room(seed: u64) -> Room {
     };
     // Rug and table near the middle, chairs at its ends, bowl / bottle / book on it.
     let (cx, cy) = (-0.6 + j(0.15), 0.1 + j(0.15));
-    b.object(&[("rug", [cx - 1.2, cy - 0.8, 0.0], [cx + 1.2, cy + 0.8, 0.012])]);
+    b.object(&[(
+        "rug",
+        [cx - 1.2, cy - 0.8, 0.0],
+        [cx + 1.2, cy + 0.8, 0.012],
+    )]);
     let (tx, ty, th) = (0.6, 0.4, 0.74);
-    let mut table = vec![("table", [cx - tx, cy - ty, th - 0.04], [cx + tx, cy + ty, th])];
+    let mut table = vec![(
+        "table",
+        [cx - tx, cy - ty, th - 0.04],
+        [cx + tx, cy + ty, th],
+    )];
     for (sx, sy) in [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)] {
         let (lx, ly) = (cx + sx * (tx - 0.06), cy + sy * (ty - 0.06));
-        table.push(("table", [lx - 0.03, ly - 0.03, 0.012], [lx + 0.03, ly + 0.03, th - 0.04]));
+        table.push((
+            "table",
+            [lx - 0.03, ly - 0.03, 0.012],
+            [lx + 0.03, ly + 0.03, th - 0.04],
+        ));
     }
     b.object(&table);
     let (bx, by) = (cx + 0.25 + j(0.05), cy + 0.1 + j(0.05));
-    b.object(&[("bowl", [bx - 0.09, by - 0.09, th], [bx + 0.09, by + 0.09, th + 0.07])]);
+    b.object(&[(
+        "bowl",
+        [bx - 0.09, by - 0.09, th],
+        [bx + 0.09, by + 0.09, th + 0.07],
+    )]);
     let (ox, oy) = (cx - 0.3 + j(0.05), cy - 0.15 + j(0.05));
-    b.object(&[("bottle", [ox - 0.035, oy - 0.035, th], [ox + 0.035, oy + 0.035, th + 0.26])]);
-    b.object(&[("book", [cx - 0.05, cy - 0.3, th], [cx + 0.17, cy - 0.14, th + 0.035])]);
+    b.object(&[(
+        "bottle",
+        [ox - 0.035, oy - 0.035, th],
+        [ox + 0.035, oy + 0.035, th + 0.26],
+    )]);
+    b.object(&[(
+        "book",
+        [cx - 0.05, cy - 0.3, th],
+        [cx + 0.17, cy - 0.14, th + 0.035],
+    )]);
     for side in [-1.0, 1.0] {
         let sx = cx + side * (tx + 0.35);
         let (x0, x1) = (sx - 0.22, sx + 0.22);
         let mut chair = vec![("chair", [x0, cy - 0.22, 0.43], [x1, cy + 0.22, 0.47])];
         let back_x = if side > 0.0 { x1 - 0.04 } else { x0 };
-        chair.push(("chair", [back_x, cy - 0.22, 0.47], [back_x + 0.04, cy + 0.22, 0.95]));
-        for (lx, ly) in [(x0, cy - 0.22), (x0, cy + 0.18), (x1 - 0.04, cy - 0.22), (x1 - 0.04, cy + 0.18)] {
+        chair.push((
+            "chair",
+            [back_x, cy - 0.22, 0.47],
+            [back_x + 0.04, cy + 0.22, 0.95],
+        ));
+        for (lx, ly) in [
+            (x0, cy - 0.22),
+            (x0, cy + 0.18),
+            (x1 - 0.04, cy - 0.22),
+            (x1 - 0.04, cy + 0.18),
+        ] {
             chair.push(("chair", [lx, ly, 0.012], [lx + 0.04, ly + 0.04, 0.43]));
         }
         b.object(&chair);
@@ -305,8 +339,16 @@ pub fn build_room(seed: u64) -> Room {
     b.object(&[
         ("sofa", [sx - 1.0, y0, 0.0], [sx + 1.0, y0 + 0.9, 0.42]),
         ("sofa", [sx - 1.0, y0, 0.42], [sx + 1.0, y0 + 0.2, 0.85]),
-        ("sofa", [sx - 1.0, y0 + 0.2, 0.42], [sx - 0.8, y0 + 0.9, 0.62]),
-        ("sofa", [sx + 0.8, y0 + 0.2, 0.42], [sx + 1.0, y0 + 0.9, 0.62]),
+        (
+            "sofa",
+            [sx - 1.0, y0 + 0.2, 0.42],
+            [sx - 0.8, y0 + 0.9, 0.62],
+        ),
+        (
+            "sofa",
+            [sx + 0.8, y0 + 0.2, 0.42],
+            [sx + 1.0, y0 + 0.9, 0.62],
+        ),
     ]);
     for px in [sx - 0.55, sx + 0.15] {
         b.object(&[("pillow", [px, y0 + 0.2, 0.42], [px + 0.4, y0 + 0.34, 0.78])]);
@@ -318,28 +360,64 @@ pub fn build_room(seed: u64) -> Room {
         ("bed", [hx - 2.0, by0, 0.0], [hx - 0.12, by0 + 1.5, 0.5]),
         ("bed", [hx - 0.12, by0, 0.0], [hx - 0.02, by0 + 1.5, 1.0]),
     ]);
-    b.object(&[("pillow", [hx - 0.55, by0 + 0.3, 0.5], [hx - 0.15, by0 + 1.2, 0.64])]);
+    b.object(&[(
+        "pillow",
+        [hx - 0.55, by0 + 0.3, 0.5],
+        [hx - 0.15, by0 + 1.2, 0.64],
+    )]);
     let ny = by0 + 1.6;
-    b.object(&[("nightstand", [hx - 0.47, ny, 0.0], [hx - 0.02, ny + 0.42, 0.55])]);
+    b.object(&[(
+        "nightstand",
+        [hx - 0.47, ny, 0.0],
+        [hx - 0.02, ny + 0.42, 0.55],
+    )]);
     let (lx, ly) = (hx - 0.25, ny + 0.21);
     b.object(&[
-        ("lamp", [lx - 0.05, ly - 0.05, 0.55], [lx + 0.05, ly + 0.05, 0.85]),
-        ("lamp", [lx - 0.15, ly - 0.15, 0.85], [lx + 0.15, ly + 0.15, 1.1]),
+        (
+            "lamp",
+            [lx - 0.05, ly - 0.05, 0.55],
+            [lx + 0.05, ly + 0.05, 0.85],
+        ),
+        (
+            "lamp",
+            [lx - 0.15, ly - 0.15, 0.85],
+            [lx + 0.15, ly + 0.15, 1.1],
+        ),
     ]);
     b.object(&[("picture", [hx - 0.03, by0 + 0.3, 1.3], [hx, by0 + 1.2, 1.9])]);
     // Cabinet and tv on the north wall, window with blinds, a vent.
     let kx = -1.5 + j(0.2);
-    b.object(&[("cabinet", [kx - 0.5, hy - 0.45, 0.0], [kx + 0.5, hy - 0.01, 0.9])]);
-    b.object(&[("tv-screen", [kx - 0.45, hy - 0.05, 1.15], [kx + 0.45, hy, 1.7])]);
+    b.object(&[(
+        "cabinet",
+        [kx - 0.5, hy - 0.45, 0.0],
+        [kx + 0.5, hy - 0.01, 0.9],
+    )]);
+    b.object(&[(
+        "tv-screen",
+        [kx - 0.45, hy - 0.05, 1.15],
+        [kx + 0.45, hy, 1.7],
+    )]);
     let wx = 0.8 + j(0.2);
     b.object(&[("window", [wx - 0.6, hy - 0.02, 0.9], [wx + 0.6, hy, 2.1])]);
-    b.object(&[("blinds", [wx - 0.65, hy - 0.06, 1.75], [wx + 0.65, hy - 0.02, 2.2])]);
-    b.object(&[("vent", [wx - 0.2, hy - 0.02, h - 0.3], [wx + 0.2, hy, h - 0.1])]);
+    b.object(&[(
+        "blinds",
+        [wx - 0.65, hy - 0.06, 1.75],
+        [wx + 0.65, hy - 0.02, 2.2],
+    )]);
+    b.object(&[(
+        "vent",
+        [wx - 0.2, hy - 0.02, h - 0.3],
+        [wx + 0.2, hy, h - 0.1],
+    )]);
     b.object(&[("vent", [-0.2, -0.1, h - 0.02], [0.2, 0.1, h])]);
     // West wall: door with switch, shelf with books, wall plugs.
     let dy = 1.2 + j(0.1);
     b.object(&[("door", [-hx, dy - 0.45, 0.0], [-hx + 0.04, dy + 0.45, 2.05])]);
-    b.object(&[("switch", [-hx, dy - 0.65, 1.05], [-hx + 0.015, dy - 0.57, 1.17])]);
+    b.object(&[(
+        "switch",
+        [-hx, dy - 0.65, 1.05],
+        [-hx + 0.015, dy - 0.57, 1.17],
+    )]);
     let (s0, s1) = (-1.6 + j(0.1), -0.6);
     for z in [1.2, 1.6] {
         b.object(&[("shelf", [-hx, s0, z], [-hx + 0.28, s1, z + 0.03])]);
@@ -347,7 +425,11 @@ pub fn build_room(seed: u64) -> Room {
         let mut books = Vec::new();
         while y < s1 - 0.35 {
             let t = 0.03 + rng_step(&mut y);
-            books.push(("book", [-hx + 0.04, y, z + 0.03], [-hx + 0.24, y + t, z + 0.23 + t]));
+            books.push((
+                "book",
+                [-hx + 0.04, y, z + 0.03],
+                [-hx + 0.24, y + t, z + 0.23 + t],
+            ));
             y += t + 0.005;
         }
         b.object(&books);
@@ -363,8 +445,16 @@ pub fn build_room(seed: u64) -> Room {
     // A potted plant in the south-east corner.
     let (px, py) = (hx - 0.35, -hy + 0.35);
     b.object(&[
-        ("indoor-plant", [px - 0.17, py - 0.17, 0.0], [px + 0.17, py + 0.17, 0.35]),
-        ("indoor-plant", [px - 0.28, py - 0.28, 0.35], [px + 0.28, py + 0.28, 1.2]),
+        (
+            "indoor-plant",
+            [px - 0.17, py - 0.17, 0.0],
+            [px + 0.17, py + 0.17, 0.35],
+        ),
+        (
+            "indoor-plant",
+            [px - 0.28, py - 0.28, 0.35],
+            [px + 0.28, py + 0.28, 1.2],
+        ),
     ]);
     Room {
         min: [-hx, -hy, 0.0],

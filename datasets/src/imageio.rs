@@ -1,0 +1,108 @@
+//! Image decoding and resampling shared by the loaders.
+
+use std::path::Path;
+
+use image::imageops::FilterType;
+use image::{DynamicImage, ImageBuffer, Rgb};
+
+use crate::error::DatasetError;
+use crate::scene::{DepthImage, RgbImage};
+
+/// Decodes any supported image file.
+pub fn open(path: &Path) -> Result<DynamicImage, DatasetError> {
+    image::ImageReader::open(path)
+        .map_err(|e| DatasetError::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| DatasetError::io(path, e))?
+        .decode()
+        .map_err(|e| DatasetError::invalid(path, format!("cannot decode image: {e}")))
+}
+
+/// Loads a colour image as linear-in-file `[0, 1]` RGB, compositing any alpha
+/// channel over `background` first (when `None`, alpha is dropped), then
+/// resampling to `size` with a triangle filter whose support widens with the
+/// downscale factor (an antialiasing area filter).
+pub fn load_rgb(
+    path: &Path,
+    background: Option<[f32; 3]>,
+    size: Option<(u32, u32)>,
+) -> Result<RgbImage, DatasetError> {
+    let img = open(path)?;
+    let (w, h) = (img.width(), img.height());
+    let rgba = img.into_rgba32f();
+    let mut rgb: ImageBuffer<Rgb<f32>, Vec<f32>> = ImageBuffer::new(w, h);
+    for (dst, src) in rgb.pixels_mut().zip(rgba.pixels()) {
+        let [r, g, b, a] = src.0;
+        dst.0 = match background {
+            Some(bg) => [
+                r * a + bg[0] * (1.0 - a),
+                g * a + bg[1] * (1.0 - a),
+                b * a + bg[2] * (1.0 - a),
+            ],
+            None => [r, g, b],
+        };
+    }
+    let rgb = match size {
+        Some((tw, th)) if (tw, th) != (w, h) => {
+            if tw == 0 || th == 0 {
+                return Err(DatasetError::invalid(path, "target resolution is zero"));
+            }
+            image::imageops::resize(&rgb, tw, th, FilterType::Triangle)
+        }
+        _ => rgb,
+    };
+    let (width, height) = rgb.dimensions();
+    Ok(RgbImage {
+        width,
+        height,
+        data: rgb
+            .into_raw()
+            .into_iter()
+            .map(|v| v.clamp(0.0, 1.0))
+            .collect(),
+    })
+}
+
+/// Loads a 16-bit depth PNG as metres (`value / scale`, 0 stays invalid),
+/// resampled to `size` by nearest neighbour (averaging depths across an edge
+/// would invent surfaces).
+pub fn load_depth16(
+    path: &Path,
+    scale: f64,
+    size: Option<(u32, u32)>,
+) -> Result<DepthImage, DatasetError> {
+    let img = open(path)?;
+    let raw = match img {
+        DynamicImage::ImageLuma16(b) => b,
+        other => {
+            return Err(DatasetError::invalid(
+                path,
+                format!(
+                    "depth must be a 16-bit single-channel PNG, found {:?}",
+                    other.color()
+                ),
+            ));
+        }
+    };
+    let (w, h) = raw.dimensions();
+    let (tw, th) = size.unwrap_or((w, h));
+    let mut data = Vec::with_capacity(tw as usize * th as usize);
+    for y in 0..th {
+        let sy = (((y as f64 + 0.5) * h as f64 / th as f64) as u32).min(h - 1);
+        for x in 0..tw {
+            let sx = (((x as f64 + 0.5) * w as f64 / tw as f64) as u32).min(w - 1);
+            data.push((raw.get_pixel(sx, sy).0[0] as f64 / scale) as f32);
+        }
+    }
+    Ok(DepthImage {
+        width: tw,
+        height: th,
+        data,
+    })
+}
+
+/// Width and height of an image file, from its header only.
+pub fn dimensions(path: &Path) -> Result<(u32, u32), DatasetError> {
+    image::image_dimensions(path)
+        .map_err(|e| DatasetError::invalid(path, format!("cannot read image size: {e}")))
+}

@@ -1,0 +1,207 @@
+//! Ray sampler: determinism, resume, border margin, targets and rays.
+
+use datasets::features::FeatureSet;
+use datasets::sampler::{RaySampler, SamplerConfig, frame_rays, sample_batch};
+use datasets::{DepthImage, FeatureMap, Frame, RgbImage, Scene, SceneSource};
+use half::f16;
+use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
+
+/// Frame `i` encodes its pixel coordinates in the colour and depth, so a
+/// target can be checked against the pixel it claims to come from.
+fn frame(i: usize, w: u32, h: u32, depth: bool) -> Frame {
+    let mut rgb = Vec::new();
+    let mut d = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            rgb.extend([x as f32 / w as f32, y as f32 / h as f32, i as f32 / 10.0]);
+            d.push(1.0 + x as f32 + 100.0 * y as f32);
+        }
+    }
+    let pose = look_at([3.0, i as f64, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]).expect("pose");
+    Frame {
+        name: format!("f{i}"),
+        camera: Camera {
+            intrinsics: Intrinsics::from_fov_x(w, h, 1.0),
+            pose,
+        },
+        rgb: RgbImage {
+            width: w,
+            height: h,
+            data: rgb,
+        },
+        depth: depth.then(|| DepthImage {
+            width: w,
+            height: h,
+            data: d,
+        }),
+        depth_weight: 0.5 + i as f32,
+        labels: None,
+    }
+}
+
+/// Map value at map pixel (x, y), channel c.
+fn map_value(i: usize, x: u32, y: u32, c: usize) -> f32 {
+    (i * 1000 + y as usize * 40 + x as usize) as f32 + 0.25 * c as f32
+}
+
+fn scene(with_features: bool) -> Scene {
+    let frames = vec![
+        frame(0, 40, 30, true),
+        frame(1, 40, 30, false),
+        frame(2, 24, 24, true),
+    ];
+    let features = with_features.then(|| {
+        let maps = frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let (w, h) = (f.rgb.width / 2, f.rgb.height / 2);
+                let mut data = Vec::new();
+                for y in 0..h {
+                    for x in 0..w {
+                        data.extend((0..2).map(|c| f16::from_f32(map_value(i, x, y, c))));
+                    }
+                }
+                FeatureMap {
+                    width: w,
+                    height: h,
+                    dim: 2,
+                    data,
+                }
+            })
+            .collect();
+        FeatureSet::from_maps(maps, None, 0).expect("maps")
+    });
+    Scene {
+        name: "test".into(),
+        frames,
+        features,
+        scene_box: SceneBox {
+            min: [-1.0; 3],
+            max: [1.0; 3],
+        },
+        background: None,
+        points: None,
+        classes: None,
+        source: SceneSource::Synthetic {
+            seed: 0,
+            size: "ci".into(),
+        },
+    }
+}
+
+fn config(seed: u64) -> SamplerConfig {
+    SamplerConfig {
+        rays_per_batch: 512,
+        border_margin: 10,
+        seed,
+        min_near: 0.05,
+    }
+}
+
+#[test]
+fn batches_are_deterministic_and_resumable() {
+    let s = scene(true);
+    let mut a = RaySampler::new(config(7));
+    let batches: Vec<_> = (0..3).map(|_| a.next_batch(&s).expect("batch")).collect();
+    assert_eq!(a.batches_drawn(), 3);
+    assert_ne!(batches[0].pixels, batches[1].pixels);
+    let mut b = RaySampler::new(config(7));
+    b.set_batches_drawn(2);
+    assert_eq!(b.next_batch(&s).expect("batch"), batches[2]);
+    assert_eq!(sample_batch(&config(7), &s, 1).expect("batch"), batches[1]);
+    let other = RaySampler::new(config(8)).next_batch(&s).expect("batch");
+    assert_ne!(other.pixels, batches[0].pixels);
+}
+
+#[test]
+fn pixels_respect_border_and_cover_frames_evenly() {
+    let s = scene(false);
+    let mut sampler = RaySampler::new(SamplerConfig {
+        rays_per_batch: 6000,
+        ..config(1)
+    });
+    let b = sampler.next_batch(&s).expect("batch");
+    let mut counts = [0usize; 3];
+    let (mut xmin, mut xmax) = (u32::MAX, 0);
+    for &[f, x, y] in &b.pixels {
+        let img = &s.frames[f as usize].rgb;
+        assert!(
+            x >= 10 && x < img.width - 10 && y >= 10 && y < img.height - 10,
+            "{f} {x} {y}"
+        );
+        counts[f as usize] += 1;
+        if f == 0 {
+            xmin = xmin.min(x);
+            xmax = xmax.max(x);
+        }
+    }
+    // Every allowed column is reachable (10..30 for a 40-wide frame).
+    assert_eq!((xmin, xmax), (10, 29));
+    // Frames are drawn uniformly: 2000 expected each, sd ~ 37.
+    for c in counts {
+        assert!((c as f64 - 2000.0).abs() < 200.0, "{counts:?}");
+    }
+}
+
+#[test]
+fn targets_and_rays_match_their_pixels() {
+    let s = scene(true);
+    let b = RaySampler::new(config(3)).next_batch(&s).expect("batch");
+    let depth = b.depth.as_ref().expect("depth");
+    let weight = b.depth_weight.as_ref().expect("weights");
+    let feats = b.features.as_ref().expect("features");
+    assert_eq!(b.feature_dim, 2);
+    for (k, &[f, x, y]) in b.pixels.iter().enumerate() {
+        let fr = &s.frames[f as usize];
+        let (w, h) = (fr.rgb.width, fr.rgb.height);
+        assert_eq!(
+            b.rgb[k],
+            [x as f32 / w as f32, y as f32 / h as f32, f as f32 / 10.0]
+        );
+        if f == 1 {
+            assert_eq!((depth[k], weight[k]), (0.0, 0.0));
+        } else {
+            assert_eq!(depth[k], 1.0 + x as f32 + 100.0 * y as f32);
+            assert_eq!(weight[k], 0.5 + f as f32);
+        }
+        // Half-resolution map: image pixel (x, y) lies in map pixel (x/2, y/2).
+        for c in 0..2 {
+            let want = f16::from_f32(map_value(f as usize, x / 2, y / 2, c)).to_f32();
+            assert_eq!(feats[k * 2 + c], want);
+        }
+        let expect = s
+            .scene_box
+            .normalize_ray(&fr.camera.ray(x as f64, y as f64), 0.05);
+        assert_eq!(b.rays[k], expect);
+    }
+}
+
+#[test]
+fn frame_rays_are_row_major() {
+    let s = scene(false);
+    let cam = s.frames[2].camera;
+    let rays = frame_rays(&s.scene_box, &cam, 0.1);
+    assert_eq!(rays.len(), 24 * 24);
+    let (x, y) = (5u32, 17u32);
+    let want = s.scene_box.normalize_ray(&cam.ray(x as f64, y as f64), 0.1);
+    assert_eq!(rays[(y * 24 + x) as usize], want);
+    // Rays from outside the box toward its centre start where they enter it.
+    let centre = &rays[12 * 24 + 12];
+    assert!(centre.far > centre.near && centre.near > 0.1);
+}
+
+#[test]
+fn tiny_images_shrink_the_margin() {
+    let mut s = scene(false);
+    s.frames = vec![frame(0, 3, 2, false)];
+    let b = RaySampler::new(config(0)).next_batch(&s).expect("batch");
+    // Width 3 keeps only the middle column; height 2 keeps both rows.
+    assert!(b.pixels.iter().all(|&[_, x, y]| x == 1 && y < 2));
+    assert!(b.pixels.iter().any(|p| p[2] == 0) && b.pixels.iter().any(|p| p[2] == 1));
+    s.frames.clear();
+    let err = RaySampler::new(config(0))
+        .next_batch(&s)
+        .expect_err("no frames");
+    assert!(err.to_string().contains("no frames"));
+}

@@ -1,0 +1,56 @@
+//! Shared test helpers: the devices to run on and tensor readers.
+#![allow(dead_code)]
+
+use burn::tensor::{Device, DeviceKind, Tensor};
+
+/// Whether a Vulkan driver is installed (or wgpu tests are forced on).
+pub fn wgpu_available() -> bool {
+    if std::env::var("OPENNERF_TEST_WGPU").is_ok_and(|v| v == "1") {
+        return true;
+    }
+    std::fs::read_dir("/usr/share/vulkan/icd.d")
+        .map(|d| {
+            d.filter_map(Result::ok)
+                .any(|e| e.path().extension().is_some_and(|x| x == "json"))
+        })
+        .unwrap_or(false)
+}
+
+/// The CPU devices every test runs on, plus wgpu when a Vulkan driver exists.
+/// `with_wgpu` lets heavy tests stay on the CPU backends.
+pub fn devices(with_wgpu: bool) -> Vec<(&'static str, Device)> {
+    #[allow(deprecated)]
+    let mut v = vec![("flex", Device::flex()), ("ndarray", Device::ndarray())];
+    if with_wgpu {
+        if wgpu_available() {
+            // Run with CUBECL_AUTOTUNE_LEVEL=minimal: shader autotuning on a
+            // CPU Vulkan driver otherwise takes minutes.
+            v.push(("wgpu", Device::wgpu(DeviceKind::Cpu)));
+        } else {
+            eprintln!("skipping wgpu: no Vulkan driver (set OPENNERF_TEST_WGPU=1 to force)");
+        }
+    }
+    v
+}
+
+/// Reads a float tensor as `Vec<f32>`.
+pub fn vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data().convert::<f32>().to_vec::<f32>().unwrap()
+}
+
+/// Builds a tensor from values.
+pub fn tensor<const D: usize>(v: Vec<f32>, shape: [usize; D], device: &Device) -> Tensor<D> {
+    Tensor::from_data(burn::tensor::TensorData::new(v, shape), device)
+}
+
+/// Asserts element-wise closeness with a mixed tolerance.
+pub fn assert_close(a: &[f32], b: &[f32], atol: f32, rtol: f32, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: length");
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        let tol = atol + rtol * y.abs();
+        assert!(
+            (x - y).abs() <= tol && x.is_finite(),
+            "{what}[{i}]: {x} vs {y} (tol {tol})"
+        );
+    }
+}
