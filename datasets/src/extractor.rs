@@ -56,6 +56,8 @@ pub struct SimulatedExtractor {
     embeddings: TextEmbeddings,
     /// Expected image colour of each class, `C`.
     prototypes: Vec<[f32; 3]>,
+    /// Log prior per class added to the colour logits, `C`.
+    log_prior: Vec<f32>,
     /// Noise directions, `NOISE_DIRS x D`.
     noise_basis: Vec<f32>,
     /// Resolution reduction factor.
@@ -110,15 +112,34 @@ impl SimulatedExtractor {
             })
             .collect();
         Ok(Self {
+            log_prior: vec![0.0; prototypes.len()],
             embeddings,
             prototypes,
             noise_basis,
             downsample: 4,
-            sigma: 0.07,
-            logit_noise: 0.8,
+            sigma: 0.06,
+            logit_noise: 0.5,
             feature_noise: 0.25,
             seed,
         })
+    }
+
+    /// The same extractor with a log prior per class added to the colour
+    /// logits (a real VLM favours classes that are common in its training
+    /// data).
+    pub fn with_log_prior(mut self, log_prior: Vec<f32>) -> Result<Self, DatasetError> {
+        if log_prior.len() != self.prototypes.len() || log_prior.iter().any(|v| !v.is_finite()) {
+            return Err(DatasetError::invalid(
+                "<extractor>",
+                format!(
+                    "{} finite prior values needed, got {:?}",
+                    self.prototypes.len(),
+                    log_prior
+                ),
+            ));
+        }
+        self.log_prior = log_prior;
+        Ok(self)
     }
 
     /// The class embeddings (rows L2-normalised) the features are mixed from.
@@ -206,7 +227,10 @@ impl SimulatedExtractor {
             .map(|(c, p)| {
                 let d2: f32 = (0..3).map(|k| (color[k] - p[k]).powi(2)).sum();
                 let noise = (hash01(key ^ (c as u64).wrapping_mul(0x2545_f491)) - 0.5) as f32;
-                (c, -d2 * inv + 2.0 * self.logit_noise * noise)
+                (
+                    c,
+                    -d2 * inv + self.log_prior[c] + 2.0 * self.logit_noise * noise,
+                )
             })
             .collect();
         logits.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));

@@ -184,7 +184,7 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
             "vertex element has a list property (unsupported)".into()
         ));
     }
-    let find = |n: &str| v.props.iter().position(|(p, _)| p == n);
+    let find = |n: &str| v.props.iter().position(|(p, _)| p.as_str() == n);
     let xyz = ["x", "y", "z"].map(find);
     if let Some(k) = xyz.iter().position(|i| i.is_none()) {
         return Err(bad(format!(

@@ -60,6 +60,19 @@ fn replica_sane_scene_loads() {
     assert_eq!(scene.frames.len(), 2);
     let d = scene.frames[0].depth.as_ref().expect("depth");
     assert!((d.get(3, 3) - 2.0).abs() < 1e-6);
+    // Stride 2 of 3 frames keeps frames 0 and 2; features index the kept frames.
+    let feats = dir.path().join("feats.npy");
+    write_npy_f16(&feats, &[2, 3, 4, 2], &[f16::ONE; 48]).expect("npy");
+    let dir3 = replica_dir(3, &identity_poses(3));
+    let opts = ReplicaOptions {
+        stride: 2,
+        features: Some(feats),
+        ..Default::default()
+    };
+    let s = load_replica(dir3.path(), &opts).expect("strided scene");
+    let names: Vec<&str> = s.frames.iter().map(|f| f.name.as_str()).collect();
+    assert_eq!(names, ["frame000000", "frame000002"]);
+    assert_eq!(s.features.expect("features").maps.len(), 2);
 }
 
 #[test]
@@ -122,7 +135,7 @@ fn replica_pose_non_finite() {
 fn replica_feature_count_disagrees_with_frames() {
     let dir = replica_dir(2, &identity_poses(2));
     let feats = dir.path().join("feats.npy");
-    write_npy_f16(&feats, &[3, 3, 4, 2], &vec![f16::ZERO; 72]).expect("npy");
+    write_npy_f16(&feats, &[3, 3, 4, 2], &[f16::ZERO; 72]).expect("npy");
     let opts = ReplicaOptions {
         features: Some(feats),
         ..Default::default()
@@ -170,7 +183,7 @@ fn raw_npy(path: &Path, descr: &str, fortran: bool, shape: &str, body: &[u8]) {
         "{{'descr': '{descr}', 'fortran_order': {}, 'shape': {shape}, }}",
         if fortran { "True" } else { "False" }
     );
-    while (10 + dict.len() + 1) % 64 != 0 {
+    while !(10 + dict.len() + 1).is_multiple_of(64) {
         dict.push(' ');
     }
     dict.push('\n');

@@ -41,7 +41,7 @@ fn npy_reads_numpy_written_bytes() {
     let dir = tempfile::tempdir().expect("tmp");
     let p = dir.path().join("np.npy");
     let mut dict = "{'descr': '<f8', 'fortran_order': False, 'shape': (1, 2), }".to_string();
-    while (10 + dict.len() + 1) % 64 != 0 {
+    while !(10 + dict.len() + 1).is_multiple_of(64) {
         dict.push(' ');
     }
     dict.push('\n');
@@ -123,9 +123,9 @@ fn known_samples(n: usize) -> (Vec<f32>, [[f32; 6]; 3], Vec<f32>) {
     let mut out = Vec::new();
     for _ in 0..n {
         let c = [3.0, 2.0, 1.0].map(|sd: f32| sd * (rng.random::<f32>() * 2.0 - 1.0) * 3f32.sqrt());
-        for d in 0..6 {
-            let v: f32 = (0..3).map(|k| c[k] * axes[k][d]).sum();
-            out.push(mean[d] + v + 1e-3 * (rng.random::<f32>() - 0.5));
+        for (d, m) in mean.iter().enumerate() {
+            let v: f32 = c.iter().zip(&axes).map(|(ck, axis)| ck * axis[d]).sum();
+            out.push(m + v + 1e-3 * (rng.random::<f32>() - 0.5));
         }
     }
     (out, axes, mean)
@@ -135,12 +135,12 @@ fn known_samples(n: usize) -> (Vec<f32>, [[f32; 6]; 3], Vec<f32>) {
 fn pca_recovers_known_axes() {
     let (x, axes, mean) = known_samples(20000);
     let pca = Pca::fit(&x, 6, PcaTarget::Components(3)).expect("fit");
-    for d in 0..6 {
-        assert!((pca.mean[d] - mean[d]).abs() < 0.08, "mean {:?}", pca.mean);
+    for (a, b) in pca.mean.iter().zip(&mean) {
+        assert!((a - b).abs() < 0.08, "mean {:?}", pca.mean);
     }
-    for k in 0..3 {
+    for (k, axis) in axes.iter().enumerate() {
         let row = &pca.components[k * 6..(k + 1) * 6];
-        let dot: f32 = row.iter().zip(&axes[k]).map(|(a, b)| a * b).sum();
+        let dot: f32 = row.iter().zip(axis).map(|(a, b)| a * b).sum();
         assert!(dot.abs() > 0.995, "component {k}: {row:?}");
     }
     assert!(pca.explained_variance_ratio > 0.9999);

@@ -33,12 +33,20 @@ fn check_roundtrip(format: ImageFormat, colour_tolerance: f32, mean_tolerance: f
         }
         let (ka, kb) = (a.camera.intrinsics, b.camera.intrinsics);
         assert_eq!((ka.width, ka.height), (kb.width, kb.height));
-        for (x, y) in [(ka.fx, kb.fx), (ka.fy, kb.fy), (ka.cx, kb.cx), (ka.cy, kb.cy)] {
+        for (x, y) in [
+            (ka.fx, kb.fx),
+            (ka.fy, kb.fy),
+            (ka.cx, kb.cx),
+            (ka.cy, kb.cy),
+        ] {
             assert!((x - y).abs() < 1e-9, "intrinsics {x} vs {y}");
         }
         let (da, db) = (a.depth.as_ref().unwrap(), b.depth.as_ref().unwrap());
         for (x, y) in da.data.iter().zip(&db.data) {
-            assert!(((x - y).abs() as f64) <= 0.5 / DEPTH_SCALE + 1e-6, "depth {x} vs {y}");
+            assert!(
+                ((x - y).abs() as f64) <= 0.5 / DEPTH_SCALE + 1e-6,
+                "depth {x} vs {y}"
+            );
         }
         let mut max = 0f32;
         let mut sum = 0f32;
@@ -51,7 +59,10 @@ fn check_roundtrip(format: ImageFormat, colour_tolerance: f32, mean_tolerance: f
         assert!(mean <= mean_tolerance, "colour mean error {mean}");
     }
     // Feature maps: f16 written, f16 read back exactly.
-    let (fa, fb) = (scene.features.as_ref().unwrap(), loaded.features.as_ref().unwrap());
+    let (fa, fb) = (
+        scene.features.as_ref().unwrap(),
+        loaded.features.as_ref().unwrap(),
+    );
     assert_eq!(fa.maps, fb.maps);
     // Class embeddings (f32 on disk) and names.
     let classes = TextEmbeddings::load(&dir.join("classes.npy"), &dir.join("classes.txt")).unwrap();
@@ -102,18 +113,25 @@ fn compressed_features_can_be_written_as_coefficients_or_lifted() {
             features: layout,
         };
         write_scene(&scene, &dir, &options).unwrap();
-        let (shape, data) = datasets::npy::read_npy_f32(&dir.join("features/frame000000.npy")).unwrap();
+        let (shape, data) =
+            datasets::npy::read_npy_f32(&dir.join("features/frame000000.npy")).unwrap();
         let coeffs: Vec<f32> = first.data.iter().map(|v| v.to_f32()).collect();
         match layout {
             FeatureLayout::Full => {
-                assert_eq!(shape, vec![first.height as usize, first.width as usize, pca.dim]);
+                assert_eq!(
+                    shape,
+                    vec![first.height as usize, first.width as usize, pca.dim]
+                );
                 let lifted = pca.lift(&coeffs);
                 for (x, y) in data.iter().zip(&lifted) {
                     assert!((x - y).abs() < 2e-3, "{x} vs {y}");
                 }
             }
             FeatureLayout::Coefficients => {
-                assert_eq!(shape, vec![first.height as usize, first.width as usize, pca.k]);
+                assert_eq!(
+                    shape,
+                    vec![first.height as usize, first.width as usize, pca.k]
+                );
                 assert_eq!(data, coeffs);
                 let text = std::fs::read_to_string(dir.join("features/pca.json")).unwrap();
                 let back: datasets::features::Pca = serde_json::from_str(&text).unwrap();

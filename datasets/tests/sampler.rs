@@ -29,7 +29,7 @@ fn frame(i: usize, w: u32, h: u32, depth: bool) -> Frame {
             height: h,
             data: rgb,
         },
-        depth: depth.then(|| DepthImage {
+        depth: depth.then_some(DepthImage {
             width: w,
             height: h,
             data: d,

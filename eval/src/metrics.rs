@@ -19,7 +19,14 @@ pub struct ConfusionMatrix {
     pub classes: usize,
     /// `classes * classes` counts; row = ground truth, column = prediction.
     pub counts: Vec<u64>,
+    /// Points per ground-truth class that received no prediction (a false
+    /// negative of their class, a false positive of none).
+    pub unpredicted: Vec<u64>,
 }
+
+/// Prediction value of a point that no method could label (for example a
+/// point no view sees in pure projection mode).
+pub const NO_PREDICTION: u32 = u32::MAX - 1;
 
 impl ConfusionMatrix {
     /// An empty matrix over `classes` classes.
@@ -27,13 +34,22 @@ impl ConfusionMatrix {
         Self {
             classes,
             counts: vec![0; classes * classes],
+            unpredicted: vec![0; classes],
         }
     }
 
-    /// Adds one point; ignored or out-of-range labels are skipped.
+    /// Adds one point; ignored or out-of-range labels are skipped, and
+    /// [`NO_PREDICTION`] counts as a miss of the true class.
     pub fn add(&mut self, gt: u32, pred: u32) {
         let (g, p) = (gt as usize, pred as usize);
-        if gt == IGNORE_LABEL || g >= self.classes || p >= self.classes {
+        if gt == IGNORE_LABEL || g >= self.classes {
+            return;
+        }
+        if pred == NO_PREDICTION {
+            self.unpredicted[g] += 1;
+            return;
+        }
+        if p >= self.classes {
             return;
         }
         self.counts[g * self.classes + p] += 1;
@@ -53,7 +69,7 @@ impl ConfusionMatrix {
 
     /// Ground-truth points of class `c` (row sum).
     pub fn gt_count(&self, c: usize) -> u64 {
-        (0..self.classes).map(|p| self.get(c, p)).sum()
+        (0..self.classes).map(|p| self.get(c, p)).sum::<u64>() + self.unpredicted[c]
     }
 
     /// Points predicted as class `c` (column sum).
@@ -222,7 +238,7 @@ pub fn score(
             )
         })
     };
-    let points: u64 = cm.counts.iter().sum();
+    let points: u64 = cm.counts.iter().sum::<u64>() + cm.unpredicted.iter().sum::<u64>();
     let correct: u64 = (0..cm.classes).map(|c| cm.get(c, c)).sum();
     SegmentationScores {
         mode: mode.to_string(),
@@ -367,6 +383,12 @@ mod tests {
         cm.add(0, 9);
         cm.add(IGNORE_LABEL, 1);
         assert_eq!(cm.counts.iter().sum::<u64>(), 0);
+        // A point without a prediction is a miss of its class only.
+        cm.add(1, NO_PREDICTION);
+        cm.add(1, 1);
+        let (iou, acc) = cm.class_scores(1);
+        assert_eq!((iou, acc), (Some(0.5), Some(0.5)));
+        assert_eq!(cm.class_scores(0), (None, None));
     }
 
     #[test]

@@ -10,9 +10,9 @@ use model::{OpenNerf, Rays};
 use crate::colormap::{to_u8, turbo};
 use crate::error::EvalError;
 
-/// Lower bound on the ray parameter (metres) of rendered rays, so that
-/// samples never start inside the camera's own lens.
-pub const RENDER_MIN_NEAR: f64 = 0.0;
+/// Lower bound on the ray parameter (metres) of rendered rays; the same as
+/// the training ray sampler's default, so views render as they were trained.
+pub const RENDER_MIN_NEAR: f64 = 0.05;
 
 /// One rendered view, row-major images of `height x width` pixels.
 #[derive(Debug, Clone, PartialEq)]

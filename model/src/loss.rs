@@ -26,10 +26,7 @@ pub fn depth_huber(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>, delta:
     let valid = target.clone().greater_elem(0.0);
     let invalid = valid.clone().bool_not();
     let count = valid.float().sum().clamp_min(1.0);
-    let r = pred
-        .sub(target)
-        .mask_fill(invalid.clone(), 0.0)
-        .abs();
+    let r = pred.sub(target).mask_fill(invalid.clone(), 0.0).abs();
     let delta = delta.max(f32::MIN_POSITIVE);
     let quad = r.clone().clamp_max(delta);
     // Huber = 0.5 q^2 + delta (|r| - q) with q = min(|r|, delta).
@@ -38,10 +35,7 @@ pub fn depth_huber(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>, delta:
         .square()
         .mul_scalar(0.5)
         .add(r.sub(quad).mul_scalar(delta));
-    huber
-        .mul(weight.mask_fill(invalid, 0.0))
-        .sum()
-        .div(count)
+    huber.mul(weight.mask_fill(invalid, 0.0)).sum().div(count)
 }
 
 /// Open-set loss: mean of `1 - cos(pred, target)` over rays whose target norm

@@ -40,7 +40,11 @@ pub fn conical_frustum_to_gaussian(
     let hw4 = hw2.clone().square();
     // 3 mu^2 + hw^2 is 0 only for the degenerate interval [0, 0]; the floor
     // keeps that case finite (it then yields t_mean = 0 and zero variances).
-    let denom = mu2.clone().mul_scalar(3.0).add(hw2.clone()).clamp_min(1e-20);
+    let denom = mu2
+        .clone()
+        .mul_scalar(3.0)
+        .add(hw2.clone())
+        .clamp_min(1e-20);
     let t_mean = mu
         .clone()
         .add(mu.mul(hw2.clone()).mul_scalar(2.0).div(denom.clone()));

@@ -97,11 +97,11 @@ impl Rays {
             Tensor::from_data(TensorData::new(v, [n, 1]), device)
         };
         Rays {
-            origins: vec3(&|r| r.origin),
-            directions: vec3(&|r| r.direction),
-            radii: scalar(&|r| r.radius),
-            near: scalar(&|r| r.near),
-            far: scalar(&|r| r.far.max(r.near)),
+            origins: vec3(&|r: &NormalizedRay| r.origin),
+            directions: vec3(&|r: &NormalizedRay| r.direction),
+            radii: scalar(&|r: &NormalizedRay| r.radius),
+            near: scalar(&|r: &NormalizedRay| r.near),
+            far: scalar(&|r: &NormalizedRay| r.far.max(r.near)),
         }
     }
 
@@ -160,9 +160,8 @@ impl LevelOutputs {
     }
 
     fn cat(levels: Vec<LevelOutputs>) -> LevelOutputs {
-        let pick = |f: &dyn Fn(&LevelOutputs) -> Tensor<2>| {
-            Tensor::cat(levels.iter().map(f).collect(), 0)
-        };
+        let pick =
+            |f: &dyn Fn(&LevelOutputs) -> Tensor<2>| Tensor::cat(levels.iter().map(f).collect(), 0);
         let feature = if levels.iter().all(|l| l.feature.is_some()) {
             let parts: Vec<Tensor<2>> = levels.iter().filter_map(|l| l.feature.clone()).collect();
             Some(Tensor::cat(parts, 0))
@@ -222,7 +221,10 @@ impl OpenNerf {
         mode: FeatureMode,
     ) -> RenderOutputs {
         let dir_norm = rays.directions.clone().square().sum_dim(1).sqrt();
-        let viewdirs = rays.directions.clone().div(dir_norm.clone().clamp_min(1e-20));
+        let viewdirs = rays
+            .directions
+            .clone()
+            .div(dir_norm.clone().clamp_min(1e-20));
         let view_enc = pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true);
         let t_coarse = stratified_t_vals(
             rays.near.clone(),
@@ -314,7 +316,10 @@ impl OpenNerf {
             FeatureMode::PerSample => {
                 let f = self.head.forward(field.trunk);
                 let [_, c] = f.dims();
-                Some(composite_features(comp.weights.clone(), f.reshape([n, s, c])))
+                Some(composite_features(
+                    comp.weights.clone(),
+                    f.reshape([n, s, c]),
+                ))
             }
             FeatureMode::Composited => {
                 Some(self.composited_feature(field.trunk, comp.weights.clone(), n, s))
@@ -332,7 +337,13 @@ impl OpenNerf {
 
     /// Feature by compositing the head's hidden activations (optionally on
     /// the top-k samples only) and applying the output layer once per ray.
-    fn composited_feature(&self, trunk: Tensor<2>, weights: Tensor<2>, n: usize, s: usize) -> Tensor<2> {
+    fn composited_feature(
+        &self,
+        trunk: Tensor<2>,
+        weights: Tensor<2>,
+        n: usize,
+        s: usize,
+    ) -> Tensor<2> {
         let weights = weights.detach();
         let trunk = trunk.detach();
         let [_, width] = trunk.dims();

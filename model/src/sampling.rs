@@ -39,7 +39,10 @@ pub fn stratified_t_vals(
         .slice_dim(1, 0..posts - 1)
         .add(t.clone().slice_dim(1, 1..posts))
         .mul_scalar(0.5);
-    let upper = Tensor::cat(vec![mids.clone(), t.clone().slice_dim(1, posts - 1..posts)], 1);
+    let upper = Tensor::cat(
+        vec![mids.clone(), t.clone().slice_dim(1, posts - 1..posts)],
+        1,
+    );
     let lower = Tensor::cat(vec![t.slice_dim(1, 0..1), mids], 1);
     let u = Tensor::random([rays, posts], Distribution::Uniform(0.0, 1.0), &device);
     lower.clone().add(upper.sub(lower).mul(u)).detach()
@@ -125,7 +128,11 @@ pub fn sample_pdf(
         .greater_equal(cdf.clone().unsqueeze_dim::<3>(2).expand(shape));
     let find = |x: Tensor<2>| {
         let full = x.clone().unsqueeze_dim::<3>(2).expand(shape);
-        let first = x.clone().slice_dim(1, 0..1).unsqueeze_dim::<3>(2).expand(shape);
+        let first = x
+            .clone()
+            .slice_dim(1, 0..1)
+            .unsqueeze_dim::<3>(2)
+            .expand(shape);
         let last = x.slice_dim(1, m - 1..m).unsqueeze_dim::<3>(2).expand(shape);
         let x0 = first.mask_where(mask.clone(), full.clone()).max_dim(1);
         let x1 = full.mask_where(mask.clone(), last).min_dim(1);
@@ -142,10 +149,7 @@ pub fn sample_pdf(
         .div(denom.clamp_min(1e-20))
         .mask_fill(empty, 0.0)
         .clamp(0.0, 1.0);
-    bins_g0
-        .clone()
-        .add(t.mul(bins_g1.sub(bins_g0)))
-        .detach()
+    bins_g0.clone().add(t.mul(bins_g1.sub(bins_g0))).detach()
 }
 
 /// The fine level's fence posts: blur-resample of the coarse `weights`

@@ -1,4 +1,6 @@
 //! Cameras, poses, rays and the scene box against direct constructions.
+// Index loops mirror the formulas in these reference computations.
+#![allow(clippy::needless_range_loop)]
 
 use model::geometry::{
     Camera, GeometryError, Intrinsics, Pose, SceneBox, cross, dot, look_at, norm, sub,
@@ -34,7 +36,10 @@ fn look_at_frame() {
         let c = cross(x, y);
         assert!((0..3).all(|k| close(c[k], z[k], 1e-12)));
         let want_z = unit(sub(target, pos));
-        assert!((0..3).all(|k| close(z[k], want_z[k], 1e-12)), "z points at the target");
+        assert!(
+            (0..3).all(|k| close(z[k], want_z[k], 1e-12)),
+            "z points at the target"
+        );
         assert_eq!(pose.center(), pos);
         let parallel = norm(cross(want_z, up)) < 1e-9;
         if !parallel {
@@ -79,10 +84,16 @@ fn opengl_opencv_round_trip() {
     assert_eq!(back.translation, pose.translation);
     let mut bad = pose.to_matrix();
     bad[0][0] *= 1.5;
-    assert!(matches!(Pose::from_matrix(bad), Err(GeometryError::NotRigid { .. })));
+    assert!(matches!(
+        Pose::from_matrix(bad),
+        Err(GeometryError::NotRigid { .. })
+    ));
     let mut bad = pose.to_matrix();
     bad[3][1] = 0.2;
-    assert!(matches!(Pose::from_matrix(bad), Err(GeometryError::NotRigid { .. })));
+    assert!(matches!(
+        Pose::from_matrix(bad),
+        Err(GeometryError::NotRigid { .. })
+    ));
     let mut bad = pose.to_matrix();
     bad[1][3] = f64::INFINITY;
     assert_eq!(Pose::from_matrix(bad), Err(GeometryError::NonFinite));
@@ -146,7 +157,11 @@ fn intrinsics_scaled() {
     let round = s.scaled(1200, 680);
     assert!(close(round.cx, k.cx, 1e-9) && close(round.fy, k.fy, 1e-9));
     let fov = Intrinsics::from_fov_x(800, 800, 0.6911112070083618);
-    assert!(close(fov.fx, 400.0 / (0.5f64 * 0.6911112070083618).tan(), 1e-9));
+    assert!(close(
+        fov.fx,
+        400.0 / (0.5f64 * 0.6911112070083618).tan(),
+        1e-9
+    ));
     assert!(close(fov.cx, 399.5, 1e-12));
 }
 
@@ -184,7 +199,10 @@ fn scene_box_intersection() {
             None => assert!(inside.is_empty(), "missed {o:?} {d:?}"),
             Some((t0, t1)) => {
                 let (a, z) = (inside[0], inside[inside.len() - 1]);
-                assert!(close(t0, a, 2e-4) && close(t1, z, 2e-4), "{o:?} {d:?}: {t0} {t1} vs {a} {z}");
+                assert!(
+                    close(t0, a, 2e-4) && close(t1, z, 2e-4),
+                    "{o:?} {d:?}: {t0} {t1} vs {a} {z}"
+                );
             }
         }
     }

@@ -1,5 +1,7 @@
 //! Losses against direct f64 evaluation, their masking rules and finiteness
 //! (including gradients) at zero-norm vectors and f16-range magnitudes.
+// Index loops mirror the formulas in these reference computations.
+#![allow(clippy::needless_range_loop)]
 
 mod common;
 
@@ -12,8 +14,16 @@ fn rgb_mse_matches_direct() {
     for (name, device) in devices(true) {
         let p = vec![0.1, 0.2, 0.3, 0.9, 0.5, 0.0];
         let t = vec![0.0, 0.2, 0.5, 1.0, 0.5, 0.5];
-        let want: f32 = p.iter().zip(&t).map(|(a, b): (&f32, &f32)| (a - b).powi(2)).sum::<f32>() / 6.0;
-        let got = vec(rgb_mse(tensor(p, [2, 3], &device), tensor(t, [2, 3], &device)));
+        let want: f32 = p
+            .iter()
+            .zip(&t)
+            .map(|(a, b): (&f32, &f32)| (a - b).powi(2))
+            .sum::<f32>()
+            / 6.0;
+        let got = vec(rgb_mse(
+            tensor(p, [2, 3], &device),
+            tensor(t, [2, 3], &device),
+        ));
         assert_close(&got, &[want], 1e-7, 1e-5, name);
     }
 }
@@ -27,7 +37,13 @@ fn depth_huber_masks_and_weights() {
         let target = vec![1.5, 0.0, 2.0, f32::NAN, -1.0];
         let weight = vec![1.0, 1.0, 0.5, 1.0, 1.0];
         let delta = 1.0f32;
-        let huber = |r: f32| if r.abs() <= delta { 0.5 * r * r } else { delta * (r.abs() - 0.5 * delta) };
+        let huber = |r: f32| {
+            if r.abs() <= delta {
+                0.5 * r * r
+            } else {
+                delta * (r.abs() - 0.5 * delta)
+            }
+        };
         let want = (1.0 * huber(-0.5) + 0.5 * huber(3.0)) / 2.0;
         let got = vec(depth_huber(
             tensor(pred, [5, 1], &device),
@@ -53,8 +69,12 @@ fn depth_huber_masks_and_weights() {
 fn cosine_loss_handles_zero_norms() {
     for (name, device) in devices(false) {
         let device: Device = device.autodiff();
-        let pred = vec![1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 3.0, 4.0, 0.0, 60000.0, 60000.0, -60000.0];
-        let target = vec![0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 65504.0, -65504.0, 65504.0];
+        let pred = vec![
+            1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 3.0, 4.0, 0.0, 60000.0, 60000.0, -60000.0,
+        ];
+        let target = vec![
+            0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 65504.0, -65504.0, 65504.0,
+        ];
         // Rays: orthogonal (1 - 0), zero pred (1 - 0), zero target (skipped),
         // f16-range (cos = -1/3).
         let want = (1.0 + 1.0 + (1.0 + 1.0 / 3.0)) / 3.0;

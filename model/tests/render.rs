@@ -1,5 +1,7 @@
 //! Compositing and sampling against f64 references and their invariants,
 //! including the numerical extremes.
+// Index loops mirror the formulas in these reference computations.
+#![allow(clippy::needless_range_loop)]
 
 mod common;
 
@@ -56,7 +58,13 @@ fn random_batch(rays: usize, s: usize, seed: u64) -> Batch {
     Batch {
         // Log-uniform densities from 1e-3 to 1e3 plus exact zeros.
         density: (0..rays * s)
-            .map(|i| if i % 7 == 0 { 0.0 } else { 10f32.powf(rng.random_range(-3.0..3.0)) })
+            .map(|i| {
+                if i % 7 == 0 {
+                    0.0
+                } else {
+                    10f32.powf(rng.random_range(-3.0..3.0))
+                }
+            })
             .collect(),
         rgb: (0..rays * s * 3).map(|_| rng.random()).collect(),
         t,
@@ -82,19 +90,40 @@ fn compositing_matches_reference_and_invariants() {
         );
         let (w, rgb, depth, acc) = (vec(out.weights), vec(out.rgb), vec(out.depth), vec(out.acc));
         for r in 0..b.rays {
-            let dens: Vec<f64> = b.density[r * b.s..(r + 1) * b.s].iter().map(|&v| v as f64).collect();
+            let dens: Vec<f64> = b.density[r * b.s..(r + 1) * b.s]
+                .iter()
+                .map(|&v| v as f64)
+                .collect();
             let cols: Vec<[f64; 3]> = (0..b.s)
                 .map(|i| std::array::from_fn(|k| b.rgb[(r * b.s + i) * 3 + k] as f64))
                 .collect();
-            let t: Vec<f64> = b.t[r * (b.s + 1)..(r + 1) * (b.s + 1)].iter().map(|&v| v as f64).collect();
+            let t: Vec<f64> = b.t[r * (b.s + 1)..(r + 1) * (b.s + 1)]
+                .iter()
+                .map(|&v| v as f64)
+                .collect();
             let (ew, ets, ec, ed, ea) = reference(&dens, &cols, &t, b.dnorm[r] as f64);
             let got = &w[r * b.s..(r + 1) * b.s];
             let want: Vec<f32> = ew.iter().map(|&v| v as f32).collect();
             assert_close(got, &want, 1e-5, 1e-4, &format!("{name} weights ray {r}"));
-            assert_close(&rgb[3 * r..3 * r + 3], &ec.map(|v| v as f32), 1e-5, 1e-4, &format!("{name} rgb"));
-            assert_close(&[depth[r]], &[ed as f32], 1e-4, 1e-4, &format!("{name} depth"));
+            assert_close(
+                &rgb[3 * r..3 * r + 3],
+                &ec.map(|v| v as f32),
+                1e-5,
+                1e-4,
+                &format!("{name} rgb"),
+            );
+            assert_close(
+                &[depth[r]],
+                &[ed as f32],
+                1e-4,
+                1e-4,
+                &format!("{name} depth"),
+            );
             assert_close(&[acc[r]], &[ea as f32], 1e-5, 1e-5, &format!("{name} acc"));
-            assert!(got.iter().all(|&v| (0.0..=1.0).contains(&v)), "{name}: weight range");
+            assert!(
+                got.iter().all(|&v| (0.0..=1.0).contains(&v)),
+                "{name}: weight range"
+            );
             assert!(acc[r] <= 1.0 + 1e-6, "{name}: acc {}", acc[r]);
             // T_i = 1 - sum_{j<i} w_j must be non-increasing and match the reference.
             let mut prev = f32::INFINITY;
@@ -102,7 +131,10 @@ fn compositing_matches_reference_and_invariants() {
             for (i, &wi) in got.iter().enumerate() {
                 let ti = 1.0 - cum;
                 assert!(ti <= prev + 1e-6, "{name}: transmittance increases at {i}");
-                assert!((ti as f64 - ets[i]).abs() < 1e-4, "{name}: transmittance {i}");
+                assert!(
+                    (ti as f64 - ets[i]).abs() < 1e-4,
+                    "{name}: transmittance {i}"
+                );
                 prev = ti;
                 cum += wi;
             }
@@ -127,9 +159,19 @@ fn opaque_and_empty_rays() {
             None,
         );
         let w = vec(out.weights);
-        assert_eq!(&w[..4], &[1.0, 0.0, 0.0, 0.0], "{name}: opaque first sample");
+        assert_eq!(
+            &w[..4],
+            &[1.0, 0.0, 0.0, 0.0],
+            "{name}: opaque first sample"
+        );
         assert_eq!(&w[4..], &[0.0; 4], "{name}: empty ray");
-        assert_close(&vec(out.rgb), &[rgb[0], rgb[1], rgb[2], 0.0, 0.0, 0.0], 1e-6, 0.0, name);
+        assert_close(
+            &vec(out.rgb),
+            &[rgb[0], rgb[1], rgb[2], 0.0, 0.0, 0.0],
+            1e-6,
+            0.0,
+            name,
+        );
         assert_eq!(vec(out.acc), vec![1.0, 0.0], "{name}");
         assert_close(&vec(out.depth), &[1.25, 0.0], 1e-6, 0.0, name);
         let bg = [0.2, 0.4, 0.6];
@@ -140,7 +182,13 @@ fn opaque_and_empty_rays() {
             tensor(vec![1.0, 1.0], [2, 1], &device),
             Some(bg),
         );
-        assert_close(&vec(out.rgb), &[rgb[0], rgb[1], rgb[2], 0.2, 0.4, 0.6], 1e-6, 0.0, name);
+        assert_close(
+            &vec(out.rgb),
+            &[rgb[0], rgb[1], rgb[2], 0.2, 0.4, 0.6],
+            1e-6,
+            0.0,
+            name,
+        );
     }
 }
 
@@ -160,7 +208,13 @@ fn compositing_extremes() {
         );
         let w = vec(out.weights);
         let e = (-0.1f64).exp();
-        assert_close(&w, &[(1.0 - e) as f32, e as f32, 0.0], 1e-6, 0.0, &format!("{name} huge after small"));
+        assert_close(
+            &w,
+            &[(1.0 - e) as f32, e as f32, 0.0],
+            1e-6,
+            0.0,
+            &format!("{name} huge after small"),
+        );
         assert!(vec(out.acc)[0] <= 1.0 + 1e-6);
         // Zero-length intervals (near == far) with huge density: no NaN, no weight.
         let out = composite(
@@ -204,8 +258,13 @@ fn stratified_sampling() {
             for i in 0..=s {
                 let g = want[r * (s + 1) + i];
                 let step = (want[r * (s + 1) + s] - want[r * (s + 1)]) / s as f32;
-                assert!((row[i] - g).abs() <= 0.5 * step + 1e-5, "{name}: stratum {i}");
-                assert!(row[i] >= want[r * (s + 1)] - 1e-6 && row[i] <= want[r * (s + 1) + s] + 1e-6);
+                assert!(
+                    (row[i] - g).abs() <= 0.5 * step + 1e-5,
+                    "{name}: stratum {i}"
+                );
+                assert!(
+                    row[i] >= want[r * (s + 1)] - 1e-6 && row[i] <= want[r * (s + 1) + s] + 1e-6
+                );
                 if i > 0 {
                     assert!(row[i] >= row[i - 1], "{name}: sorted");
                 }
@@ -222,7 +281,9 @@ fn blur_matches_reference() {
     p.extend_from_slice(&w);
     p.push(w[4]);
     let maxes: Vec<f32> = (0..6).map(|i| p[i].max(p[i + 1])).collect();
-    let want: Vec<f32> = (0..5).map(|i| 0.5 * (maxes[i] + maxes[i + 1]) + 0.01).collect();
+    let want: Vec<f32> = (0..5)
+        .map(|i| 0.5 * (maxes[i] + maxes[i + 1]) + 0.01)
+        .collect();
     for (name, device) in devices(true) {
         let got = vec(blur_weights(tensor(w.to_vec(), [1, 5], &device), 0.01));
         assert_close(&got, &want, 1e-6, 0.0, name);
@@ -254,27 +315,62 @@ fn pdf_sampling_matches_brute_force() {
     let bins = [1.0f32, 1.5, 2.0, 3.0, 3.5, 5.0];
     let weights = [0.1f32, 0.0, 0.6, 0.2, 0.1];
     let n = 9;
-    let u: Vec<f64> = (0..n).map(|i| (1.0 - 1e-5) * i as f64 / (n - 1) as f64).collect();
+    let u: Vec<f64> = (0..n)
+        .map(|i| (1.0 - 1e-5) * i as f64 / (n - 1) as f64)
+        .collect();
     let b64: Vec<f64> = bins.iter().map(|&v| v as f64).collect();
     let w64: Vec<f64> = weights.iter().map(|&v| v as f64).collect();
-    let want: Vec<f32> = inverse_cdf(&b64, &w64, &u).iter().map(|&v| v as f32).collect();
+    let want: Vec<f32> = inverse_cdf(&b64, &w64, &u)
+        .iter()
+        .map(|&v| v as f32)
+        .collect();
     for (name, device) in devices(true) {
         let mut b = bins.to_vec();
         b.extend_from_slice(&bins);
         let mut w = weights.to_vec();
         w.extend_from_slice(&[0.0; 5]);
-        let got = vec(sample_pdf(tensor(b.clone(), [2, 6], &device), tensor(w.clone(), [2, 5], &device), n, false));
+        let got = vec(sample_pdf(
+            tensor(b.clone(), [2, 6], &device),
+            tensor(w.clone(), [2, 5], &device),
+            n,
+            false,
+        ));
         assert_close(&got[..n], &want, 1e-4, 1e-5, &format!("{name} inverse cdf"));
         // Zero weights: uniform in [1, 5] by quantile.
-        let uniform: Vec<f32> = inverse_cdf(&b64, &[1.0; 5], &u).iter().map(|&v| v as f32).collect();
-        assert_close(&got[n..], &uniform, 1e-4, 1e-5, &format!("{name} zero weights"));
-        let got = vec(sample_pdf(tensor(b, [2, 6], &device), tensor(w, [2, 5], &device), n, true));
+        let uniform: Vec<f32> = inverse_cdf(&b64, &[1.0; 5], &u)
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        assert_close(
+            &got[n..],
+            &uniform,
+            1e-4,
+            1e-5,
+            &format!("{name} zero weights"),
+        );
+        let got = vec(sample_pdf(
+            tensor(b, [2, 6], &device),
+            tensor(w, [2, 5], &device),
+            n,
+            true,
+        ));
         for r in 0..2 {
             let row = &got[r * n..(r + 1) * n];
-            assert!(row.windows(2).all(|p| p[0] <= p[1]), "{name}: sorted {row:?}");
-            assert!(row.iter().all(|&v| (1.0..=5.0).contains(&v)), "{name}: in range");
+            assert!(
+                row.windows(2).all(|p| p[0] <= p[1]),
+                "{name}: sorted {row:?}"
+            );
+            assert!(
+                row.iter().all(|&v| (1.0..=5.0).contains(&v)),
+                "{name}: in range"
+            );
         }
         // No sample falls in the zero-weight bin (1.5, 2.0) of the first ray.
-        assert!(got[..n].iter().all(|&v| !(v > 1.5 + 1e-4 && v < 2.0 - 1e-4)), "{name}: {got:?}");
+        assert!(
+            got[..n]
+                .iter()
+                .all(|&v| !(v > 1.5 + 1e-4 && v < 2.0 - 1e-4)),
+            "{name}: {got:?}"
+        );
     }
 }

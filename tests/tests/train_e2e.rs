@@ -137,7 +137,7 @@ fn weights(dir: &Path) -> Vec<f32> {
     struct Collect(Vec<f32>);
     impl ModuleVisitor for Collect {
         fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-            self.0.extend(p.val().into_data().to_vec::<f32>().unwrap());
+            self.0.extend(p.val().into_data().try_to_vec::<f32>().unwrap());
         }
     }
     let run = eval::run::load_run(dir, &Device::flex()).unwrap();
@@ -146,12 +146,16 @@ fn weights(dir: &Path) -> Vec<f32> {
     c.0
 }
 
-/// A short run on `backend` improves the held-out colour over initialisation.
-fn short_run_improves(backend: BackendKind, iterations: usize) {
+/// A short run on `backend` improves the held-out colour and features over
+/// initialisation (`rays` per batch, `samples` per level).
+fn short_run_improves(backend: BackendKind, iterations: usize, rays: usize, samples: usize, min_psnr_gain: f64) {
     let _guard = serial();
     let scene = ci_scene();
     let dir = scratch_dir();
     let mut config = tiny_config(scene, iterations);
+    config.sampler.rays_per_batch = rays;
+    config.model.num_samples = samples;
+    config.schedule.warmup_iters = iterations / 10;
     config.logging.eval_every = 0;
     config.logging.checkpoint_every = 0;
     config.logging.eval_pixels = 256;
@@ -160,17 +164,19 @@ fn short_run_improves(backend: BackendKind, iterations: usize) {
     println!("{backend}: {s:?}");
     assert_eq!(s.iterations, iterations);
     assert_eq!(s.skipped_steps, 0);
+    let (psnr0, cos0) = (s.initial_psnr.unwrap(), s.initial_feature_cosine.unwrap());
     assert!(
-        s.heldout_psnr > s.initial_psnr.unwrap() + 2.0,
-        "{backend}: PSNR {} vs {} at initialisation",
-        s.heldout_psnr,
-        s.initial_psnr.unwrap()
+        s.heldout_psnr > psnr0 + min_psnr_gain,
+        "{backend}: PSNR {} vs {psnr0} at initialisation",
+        s.heldout_psnr
     );
+    let cos = s.heldout_feature_cosine.unwrap();
+    assert!(cos > cos0 + 0.3, "{backend}: feature cosine {cos} vs {cos0} at initialisation");
 }
 
 #[test]
 fn ndarray_backend_trains() {
-    short_run_improves(BackendKind::Ndarray, 100);
+    short_run_improves(BackendKind::Ndarray, 100, 256, 32, 1.0);
 }
 
 #[test]
@@ -179,5 +185,6 @@ fn wgpu_backend_trains_when_a_vulkan_driver_is_present() {
         println!("skipped: no Vulkan driver (install mesa-vulkan-drivers or set OPENNERF_TEST_WGPU=1)");
         return;
     }
-    short_run_improves(BackendKind::Wgpu, 40);
+    // A software Vulkan driver runs at a few GFLOP/s: a handful of small steps.
+    short_run_improves(BackendKind::Wgpu, 20, 128, 16, 0.0);
 }

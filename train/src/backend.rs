@@ -116,7 +116,7 @@ mod tests {
             let x = Tensor::<1>::from_floats([1.0, 2.0, 3.0], &d).require_grad();
             let loss = (x.clone() * x.clone()).sum();
             let grads = loss.backward();
-            let g: Vec<f32> = x.grad(&grads).unwrap().into_data().to_vec().unwrap();
+            let g: Vec<f32> = x.grad(&grads).unwrap().into_data().try_to_vec::<f32>().unwrap();
             assert_eq!(g, vec![2.0, 4.0, 6.0], "{kind}");
         }
     }

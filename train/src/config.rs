@@ -243,11 +243,21 @@ impl TrainConfig {
         }
     }
 
-    /// Reads a configuration file; the `model.head.out_dim` it names is
-    /// replaced by the scene's feature dimension later.
-    pub fn from_file(path: &Path) -> Result<Self, TrainError> {
+    /// Reads a configuration file and lays it over `base`: keys the file
+    /// leaves out keep their value in `base`, at any depth. The head's
+    /// `out_dim` is replaced by the scene's feature dimension later.
+    pub fn from_file(path: &Path, base: &TrainConfig) -> Result<Self, TrainError> {
         let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))
+        let patch: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))?;
+        Self::merged(base, patch).map_err(|e| TrainError::json(path, e))
+    }
+
+    /// `base` with the keys of `patch` laid over it (recursively).
+    pub fn merged(base: &TrainConfig, patch: serde_json::Value) -> Result<Self, String> {
+        let mut value = serde_json::to_value(base).map_err(|e| e.to_string())?;
+        merge_json(&mut value, patch);
+        serde_json::from_value(value).map_err(|e| e.to_string())
     }
 
     /// Sets the head's output size to the scene's feature dimension (a
@@ -325,6 +335,23 @@ impl TrainConfig {
     }
 }
 
+/// Lays `patch` over `base`: objects merge key by key, anything else replaces.
+pub fn merge_json(base: &mut serde_json::Value, patch: serde_json::Value) {
+    match (base, patch) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(p)) => {
+            for (k, v) in p {
+                match b.get_mut(&k) {
+                    Some(slot) => merge_json(slot, v),
+                    None => {
+                        b.insert(k, v);
+                    }
+                }
+            }
+        }
+        (slot, v) => *slot = v,
+    }
+}
+
 /// A head of `layers = 2` hidden layers of `width` with `out_dim` outputs
 /// (a one-layer, width-8 stub when there are no features).
 fn head_config(out_dim: usize, width: usize) -> FeatureHeadConfig {
@@ -349,13 +376,22 @@ mod tests {
         assert_eq!(back.schedule, c.schedule);
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
         assert!(v.get("model").is_some());
-        let partial: TrainConfig =
-            serde_json::from_str(r#"{"model": {"head": {"out_dim": 4}}, "losses": {"lambda_open": 0.5}}"#)
-                .unwrap();
+        let patch = serde_json::json!({
+            "model": {"mlp": {"width": 32}, "head_top_k": 8},
+            "losses": {"lambda_open": 0.5},
+            "schedule": {"iterations": 9}
+        });
+        let partial = TrainConfig::merged(&c, patch).unwrap();
         assert_eq!(partial.losses.lambda_open, 0.5);
         assert_eq!(partial.losses.coarse_weight, 0.1);
-        assert_eq!(partial.model.num_samples, 64);
+        assert_eq!(partial.model.mlp.width, 32);
+        assert_eq!(partial.model.mlp.depth, 4);
+        assert_eq!(partial.model.head_top_k, Some(8));
+        assert_eq!(partial.model.num_samples, 32);
+        assert_eq!(partial.schedule.iterations, 9);
+        assert_eq!(partial.schedule.lr_init, c.schedule.lr_init);
         assert_eq!(partial.sampler.border_margin, 10);
+        assert!(TrainConfig::merged(&c, serde_json::json!({"model": {"mlp": {"width": "wide"}}})).is_err());
     }
 
     #[test]

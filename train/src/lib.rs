@@ -46,9 +46,10 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     eprintln!("loading scene ({})", data::run_name(&source));
     let scene = data::load(&source)?;
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let base = TrainConfig::default_run(dim);
     let mut config = match &cli.config {
-        Some(path) => TrainConfig::from_file(path)?,
-        None => TrainConfig::default_run(dim),
+        Some(path) => TrainConfig::from_file(path, &base)?,
+        None => base,
     };
     config.apply(&config::Overrides {
         iters: cli.iters,

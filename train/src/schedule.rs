@@ -99,10 +99,13 @@ mod tests {
     }
 
     #[test]
-    fn warmup_is_monotone_then_decay_is_log_linear() {
+    fn warmup_follows_the_sine_ramp_then_decay_is_log_linear() {
         let c = cfg();
-        for i in 0..100 {
-            assert!(c.lr(i + 1) > c.lr(i) * 0.999, "warm-up must rise at {i}");
+        let decay = |i: usize| (1e-2f64.ln() + (1e-4f64.ln() - 1e-2f64.ln()) * i as f64 / 1000.0).exp();
+        for i in [0, 10, 50, 99, 100, 101] {
+            let s = (i as f64 / 100.0).min(1.0);
+            let delay = 0.1 + 0.9 * (0.5 * std::f64::consts::PI * s).sin();
+            assert!((c.lr(i) - delay * decay(i)).abs() < 1e-15, "{i}");
         }
         // After the warm-up, ln(lr) drops by the same amount per iteration.
         let step = |i: usize| c.lr(i + 1).ln() - c.lr(i).ln();
@@ -116,7 +119,7 @@ mod tests {
     fn no_warmup_starts_at_lr_init_and_validation_rejects_bad_rates() {
         let mut c = cfg();
         c.warmup_iters = 0;
-        assert_eq!(c.lr(0), 1e-2);
+        assert!((c.lr(0) - 1e-2).abs() < 1e-15);
         c.lr_final = 0.0;
         assert!(c.validate().is_err());
         c.lr_final = f64::NAN;

@@ -236,7 +236,7 @@ mod tests {
         struct V(Vec<Vec<f32>>);
         impl ModuleVisitor for V {
             fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-                self.0.push(p.val().into_data().to_vec::<f32>().unwrap());
+                self.0.push(p.val().into_data().try_to_vec::<f32>().unwrap());
             }
         }
         let mut v = V(Vec::new());

@@ -2,6 +2,10 @@
 //! the implicit QL algorithm, after the public-domain JAMA / EISPACK
 //! `tred2` + `tql2` routines), used to fit PCA bases.
 
+// Index loops mirror the reference algorithm, which keeps it checkable line
+// by line against the published routines.
+#![allow(clippy::needless_range_loop)]
+
 /// Eigenvalues (descending) and eigenvectors of the symmetric `n x n`
 /// row-major matrix `a`; eigenvector `i` is `vectors[i * n..(i + 1) * n]`.
 /// `None` if the iteration does not converge (only for non-finite input).
@@ -33,9 +37,7 @@ pub fn symmetric_eigen(a: &[f64], n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
 /// Householder reduction to tridiagonal form (`d` diagonal, `e` off-diagonal).
 fn tred2(v: &mut [Vec<f64>], d: &mut [f64], e: &mut [f64]) {
     let n = d.len();
-    for j in 0..n {
-        d[j] = v[n - 1][j];
-    }
+    d.copy_from_slice(&v[n - 1]);
     for i in (1..n).rev() {
         let scale: f64 = d[..i].iter().map(|x| x.abs()).sum();
         let mut h = 0.0;

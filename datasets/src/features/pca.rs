@@ -36,7 +36,7 @@ impl Pca {
     /// `samples`: `[n, dim]` with `n >= 2`.
     pub fn fit(samples: &[f32], dim: usize, target: PcaTarget) -> Result<Self, DatasetError> {
         let err = |m: String| DatasetError::invalid("<pca>", m);
-        if dim == 0 || samples.len() % dim != 0 || samples.len() < 2 * dim {
+        if dim == 0 || !samples.len().is_multiple_of(dim) || samples.len() < 2 * dim {
             return Err(err(format!(
                 "need at least 2 samples of dimension {dim}, got {} values",
                 samples.len()

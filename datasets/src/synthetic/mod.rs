@@ -122,17 +122,34 @@ pub fn trajectory(room: &Room, size: SceneSize, seed: u64) -> Result<Vec<Camera>
     Ok(cameras)
 }
 
-/// Expected image colour of each class: its albedo under the average shading.
+/// Expected image colour of each class: its albedo under the average shading
+/// (between the 0.8 of surfaces facing away from the light and 1).
 pub fn class_prototypes(seed: u64) -> Vec<[f32; 3]> {
     classes::palette(seed)
         .iter()
-        .map(|c| c.map(|v| (v * 0.8) as f32))
+        .map(|c| c.map(|v| (v * 0.86) as f32))
         .collect()
 }
 
 /// The simulated VLM of scene `(seed, size)`, for running rendered novel
-/// views through the same extractor as the training frames.
+/// views through the same extractor as the training frames. It favours
+/// large (common) classes over tiny ones, as real VLMs favour head classes.
 pub fn extractor_for(seed: u64, size: SceneSize) -> SimulatedExtractor {
+    let prior = CLASSES
+        .iter()
+        .map(|c| match c.size {
+            SizeGroup::Large => 0.8,
+            SizeGroup::Medium => 0.0,
+            SizeGroup::Tiny => -1.0,
+        })
+        .collect();
+    base_extractor(seed, size)
+        .with_log_prior(prior)
+        .unwrap_or_else(|_| unreachable_extractor())
+}
+
+/// The extractor without class prior.
+fn base_extractor(seed: u64, size: SceneSize) -> SimulatedExtractor {
     let salt = match size {
         SceneSize::Ci => 0,
         SceneSize::Bench => 1,

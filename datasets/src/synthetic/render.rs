@@ -108,7 +108,7 @@ const LIGHT: Vec3 = [0.277, -0.370, 0.887];
 /// one directional light, so shading is view-independent.
 pub fn shade(normal: Vec3) -> f64 {
     let d = normal[0] * LIGHT[0] + normal[1] * LIGHT[1] + normal[2] * LIGHT[2];
-    0.62 + 0.38 * d.max(0.0)
+    0.8 + 0.2 * d.max(0.0)
 }
 
 /// Colour, z-depth and labels of one view, traced through pixel centres.

@@ -192,9 +192,9 @@ impl Room {
     /// tracer and of back-projected depth.
     pub fn surface_distance(&self, p: Vec3) -> (f64, u16) {
         let mut best = (f64::INFINITY, 0u16);
-        for k in 0..3 {
+        for (k, &x) in p.iter().enumerate() {
             for (bound, positive) in [(self.min[k], false), (self.max[k], true)] {
-                let d = (p[k] - bound).abs();
+                let d = (x - bound).abs();
                 if d < best.0 {
                     best = (d, self.shell_class(k, positive));
                 }
@@ -267,7 +267,7 @@ impl Builder {
 /// The room of a seed: dimensions and object placements jittered by the
 /// seed, the same furniture and small objects in every room.
 pub fn build_room(seed: u64) -> Room {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_0f_700d);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_f700);
     let mut j = |a: f64| rng.random_range(-a..a);
     let (hx, hy, h) = (3.0 + j(0.2), 2.5 + j(0.15), 2.7 + j(0.08));
     let mut b = Builder {

@@ -35,7 +35,7 @@ pub fn devices(with_wgpu: bool) -> Vec<(&'static str, Device)> {
 
 /// Reads a float tensor as `Vec<f32>`.
 pub fn vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-    t.into_data().convert::<f32>().to_vec::<f32>().unwrap()
+    t.try_into_vec_as::<f32>().expect("readable f32 tensor")
 }
 
 /// Builds a tensor from values.

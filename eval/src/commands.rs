@@ -1,0 +1,463 @@
+//! The command-line subcommands as library functions: argument structs
+//! (clap) and what each command does with them.
+
+use std::path::{Path, PathBuf};
+
+use burn::tensor::Device;
+use datasets::points::{ClassMap, IGNORE_LABEL, read_labels_txt, read_ply, write_ply};
+use datasets::text::TextEmbeddings;
+use datasets::{Scene, load_scene};
+
+use crate::cameras::{NamedCamera, camera_path, load_transforms_json, load_traj, resized};
+use crate::error::EvalError;
+use crate::metrics::{ClassSplit, SegmentationScores, format_per_class, format_table};
+use crate::project::ProjectOptions;
+use crate::query::{cosine_scores, embedding_by_name, embedding_from_npy, normalize_scores, relevancy_image, relevancy_overlay};
+use crate::render::{render_view, save_rgb8, save_view_pngs};
+use crate::run::{LoadedRun, load_run, read_json, write_json};
+use crate::segment::{
+    EvalPoints, SegmentMode, SegmentOptions, View, evaluate, sampled_features, segment_with_field,
+    write_prediction_plys,
+};
+
+/// Compute device by name.
+pub fn device_by_name(name: &str) -> Result<Device, EvalError> {
+    match name {
+        "flex" => Ok(Device::flex()),
+        #[allow(deprecated)]
+        "ndarray" => Ok(Device::ndarray()),
+        o => Err(EvalError::Invalid(format!("unknown device {o:?} (expected flex or ndarray)"))),
+    }
+}
+
+/// Where the points and classes come from (all optional: the run's scene
+/// provides defaults when it carries a labelled cloud and class embeddings).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct PointArgs {
+    /// Point cloud (PLY, ascii or binary; an integer label property is used when present).
+    #[arg(long)]
+    pub points: Option<PathBuf>,
+    /// One integer label per point (e.g. Replica's ground truth), overriding the PLY's.
+    #[arg(long)]
+    pub labels: Option<PathBuf>,
+    /// Raw id to class name map (`id name` per line, Replica's format); without it ids index the names.
+    #[arg(long)]
+    pub class_map: Option<PathBuf>,
+    /// Class text embeddings (`C x D` .npy).
+    #[arg(long)]
+    pub embeddings: Option<PathBuf>,
+    /// Class names for the embeddings, one per line.
+    #[arg(long)]
+    pub names: Option<PathBuf>,
+}
+
+/// Arguments of `segment`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SegmentArgs {
+    /// Run directory.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Feature mode: sampled, project or hybrid.
+    #[arg(long, default_value = "hybrid")]
+    pub mode: String,
+    /// Points and classes.
+    #[command(flatten)]
+    pub data: PointArgs,
+    /// Cameras to project into: train, heldout, all, or a transforms.json / traj.txt.
+    #[arg(long, default_value = "train")]
+    pub cameras: String,
+    /// cam_params.json for a traj.txt (default: next to it or its parent).
+    #[arg(long)]
+    pub cam_params: Option<PathBuf>,
+    /// Use the rendered depth for the occlusion test even where sensor depth exists.
+    #[arg(long)]
+    pub rendered_depth: bool,
+    /// Render feature images at this fraction of the camera resolution.
+    #[arg(long, default_value_t = 1.0)]
+    pub render_scale: f64,
+    /// Use at most this many cameras (evenly spaced).
+    #[arg(long)]
+    pub max_views: Option<usize>,
+    /// Radius (metres) of the Gaussian a point is queried with.
+    #[arg(long, default_value_t = 0.01)]
+    pub radius: f64,
+    /// Rays or points per forward pass.
+    #[arg(long, default_value_t = 4096)]
+    pub chunk: usize,
+    /// Head / common / tail split (JSON `{"head": [...], "common": [...], "tail": [...]}`).
+    #[arg(long)]
+    pub split: Option<PathBuf>,
+    /// Output JSON (default: `segmentation.json` in the run directory).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Compute device: flex or ndarray.
+    #[arg(long, default_value = "flex")]
+    pub device: String,
+}
+
+/// The loaded evaluation data of a command: the run, its scene when needed,
+/// and the labelled points.
+pub struct Context {
+    /// The trained run.
+    pub run: LoadedRun,
+    /// The run's scene, rebuilt from `scene.json` (when it could be).
+    pub scene: Option<Scene>,
+}
+
+impl Context {
+    /// Loads the run and rebuilds its scene.
+    pub fn load(dir: &Path, device: &Device) -> Result<Self, EvalError> {
+        let run = load_run(dir, device)?;
+        let scene = load_scene(&run.meta.source)?;
+        Ok(Self { run, scene: Some(scene) })
+    }
+}
+
+/// Points, labels and class embeddings from the arguments, falling back on
+/// the scene's own labelled cloud and classes.
+pub fn load_points(args: &PointArgs, scene: Option<&Scene>) -> Result<EvalPoints, EvalError> {
+    let texts = match (&args.embeddings, &args.names) {
+        (Some(e), Some(n)) => Some(TextEmbeddings::load(e, n)?),
+        (None, None) => None,
+        _ => return Err(EvalError::Invalid("--embeddings and --names go together".into())),
+    };
+    let Some(ply) = &args.points else {
+        let scene = scene.ok_or_else(|| EvalError::Invalid("no --points and no scene to take them from".into()))?;
+        let mut p = EvalPoints::from_scene(scene)?;
+        if let Some(t) = texts {
+            reembed(&mut p, &t)?;
+        }
+        return Ok(p);
+    };
+    let cloud = read_ply(ply)?;
+    let raw = match &args.labels {
+        Some(l) => read_labels_txt(l, cloud.positions.len())?,
+        None => cloud
+            .labels
+            .clone()
+            .ok_or_else(|| EvalError::Invalid(format!("{}: no label property and no --labels", ply.display())))?,
+    };
+    let texts = match texts {
+        Some(t) => t,
+        None => scene
+            .and_then(|s| s.classes.clone())
+            .ok_or_else(|| EvalError::Invalid("no --embeddings/--names and the scene has no classes".into()))?,
+    };
+    let map = match &args.class_map {
+        Some(m) => ClassMap::load_replica(m)?,
+        None => ClassMap::identity(texts.names.clone()),
+    };
+    let mut p = EvalPoints {
+        positions: cloud.positions,
+        labels: map.map(&raw),
+        names: map.names.clone(),
+        embeddings: Vec::new(),
+        dim: texts.dim,
+    };
+    reembed(&mut p, &texts)?;
+    Ok(p)
+}
+
+/// Replaces the class embeddings by the rows of `texts` with the same names;
+/// classes without an embedding are dropped (their points ignored).
+fn reembed(p: &mut EvalPoints, texts: &TextEmbeddings) -> Result<(), EvalError> {
+    let mut keep = Vec::new();
+    let mut remap = vec![IGNORE_LABEL; p.names.len()];
+    for (i, n) in p.names.iter().enumerate() {
+        if let Some(j) = texts.index_of(n) {
+            remap[i] = keep.len() as u32;
+            keep.push((n.clone(), j));
+        }
+    }
+    if keep.is_empty() {
+        return Err(EvalError::Invalid("none of the point classes has a text embedding".into()));
+    }
+    if keep.len() < p.names.len() {
+        let missing: Vec<&String> = p.names.iter().filter(|n| texts.index_of(n).is_none()).collect();
+        eprintln!("note: {} classes have no text embedding and are not evaluated: {missing:?}", missing.len());
+    }
+    p.labels = p
+        .labels
+        .iter()
+        .map(|&l| remap.get(l as usize).copied().unwrap_or(IGNORE_LABEL))
+        .collect();
+    p.names = keep.iter().map(|(n, _)| n.clone()).collect();
+    p.embeddings = keep.iter().flat_map(|&(_, j)| texts.row(j).to_vec()).collect();
+    p.dim = texts.dim;
+    Ok(())
+}
+
+/// Cameras by name (`train`, `heldout`, `all`: frames of the run's scene) or
+/// from a `transforms.json` / `traj.txt`. Scene frames come with their index.
+pub fn select_cameras(
+    spec: &str,
+    run: &LoadedRun,
+    scene: Option<&Scene>,
+    cam_params: Option<&Path>,
+) -> Result<(Vec<NamedCamera>, Option<Vec<usize>>), EvalError> {
+    let from_scene = |idx: Vec<usize>| -> Result<(Vec<NamedCamera>, Option<Vec<usize>>), EvalError> {
+        let scene = scene.ok_or_else(|| EvalError::Invalid("no scene to take cameras from".into()))?;
+        let idx = if idx.is_empty() { (0..scene.frames.len()).collect() } else { idx };
+        let cams = idx
+            .iter()
+            .map(|&i| {
+                scene
+                    .frames
+                    .get(i)
+                    .map(|f| NamedCamera { name: f.name.clone(), camera: f.camera })
+                    .ok_or_else(|| EvalError::Invalid(format!("frame {i} not in the scene")))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok((cams, Some(idx)))
+    };
+    match spec {
+        "train" => from_scene(run.split.train.clone()),
+        "heldout" => from_scene(run.split.heldout.clone()),
+        "all" => from_scene(Vec::new()),
+        path => {
+            let p = Path::new(path);
+            if p.extension().is_some_and(|e| e == "json") {
+                return Ok((load_transforms_json(p)?, None));
+            }
+            let params = match cam_params {
+                Some(c) => c.to_path_buf(),
+                None => {
+                    let here = p.with_file_name("cam_params.json");
+                    let up = p.parent().and_then(|d| d.parent()).map(|d| d.join("cam_params.json"));
+                    match up {
+                        Some(u) if !here.exists() && u.exists() => u,
+                        _ => here,
+                    }
+                }
+            };
+            Ok((load_traj(p, &params, 1)?, None))
+        }
+    }
+}
+
+/// `n` evenly spaced items of `v` (all when `n >= len`).
+pub fn evenly<T: Clone>(v: &[T], n: Option<usize>) -> Vec<T> {
+    match n {
+        Some(n) if n > 0 && n < v.len() => (0..n).map(|i| v[i * v.len() / n].clone()).collect(),
+        _ => v.to_vec(),
+    }
+}
+
+/// Runs `segment`: predictions, scores (printed and written as JSON) and the
+/// prediction / error PLYs next to the JSON.
+pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalError> {
+    let device = device_by_name(&args.device)?;
+    let mode: SegmentMode = args.mode.parse()?;
+    let ctx = Context::load(&args.run, &device)?;
+    let scene = ctx.scene.as_ref();
+    let points = load_points(&args.data, scene)?;
+    let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
+    let sensor = !args.rendered_depth;
+    let views: Vec<View<'_>> = match (idx, scene) {
+        (Some(idx), Some(s)) => idx
+            .iter()
+            .map(|&i| View {
+                camera: s.frames[i].camera,
+                depth: if sensor { s.frames[i].depth.as_ref() } else { None },
+            })
+            .collect(),
+        _ => cams.iter().map(|c| View { camera: c.camera, depth: None }).collect(),
+    };
+    let views = evenly(&views, args.max_views);
+    let opts = SegmentOptions {
+        mode,
+        sample_radius: args.radius,
+        chunk: args.chunk,
+        render_scale: args.render_scale,
+        project: ProjectOptions::default(),
+    };
+    let run = &ctx.run;
+    let (pred, seen) = segment_with_field(
+        &run.model,
+        run.meta.pca.as_ref(),
+        &points,
+        &views,
+        &run.meta.scene_box,
+        run.meta.background,
+        &opts,
+        &device,
+    )?;
+    let split = match &args.split {
+        Some(p) => Some(read_json::<ClassSplit>(p)?),
+        None => points.split(),
+    };
+    let mut scores = evaluate(&mode.to_string(), &points, &pred);
+    if args.split.is_some() {
+        let mut cm = crate::metrics::ConfusionMatrix::new(points.names.len());
+        cm.add_all(&points.labels, &pred);
+        scores = crate::metrics::score(&mode.to_string(), &cm, &points.names, split.as_ref());
+    }
+    println!(
+        "{} points, {} classes, {} views; {} points seen by a view",
+        points.positions.len(),
+        points.names.len(),
+        views.len(),
+        seen
+    );
+    print!("{}", format_table(&[(&mode.to_string(), &scores)]));
+    print!("{}", format_per_class(&scores, split.as_ref()));
+    let out = args.out.clone().unwrap_or_else(|| run.dir.segmentation());
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| EvalError::io(parent, e))?;
+    }
+    write_json(&out, &scores)?;
+    let dir = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    write_prediction_plys(dir, &format!("segmentation_{mode}"), &points, &pred)?;
+    println!("wrote {}", out.display());
+    Ok(scores)
+}
+
+/// Arguments of `render` and the camera part of `query`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RenderArgs {
+    /// Run directory.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Cameras: heldout (default), train, all, or a transforms.json / traj.txt.
+    #[arg(long, default_value = "heldout")]
+    pub cameras: String,
+    /// cam_params.json for a traj.txt (default: next to it or its parent).
+    #[arg(long)]
+    pub cam_params: Option<PathBuf>,
+    /// Output width (height follows the aspect ratio unless given).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Output height.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Render a smooth path of this many cameras through the selected poses instead.
+    #[arg(long)]
+    pub camera_path: Option<usize>,
+    /// Use at most this many cameras (evenly spaced).
+    #[arg(long)]
+    pub max_views: Option<usize>,
+    /// Rays per forward pass.
+    #[arg(long, default_value_t = 4096)]
+    pub chunk: usize,
+    /// Output directory (default: `renders/eval` in the run directory).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Compute device: flex or ndarray.
+    #[arg(long, default_value = "flex")]
+    pub device: String,
+}
+
+fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamera>, EvalError> {
+    let (cams, _) = select_cameras(&args.cameras, &ctx.run, ctx.scene.as_ref(), args.cam_params.as_deref())?;
+    let cams = evenly(&cams, args.max_views);
+    let cams = match args.camera_path {
+        Some(n) => camera_path(&cams, n)?,
+        None => cams,
+    };
+    let Some(first) = cams.first() else {
+        return Err(EvalError::Invalid(format!("no cameras selected by {:?}", args.cameras)));
+    };
+    let k = first.camera.intrinsics;
+    Ok(match (args.width, args.height) {
+        (None, None) => cams,
+        (w, h) => {
+            let w = w.unwrap_or_else(|| (h.unwrap_or(k.height) as f64 * k.width as f64 / k.height as f64).round() as u32);
+            let h = h.unwrap_or_else(|| (w as f64 * k.height as f64 / k.width as f64).round() as u32);
+            resized(&cams, w.max(1), h.max(1))
+        }
+    })
+}
+
+/// Runs `render`: colour, depth and feature-PCA PNGs per camera. Returns the written files.
+pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, EvalError> {
+    let device = device_by_name(&args.device)?;
+    let ctx = Context::load(&args.run, &device)?;
+    let cams = render_cameras(args, &ctx)?;
+    let out = args.out.clone().unwrap_or_else(|| ctx.run.dir.renders().join("eval"));
+    let mut written = Vec::new();
+    for c in &cams {
+        let m = &ctx.run.meta;
+        let v = render_view(&ctx.run.model, &c.camera, &m.scene_box, m.background, args.chunk, &device);
+        written.extend(save_view_pngs(&v, &out, &c.name)?);
+        println!("rendered {}", c.name);
+    }
+    Ok(written)
+}
+
+/// Arguments of `query`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct QueryArgs {
+    /// Cameras, resolution and output.
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Class name to query (looked up in --embeddings/--names or the scene's classes).
+    #[arg(long)]
+    pub query: Option<String>,
+    /// Raw query embedding (.npy, shape [D] or [1, D]) instead of a name.
+    #[arg(long)]
+    pub query_npy: Option<PathBuf>,
+    /// Class embeddings to look the name up in.
+    #[arg(long)]
+    pub embeddings: Option<PathBuf>,
+    /// Names of the class embeddings.
+    #[arg(long)]
+    pub names: Option<PathBuf>,
+    /// Also score this point cloud (PLY); `scene` uses the scene's own cloud.
+    #[arg(long)]
+    pub points: Option<String>,
+    /// Radius (metres) of the Gaussian a point is queried with.
+    #[arg(long, default_value_t = 0.01)]
+    pub radius: f64,
+}
+
+/// Runs `query`: relevancy overlays per camera and, with `--points`, a PLY
+/// with a per-point `relevancy` scalar. Returns the written files.
+pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
+    let r = &args.render;
+    let device = device_by_name(&r.device)?;
+    let ctx = Context::load(&r.run, &device)?;
+    let (query, label) = match (&args.query, &args.query_npy) {
+        (_, Some(p)) => (embedding_from_npy(p)?, p.file_stem().and_then(|s| s.to_str()).unwrap_or("query").to_string()),
+        (Some(name), None) => {
+            let texts = match (&args.embeddings, &args.names) {
+                (Some(e), Some(n)) => TextEmbeddings::load(e, n)?,
+                _ => ctx
+                    .scene
+                    .as_ref()
+                    .and_then(|s| s.classes.clone())
+                    .ok_or_else(|| EvalError::Invalid("no --embeddings/--names and the scene has no classes".into()))?,
+            };
+            (embedding_by_name(&texts, name)?, name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"))
+        }
+        (None, None) => return Err(EvalError::Invalid("give --query NAME or --query-npy FILE".into())),
+    };
+    let m = &ctx.run.meta;
+    let pca = m.pca.as_ref();
+    let out = r.out.clone().unwrap_or_else(|| ctx.run.dir.renders().join("query"));
+    std::fs::create_dir_all(&out).map_err(|e| EvalError::io(&out, e))?;
+    let mut written = Vec::new();
+    for c in render_cameras(r, &ctx)? {
+        let v = render_view(&ctx.run.model, &c.camera, &m.scene_box, m.background, r.chunk, &device);
+        let rel = relevancy_image(&v, &query, pca)?;
+        let path = out.join(format!("{}_{label}_relevancy.png", c.name));
+        save_rgb8(&path, v.width, v.height, relevancy_overlay(&v.rgb, &rel))?;
+        written.push(path);
+    }
+    if let Some(spec) = &args.points {
+        let mut cloud = if spec == "scene" {
+            ctx.scene
+                .as_ref()
+                .and_then(|s| s.points.clone())
+                .ok_or_else(|| EvalError::Invalid("the scene has no point cloud".into()))?
+        } else {
+            read_ply(Path::new(spec))?
+        };
+        let f = sampled_features(&ctx.run.model, &cloud.positions, &m.scene_box, args.radius, r.chunk, &device);
+        let rel = normalize_scores(&cosine_scores(&f, &query, pca)?);
+        cloud.colors = Some(relevancy_overlay(&vec![0.6; 3 * rel.len()], &rel).chunks(3).map(|c| [c[0], c[1], c[2]]).collect());
+        let path = out.join(format!("{label}_relevancy.ply"));
+        write_ply(&path, &cloud, &[("relevancy", &rel)])?;
+        written.push(path);
+    }
+    Ok(written)
+}

@@ -1,0 +1,41 @@
+//! `eval`: segment, query and render trained OpenNeRF runs.
+
+use clap::{Parser, Subcommand};
+use eval::commands::{QueryArgs, RenderArgs, SegmentArgs, query_command, render_command, segment_command};
+
+/// Zero-shot 3D semantic segmentation, relevancy queries and rendering of trained runs.
+#[derive(Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Segment a point cloud and score it (mIoU / mAcc, all / head / common / tail).
+    Segment(SegmentArgs),
+    /// Relevancy images (and per-point relevancy) for a class name or embedding.
+    Query(QueryArgs),
+    /// Render colour, depth and feature-PCA images at cameras.
+    Render(RenderArgs),
+}
+
+fn main() -> anyhow::Result<()> {
+    match Cli::parse().command {
+        Command::Segment(a) => {
+            segment_command(&a)?;
+        }
+        Command::Query(a) => {
+            for p in query_command(&a)? {
+                println!("wrote {}", p.display());
+            }
+        }
+        Command::Render(a) => {
+            for p in render_command(&a)? {
+                println!("wrote {}", p.display());
+            }
+        }
+    }
+    Ok(())
+}

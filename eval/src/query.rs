@@ -1,0 +1,146 @@
+//! Relevancy queries: how strongly each pixel of a rendered view, or each
+//! point of a cloud, matches one query embedding (a class name's text
+//! embedding or a raw vector).
+
+use std::path::Path;
+
+use datasets::features::Pca;
+use datasets::npy::read_npy_f32;
+use datasets::text::TextEmbeddings;
+
+use crate::colormap::{to_u8, turbo};
+use crate::error::EvalError;
+use crate::render::RenderedView;
+use crate::similarity::ClassScorer;
+
+/// Relevancy below this (after scaling to `[0, 1]`) leaves the rendered colour.
+pub const RELEVANCY_THRESHOLD: f32 = 0.5;
+
+/// The query vector: the embedding of class `name` in `texts`.
+pub fn embedding_by_name(texts: &TextEmbeddings, name: &str) -> Result<Vec<f32>, EvalError> {
+    let i = texts.index_of(name).ok_or_else(|| {
+        let some: Vec<&str> = texts.names.iter().take(8).map(String::as_str).collect();
+        EvalError::Invalid(format!(
+            "no class {name:?} among {} class names (e.g. {})",
+            texts.names.len(),
+            some.join(", ")
+        ))
+    })?;
+    Ok(texts.row(i).to_vec())
+}
+
+/// The query vector stored in `path` (`.npy` of shape `[D]` or `[1, D]`).
+pub fn embedding_from_npy(path: &Path) -> Result<Vec<f32>, EvalError> {
+    let (shape, data) = read_npy_f32(path)?;
+    let ok = match shape.as_slice() {
+        [_] => true,
+        [1, _] => true,
+        _ => false,
+    };
+    if !ok || data.is_empty() || data.iter().any(|v| !v.is_finite()) {
+        return Err(EvalError::Invalid(format!(
+            "{}: expected one finite embedding of shape [D] or [1, D], got {shape:?}",
+            path.display()
+        )));
+    }
+    Ok(data)
+}
+
+/// Cosine similarity of every row of `features` (`[n, k]`, the field's
+/// output space) with `query` (`[D]`), exact in the lifted space.
+pub fn cosine_scores(features: &[f32], query: &[f32], pca: Option<&Pca>) -> Result<Vec<f64>, EvalError> {
+    let scorer = ClassScorer::new(query, query.len(), pca)?;
+    let k = scorer.dim;
+    if k == 0 || features.len() % k != 0 {
+        return Err(EvalError::Invalid(format!(
+            "features of {} values do not split into rows of {k}",
+            features.len()
+        )));
+    }
+    let mut out = [0.0];
+    Ok(features
+        .chunks(k)
+        .map(|f| {
+            scorer.cosines(f, &mut out);
+            out[0]
+        })
+        .collect())
+}
+
+/// Scales scores to `[0, 1]` over the whole set (min to 0, max to 1; a
+/// constant set maps to 0).
+pub fn normalize_scores(scores: &[f64]) -> Vec<f32> {
+    let lo = scores.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = scores.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let span = hi - lo;
+    scores
+        .iter()
+        .map(|&s| if span > 1e-12 { ((s - lo) / span) as f32 } else { 0.0 })
+        .collect()
+}
+
+/// Relevancy of every pixel of `view` in `[0, 1]`.
+pub fn relevancy_image(view: &RenderedView, query: &[f32], pca: Option<&Pca>) -> Result<Vec<f32>, EvalError> {
+    if view.feature_dim == 0 {
+        return Err(EvalError::Invalid("the view has no feature image".into()));
+    }
+    Ok(normalize_scores(&cosine_scores(&view.feature, query, pca)?))
+}
+
+/// Overlay of relevancy on the rendered colour: pixels below
+/// [`RELEVANCY_THRESHOLD`] keep their colour, the others take Turbo of
+/// their relevancy. Returns `3 * n` bytes.
+pub fn relevancy_overlay(rgb: &[f32], relevancy: &[f32]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(rgb.len());
+    for (i, &r) in relevancy.iter().enumerate() {
+        let c = if r >= RELEVANCY_THRESHOLD {
+            turbo(r)
+        } else {
+            [rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]]
+        };
+        out.extend(c.map(to_u8));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scores_normalise_and_overlay_thresholds() {
+        let feats = [1.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+        let s = cosine_scores(&feats, &[1.0, 0.0], None).unwrap();
+        assert!((s[0] - 1.0).abs() < 1e-12 && s[1].abs() < 1e-12);
+        assert!((s[2] - 0.5f64.sqrt()).abs() < 1e-12);
+        let n = normalize_scores(&s);
+        assert_eq!(n[0], 1.0);
+        assert_eq!(n[1], 0.0);
+        assert!((n[2] - 0.5f32.sqrt()).abs() < 1e-6);
+        let rgb = [0.2; 9];
+        let o = relevancy_overlay(&rgb, &n);
+        assert_eq!(&o[3..6], &[51, 51, 51]);
+        assert_eq!(&o[0..3], &turbo(1.0).map(to_u8));
+        assert_eq!(&o[6..9], &turbo(n[2]).map(to_u8));
+        assert_eq!(normalize_scores(&[3.0, 3.0]), vec![0.0, 0.0]);
+    }
+
+    #[test]
+    fn query_by_name_and_npy() {
+        let t = TextEmbeddings {
+            names: vec!["wall".into(), "chair".into()],
+            dim: 2,
+            data: vec![1.0, 0.0, 0.0, 1.0],
+        };
+        assert_eq!(embedding_by_name(&t, "chair").unwrap(), vec![0.0, 1.0]);
+        assert!(embedding_by_name(&t, "sofa").is_err());
+        let dir = std::env::temp_dir().join(format!("eval-query-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("q.npy");
+        datasets::npy::write_npy_f32(&p, &[1, 3], &[0.5, 0.5, 0.0]).unwrap();
+        assert_eq!(embedding_from_npy(&p).unwrap(), vec![0.5, 0.5, 0.0]);
+        datasets::npy::write_npy_f32(&p, &[2, 2], &[0.5, 0.5, 0.0, 1.0]).unwrap();
+        assert!(embedding_from_npy(&p).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,418 @@
+//! Zero-shot 3D semantic segmentation of a point cloud with a trained field:
+//! per-point features (sampled from the field, projected from rendered
+//! feature images, or both), argmax cosine similarity with class text
+//! embeddings, and the paper's metrics.
+
+use std::fmt;
+use std::path::Path;
+use std::str::FromStr;
+
+use burn::tensor::{Device, Tensor, TensorData};
+use datasets::features::Pca;
+use datasets::points::{IGNORE_LABEL, PointCloud, write_ply};
+use datasets::{DepthImage, FeatureMap, Scene};
+use model::OpenNerf;
+use model::geometry::{Camera, SceneBox, Vec3};
+
+use crate::colormap::class_color;
+use crate::error::EvalError;
+use crate::metrics::{ClassSplit, ConfusionMatrix, NO_PREDICTION, SegmentationScores, score};
+use crate::project::{DepthRef, FeatureAccumulator, Hit, ProjectOptions};
+use crate::render::{render_view, tensor_to_vec};
+use crate::similarity::ClassScorer;
+
+/// How per-point features are obtained from the field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SegmentMode {
+    /// Query the field's feature at each point.
+    Sampled,
+    /// Average rendered feature images over the views that see the point.
+    Project,
+    /// Project, and the sampled feature for points no view sees.
+    Hybrid,
+}
+
+impl fmt::Display for SegmentMode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            SegmentMode::Sampled => "sampled",
+            SegmentMode::Project => "project",
+            SegmentMode::Hybrid => "hybrid",
+        })
+    }
+}
+
+impl FromStr for SegmentMode {
+    type Err = EvalError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "sampled" => Ok(Self::Sampled),
+            "project" => Ok(Self::Project),
+            "hybrid" => Ok(Self::Hybrid),
+            o => Err(EvalError::Invalid(format!(
+                "unknown mode {o:?} (expected sampled, project or hybrid)"
+            ))),
+        }
+    }
+}
+
+/// A view to project points into: its camera and, optionally, a depth image
+/// for the occlusion test (without one the rendered depth is used).
+#[derive(Debug, Clone, Copy)]
+pub struct View<'a> {
+    /// The camera (at the resolution of its depth image, if any).
+    pub camera: Camera,
+    /// Sensor depth for the occlusion test.
+    pub depth: Option<&'a DepthImage>,
+}
+
+/// Settings of the field-based segmentation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentOptions {
+    /// Feature mode.
+    pub mode: SegmentMode,
+    /// Standard deviation (metres) of the Gaussian a point is encoded as when
+    /// the field is queried directly.
+    pub sample_radius: f64,
+    /// Rays (or points) per forward pass.
+    pub chunk: usize,
+    /// Feature images are rendered at this fraction of each view's resolution.
+    pub render_scale: f64,
+    /// Visibility rules of the projection.
+    pub project: ProjectOptions,
+}
+
+impl Default for SegmentOptions {
+    fn default() -> Self {
+        Self {
+            mode: SegmentMode::Hybrid,
+            sample_radius: 0.01,
+            chunk: 4096,
+            render_scale: 1.0,
+            project: ProjectOptions::default(),
+        }
+    }
+}
+
+/// Labelled points to segment, with the classes to choose from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalPoints {
+    /// Positions in metres.
+    pub positions: Vec<Vec3>,
+    /// Class index per point ([`IGNORE_LABEL`] = not evaluated).
+    pub labels: Vec<u32>,
+    /// Class names; labels index into them.
+    pub names: Vec<String>,
+    /// `C x dim` text embeddings, one row per class name.
+    pub embeddings: Vec<f32>,
+    /// Embedding dimension D.
+    pub dim: usize,
+}
+
+impl EvalPoints {
+    /// The labelled point cloud and class embeddings a scene carries (the
+    /// synthetic scene's defaults). Negative labels become [`IGNORE_LABEL`].
+    pub fn from_scene(scene: &Scene) -> Result<Self, EvalError> {
+        let points = scene
+            .points
+            .as_ref()
+            .ok_or_else(|| EvalError::Invalid(format!("scene {} has no point cloud", scene.name)))?;
+        let classes = scene
+            .classes
+            .as_ref()
+            .ok_or_else(|| EvalError::Invalid(format!("scene {} has no class embeddings", scene.name)))?;
+        let labels = points
+            .labels
+            .as_ref()
+            .ok_or_else(|| EvalError::Invalid(format!("scene {}'s points have no labels", scene.name)))?;
+        let c = classes.names.len() as i64;
+        Ok(Self {
+            positions: points.positions.clone(),
+            labels: labels
+                .iter()
+                .map(|&l| if (0..c).contains(&l) { l as u32 } else { IGNORE_LABEL })
+                .collect(),
+            names: classes.names.clone(),
+            embeddings: classes.data.clone(),
+            dim: classes.dim,
+        })
+    }
+
+    /// Replica's head/common/tail split when the classes are Replica's.
+    pub fn split(&self) -> Option<ClassSplit> {
+        ClassSplit::replica_for(&self.names)
+    }
+}
+
+/// Field features at world points, `[n, k]` row-major: points are
+/// normalised into `scene_box` and encoded as isotropic Gaussians of
+/// standard deviation `radius` metres.
+pub fn sampled_features(
+    model: &OpenNerf,
+    points: &[Vec3],
+    scene_box: &SceneBox,
+    radius: f64,
+    chunk: usize,
+    device: &Device,
+) -> Vec<f32> {
+    let r = (radius * scene_box.scale()) as f32;
+    let mut out = Vec::new();
+    for part in points.chunks(chunk.max(1)) {
+        let flat: Vec<f32> = part
+            .iter()
+            .flat_map(|&p| scene_box.normalize_point(p).map(|x| x as f32))
+            .collect();
+        let t = Tensor::<2>::from_data(TensorData::new(flat, [part.len(), 3]), device);
+        out.extend(tensor_to_vec(model.query_features(t, r)));
+    }
+    out
+}
+
+/// Index of the pixel of a `fw x fh` image at image point `(u, v)` of a
+/// `w x h` camera (pixel centres at integers; nearest after scaling).
+pub fn scaled_index(u: f64, v: f64, w: u32, h: u32, fw: u32, fh: u32) -> usize {
+    let x = (((u + 0.5) * fw as f64 / w as f64).floor().max(0.0) as usize).min(fw as usize - 1);
+    let y = (((v + 0.5) * fh as f64 / h as f64).floor().max(0.0) as usize).min(fh as usize - 1);
+    y * fw as usize + x
+}
+
+/// Averages rendered feature images over `views`: each view is rendered at
+/// `render_scale` of its resolution; a point takes the feature of the pixel
+/// it lands on when it passes the occlusion test against the view's sensor
+/// depth (or the rendered depth without one). Sums stay in the field's
+/// output space (k channels), so memory is `points * k` floats.
+#[allow(clippy::too_many_arguments)]
+pub fn projected_features(
+    model: &OpenNerf,
+    points: &[Vec3],
+    views: &[View<'_>],
+    scene_box: &SceneBox,
+    background: Option<[f32; 3]>,
+    opts: &SegmentOptions,
+    device: &Device,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<FeatureAccumulator, EvalError> {
+    let mut acc: Option<FeatureAccumulator> = None;
+    for (vi, view) in views.iter().enumerate() {
+        let k = &view.camera.intrinsics;
+        let (rw, rh) = (
+            ((k.width as f64 * opts.render_scale).round() as u32).max(1),
+            ((k.height as f64 * opts.render_scale).round() as u32).max(1),
+        );
+        let cam = view.camera.scaled(rw, rh);
+        let r = render_view(model, &cam, scene_box, background, opts.chunk, device);
+        if r.feature_dim == 0 {
+            return Err(EvalError::Invalid("the model renders no features".into()));
+        }
+        let a = acc.get_or_insert_with(|| FeatureAccumulator::new(points.len(), r.feature_dim));
+        let depth = match view.depth {
+            Some(d) => DepthRef {
+                width: d.width,
+                height: d.height,
+                data: &d.data,
+            },
+            None => DepthRef {
+                width: rw,
+                height: rh,
+                data: &r.depth,
+            },
+        };
+        let dim = r.feature_dim;
+        a.add_view(points, &view.camera, Some(depth), &opts.project, |h: &Hit, out| {
+            let i = scaled_index(h.u, h.v, k.width, k.height, rw, rh);
+            out.copy_from_slice(&r.feature[i * dim..(i + 1) * dim]);
+        });
+        progress(vi + 1, views.len());
+    }
+    acc.ok_or_else(|| EvalError::Invalid("no views to project into".into()))
+}
+
+/// The upper bound without a field: the scene's own 2D feature maps
+/// projected onto the points (sensor depth for the occlusion test) and
+/// averaged, in the maps' (possibly PCA) space.
+pub fn projected_2d_features(
+    maps: &[&FeatureMap],
+    views: &[View<'_>],
+    points: &[Vec3],
+    opts: &ProjectOptions,
+) -> Result<FeatureAccumulator, EvalError> {
+    let dim = maps.first().map_or(0, |m| m.dim);
+    if maps.len() != views.len() || dim == 0 {
+        return Err(EvalError::Invalid(format!(
+            "{} feature maps for {} views",
+            maps.len(),
+            views.len()
+        )));
+    }
+    let mut acc = FeatureAccumulator::new(points.len(), dim);
+    for (m, view) in maps.iter().zip(views) {
+        let k = &view.camera.intrinsics;
+        let depth = view.depth.map(|d| DepthRef {
+            width: d.width,
+            height: d.height,
+            data: &d.data,
+        });
+        acc.add_view(points, &view.camera, depth, opts, |h, out| {
+            let f = m.lookup(h.u, h.v, k.width, k.height);
+            out.iter_mut().zip(f).for_each(|(o, x)| *o = x.to_f32());
+        });
+    }
+    Ok(acc)
+}
+
+/// Class of every point from features `[n, k]` (`None` rows get
+/// [`NO_PREDICTION`]).
+pub fn predict<'a>(scorer: &ClassScorer, features: impl Iterator<Item = Option<&'a [f32]>>) -> Vec<u32> {
+    features
+        .map(|f| f.map_or(NO_PREDICTION, |f| scorer.argmax(f)))
+        .collect()
+}
+
+/// Per-point predictions of the field in `opts.mode`. Returns the
+/// predictions and the number of points seen by at least one view (all
+/// points in sampled mode).
+#[allow(clippy::too_many_arguments)]
+pub fn segment_with_field(
+    model: &OpenNerf,
+    pca: Option<&Pca>,
+    points: &EvalPoints,
+    views: &[View<'_>],
+    scene_box: &SceneBox,
+    background: Option<[f32; 3]>,
+    opts: &SegmentOptions,
+    device: &Device,
+) -> Result<(Vec<u32>, usize), EvalError> {
+    let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
+    let pos = &points.positions;
+    let sampled = |idx: &[usize]| -> Vec<f32> {
+        let p: Vec<Vec3> = idx.iter().map(|&i| pos[i]).collect();
+        sampled_features(model, &p, scene_box, opts.sample_radius, opts.chunk, device)
+    };
+    let check_dim = |k: usize| {
+        if k != scorer.dim {
+            Err(EvalError::Invalid(format!(
+                "the field predicts {k} channels but the class embeddings give {} (PCA mismatch?)",
+                scorer.dim
+            )))
+        } else {
+            Ok(())
+        }
+    };
+    if opts.mode == SegmentMode::Sampled {
+        let all: Vec<usize> = (0..pos.len()).collect();
+        let f = sampled(&all);
+        let k = f.len() / pos.len().max(1);
+        check_dim(k)?;
+        return Ok((predict(&scorer, f.chunks(k.max(1)).map(Some)), pos.len()));
+    }
+    let acc = projected_features(model, pos, views, scene_box, background, opts, device, |_, _| {})?;
+    check_dim(acc.dim)?;
+    let seen = acc.counts.iter().filter(|&&c| c > 0).count();
+    let means: Vec<Option<Vec<f32>>> = (0..pos.len()).map(|i| acc.mean(i)).collect();
+    let mut pred = predict(&scorer, means.iter().map(|m| m.as_deref()));
+    if opts.mode == SegmentMode::Hybrid {
+        let unseen: Vec<usize> = (0..pos.len()).filter(|&i| acc.counts[i] == 0).collect();
+        if !unseen.is_empty() {
+            let f = sampled(&unseen);
+            for (j, &i) in unseen.iter().enumerate() {
+                pred[i] = scorer.argmax(&f[j * acc.dim..(j + 1) * acc.dim]);
+            }
+        }
+    }
+    Ok((pred, seen))
+}
+
+/// Predictions of the 2D-feature projection bound: the scene's feature maps
+/// projected onto the points; points no view sees get [`NO_PREDICTION`].
+pub fn segment_with_2d_features(
+    maps: &[&FeatureMap],
+    pca: Option<&Pca>,
+    points: &EvalPoints,
+    views: &[View<'_>],
+    opts: &ProjectOptions,
+) -> Result<Vec<u32>, EvalError> {
+    let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
+    let acc = projected_2d_features(maps, views, &points.positions, opts)?;
+    let means: Vec<Option<Vec<f32>>> = (0..acc.len()).map(|i| acc.mean(i)).collect();
+    Ok(predict(&scorer, means.iter().map(|m| m.as_deref())))
+}
+
+/// The oracle: every point gets its own class's text embedding as feature.
+/// Scores 1 unless two classes share an embedding.
+pub fn segment_oracle(points: &EvalPoints) -> Result<Vec<u32>, EvalError> {
+    let scorer = ClassScorer::new(&points.embeddings, points.dim, None)?;
+    let d = points.dim;
+    Ok(points
+        .labels
+        .iter()
+        .map(|&l| {
+            if (l as usize) < points.names.len() {
+                let row: Vec<f32> = points.embeddings[l as usize * d..(l as usize + 1) * d].to_vec();
+                scorer.argmax(&row)
+            } else {
+                NO_PREDICTION
+            }
+        })
+        .collect())
+}
+
+/// Scores predictions against the points' labels.
+pub fn evaluate(mode: &str, points: &EvalPoints, pred: &[u32]) -> SegmentationScores {
+    let mut cm = ConfusionMatrix::new(points.names.len());
+    cm.add_all(&points.labels, pred);
+    score(mode, &cm, &points.names, points.split().as_ref())
+}
+
+/// Writes `{stem}_pred.ply` (points coloured by predicted class, with the
+/// predicted class as label) and `{stem}_error.ply` (green correct, red
+/// wrong, grey not evaluated or unpredicted) into `dir`.
+pub fn write_prediction_plys(dir: &Path, stem: &str, points: &EvalPoints, pred: &[u32]) -> Result<(), EvalError> {
+    std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+    let colors = pred
+        .iter()
+        .map(|&p| if p == NO_PREDICTION { [128; 3] } else { class_color(p as usize) })
+        .collect();
+    let cloud = PointCloud {
+        positions: points.positions.clone(),
+        colors: Some(colors),
+        labels: Some(pred.iter().map(|&p| if p == NO_PREDICTION { -1 } else { p as i64 }).collect()),
+    };
+    write_ply(&dir.join(format!("{stem}_pred.ply")), &cloud, &[])?;
+    let err = PointCloud {
+        positions: points.positions.clone(),
+        colors: Some(
+            points
+                .labels
+                .iter()
+                .zip(pred)
+                .map(|(&g, &p)| match (g == IGNORE_LABEL || p == NO_PREDICTION, g == p) {
+                    (true, _) => [128, 128, 128],
+                    (false, true) => [40, 200, 60],
+                    (false, false) => [220, 40, 40],
+                })
+                .collect(),
+        ),
+        labels: Some(points.labels.iter().map(|&l| if l == IGNORE_LABEL { -1 } else { l as i64 }).collect()),
+    };
+    write_ply(&dir.join(format!("{stem}_error.ply")), &err, &[])?;
+    Ok(())
+}
+
+/// Views of `scene`'s frames `indices` with their sensor depth (when
+/// `sensor_depth` and present); all frames when `indices` is empty.
+pub fn scene_views<'a>(scene: &'a Scene, indices: &[usize], sensor_depth: bool) -> Result<Vec<View<'a>>, EvalError> {
+    let all: Vec<usize> = (0..scene.frames.len()).collect();
+    let idx = if indices.is_empty() { &all[..] } else { indices };
+    idx.iter()
+        .map(|&i| {
+            let f = scene.frames.get(i).ok_or_else(|| {
+                EvalError::Invalid(format!("frame index {i} but the scene has {} frames", scene.frames.len()))
+            })?;
+            Ok(View {
+                camera: f.camera,
+                depth: if sensor_depth { f.depth.as_ref() } else { None },
+            })
+        })
+        .collect()
+}

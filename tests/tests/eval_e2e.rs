@@ -1,0 +1,108 @@
+//! End to end: train a tiny field on the CI synthetic scene, then segment
+//! its labelled point cloud in every mode and compare with the 2D-feature
+//! projection bound and the ground-truth-feature oracle.
+
+use burn::tensor::Device;
+use datasets::synthetic::{SceneSize, generate};
+use eval::commands::{PointArgs, SegmentArgs, segment_command};
+use eval::metrics::format_table;
+use eval::project::ProjectOptions;
+use eval::run::load_run;
+use eval::segment::{
+    EvalPoints, SegmentMode, SegmentOptions, evaluate, scene_views, segment_oracle, segment_with_2d_features,
+    segment_with_field,
+};
+use train::{SessionOptions, TrainConfig, train_new};
+
+#[test]
+fn train_then_segment_in_every_mode() {
+    let scene = generate(7, SceneSize::Ci).expect("CI scene");
+    let dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let mut config = TrainConfig::tiny(dim);
+    config.schedule.iterations = 300;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let session = SessionOptions {
+        final_render: false,
+        ..Default::default()
+    };
+    train_new(&scene, config, 8, dir.path(), &session).expect("training");
+
+    let device = Device::flex();
+    let run = load_run(dir.path(), &device).expect("load run");
+    let points = EvalPoints::from_scene(&scene).expect("points");
+    let chance = 1.0 / points.names.len() as f64;
+    let views = scene_views(&scene, &run.split.train, true).expect("views");
+    let mut results = Vec::new();
+    for mode in [SegmentMode::Sampled, SegmentMode::Project, SegmentMode::Hybrid] {
+        let opts = SegmentOptions {
+            mode,
+            ..Default::default()
+        };
+        let (pred, seen) = segment_with_field(
+            &run.model,
+            run.meta.pca.as_ref(),
+            &points,
+            &views,
+            &run.meta.scene_box,
+            run.meta.background,
+            &opts,
+            &device,
+        )
+        .expect("segment");
+        assert!(seen > points.positions.len() / 2, "{mode}: only {seen} points seen");
+        results.push((mode.to_string(), evaluate(&mode.to_string(), &points, &pred)));
+    }
+    let features = scene.features.as_ref().expect("features");
+    let maps: Vec<_> = run.split.train.iter().map(|&i| &features.maps[i]).collect();
+    let pred = segment_with_2d_features(&maps, features.pca.as_ref(), &points, &views, &ProjectOptions::default())
+        .expect("2D bound");
+    results.push(("2D-feature projection".into(), evaluate("2d", &points, &pred)));
+    let pred = segment_oracle(&points).expect("oracle");
+    results.push(("oracle (GT features)".into(), evaluate("oracle", &points, &pred)));
+
+    let rows: Vec<(&str, _)> = results.iter().map(|(l, r)| (l.as_str(), r)).collect();
+    println!("CI scene, {} points, {} classes (chance mIoU ~{:.3})", points.positions.len(), points.names.len(), chance);
+    print!("{}", format_table(&rows));
+
+    let miou = |i: usize| results[i].1.all.miou.expect("mIoU");
+    let macc = |i: usize| results[i].1.all.macc.expect("mAcc");
+    for (label, r) in &results {
+        for v in [r.all.miou, r.all.macc].into_iter().flatten() {
+            assert!((0.0..=1.0).contains(&v), "{label}: {v}");
+        }
+    }
+    assert!((miou(4) - 1.0).abs() < 1e-12, "oracle mIoU {}", miou(4));
+    assert!(miou(3) > 3.0 * chance, "2D bound mIoU {} not well above chance", miou(3));
+    for i in 0..3 {
+        assert!(macc(i) > 1.5 * chance, "{}: mAcc {} not above chance", results[i].0, macc(i));
+        assert!(results[i].1.point_accuracy > 0.3, "{}: point accuracy {}", results[i].0, results[i].1.point_accuracy);
+    }
+
+    // The command-line path writes the JSON and the coloured point clouds.
+    let out = dir.path().join("seg").join("segmentation.json");
+    let args = SegmentArgs {
+        run: dir.path().to_path_buf(),
+        mode: "hybrid".into(),
+        data: PointArgs::default(),
+        cameras: "train".into(),
+        cam_params: None,
+        rendered_depth: false,
+        render_scale: 1.0,
+        max_views: None,
+        radius: 0.01,
+        chunk: 4096,
+        split: None,
+        out: Some(out.clone()),
+        device: "flex".into(),
+    };
+    let scores = segment_command(&args).expect("segment command");
+    assert_eq!(scores.all.miou, results[2].1.all.miou);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).expect("json")).expect("parse");
+    assert_eq!(json["mode"], "hybrid");
+    for key in ["all", "head", "common", "tail"] {
+        assert!(json[key].is_object(), "{key} missing");
+    }
+    assert!(json["per_class"].as_array().is_some_and(|a| a.len() == points.names.len()));
+    assert!(dir.path().join("seg/segmentation_hybrid_pred.ply").exists());
+    assert!(dir.path().join("seg/segmentation_hybrid_error.ply").exists());
+}
