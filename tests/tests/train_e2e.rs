@@ -148,7 +148,14 @@ fn weights(dir: &Path) -> Vec<f32> {
 
 /// A short run on `backend` improves the held-out colour and features over
 /// initialisation (`rays` per batch, `samples` per level).
-fn short_run_improves(backend: BackendKind, iterations: usize, rays: usize, samples: usize, min_psnr_gain: f64) {
+fn short_run_improves(
+    backend: BackendKind,
+    iterations: usize,
+    rays: usize,
+    samples: usize,
+    min_psnr_gain: f64,
+    min_cosine_gain: f64,
+) {
     let _guard = serial();
     let scene = ci_scene();
     let dir = scratch_dir();
@@ -158,7 +165,7 @@ fn short_run_improves(backend: BackendKind, iterations: usize, rays: usize, samp
     config.schedule.warmup_iters = iterations / 10;
     config.logging.eval_every = 0;
     config.logging.checkpoint_every = 0;
-    config.logging.eval_pixels = 256;
+    config.logging.eval_pixels = rays;
     let out = train::train_new(scene, config, 4, dir.path(), &session(backend)).unwrap();
     let s = out.summary;
     println!("{backend}: {s:?}");
@@ -171,12 +178,12 @@ fn short_run_improves(backend: BackendKind, iterations: usize, rays: usize, samp
         s.heldout_psnr
     );
     let cos = s.heldout_feature_cosine.unwrap();
-    assert!(cos > cos0 + 0.3, "{backend}: feature cosine {cos} vs {cos0} at initialisation");
+    assert!(cos > cos0 + min_cosine_gain, "{backend}: feature cosine {cos} vs {cos0} at initialisation");
 }
 
 #[test]
 fn ndarray_backend_trains() {
-    short_run_improves(BackendKind::Ndarray, 100, 256, 32, 1.0);
+    short_run_improves(BackendKind::Ndarray, 100, 256, 32, 1.0, 0.3);
 }
 
 #[test]
@@ -186,5 +193,5 @@ fn wgpu_backend_trains_when_a_vulkan_driver_is_present() {
         return;
     }
     // A software Vulkan driver runs at a few GFLOP/s: a handful of small steps.
-    short_run_improves(BackendKind::Wgpu, 20, 128, 16, 0.0);
+    short_run_improves(BackendKind::Wgpu, 12, 64, 8, 0.0, 0.2);
 }
