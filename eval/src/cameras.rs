@@ -63,7 +63,12 @@ pub fn load_transforms_json(path: &Path) -> Result<Vec<NamedCamera>, EvalError> 
             let name = f
                 .get("file_path")
                 .and_then(|p| p.as_str())
-                .and_then(|p| Path::new(p).file_stem().and_then(|s| s.to_str()).map(String::from))
+                .and_then(|p| {
+                    Path::new(p)
+                        .file_stem()
+                        .and_then(|s| s.to_str())
+                        .map(String::from)
+                })
                 .unwrap_or_else(|| format!("frame{i:04}"));
             Ok(NamedCamera {
                 name,
@@ -91,7 +96,10 @@ fn matrix4(v: Option<&serde_json::Value>) -> Option<[[f64; 4]; 4]> {
     Some(m)
 }
 
-fn image_size_of_first_frame(path: &Path, frame: &serde_json::Value) -> Result<(u32, u32), EvalError> {
+fn image_size_of_first_frame(
+    path: &Path,
+    frame: &serde_json::Value,
+) -> Result<(u32, u32), EvalError> {
     let rel = frame
         .get("file_path")
         .and_then(|p| p.as_str())
@@ -110,15 +118,19 @@ fn image_size_of_first_frame(path: &Path, frame: &serde_json::Value) -> Result<(
 /// Nice-SLAM cameras: `traj.txt` (one row-major 4x4 camera-to-world matrix
 /// per line, OpenCV) and the intrinsics of `cam_params.json`. Frames are named
 /// `frameNNNNNN` after their line index; `stride` keeps every n-th line.
-pub fn load_traj(traj: &Path, cam_params: &Path, stride: usize) -> Result<Vec<NamedCamera>, EvalError> {
+pub fn load_traj(
+    traj: &Path,
+    cam_params: &Path,
+    stride: usize,
+) -> Result<Vec<NamedCamera>, EvalError> {
     let json: serde_json::Value = read_json(cam_params)?;
     let c = json
         .get("camera")
         .ok_or_else(|| EvalError::json(cam_params, "no \"camera\" object"))?;
     let get = |k: &str| {
-        c.get(k)
-            .and_then(|x| x.as_f64())
-            .ok_or_else(|| EvalError::json(cam_params, format!("camera.{k} missing or not a number")))
+        c.get(k).and_then(|x| x.as_f64()).ok_or_else(|| {
+            EvalError::json(cam_params, format!("camera.{k} missing or not a number"))
+        })
     };
     let intrinsics = Intrinsics {
         width: get("w")? as u32,
@@ -176,16 +188,36 @@ pub fn quat_from_matrix(r: &[[f64; 3]; 3]) -> [f64; 4] {
     let tr = r[0][0] + r[1][1] + r[2][2];
     let q = if tr > 0.0 {
         let s = (tr + 1.0).sqrt() * 2.0;
-        [0.25 * s, (r[2][1] - r[1][2]) / s, (r[0][2] - r[2][0]) / s, (r[1][0] - r[0][1]) / s]
+        [
+            0.25 * s,
+            (r[2][1] - r[1][2]) / s,
+            (r[0][2] - r[2][0]) / s,
+            (r[1][0] - r[0][1]) / s,
+        ]
     } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
         let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
-        [(r[2][1] - r[1][2]) / s, 0.25 * s, (r[0][1] + r[1][0]) / s, (r[0][2] + r[2][0]) / s]
+        [
+            (r[2][1] - r[1][2]) / s,
+            0.25 * s,
+            (r[0][1] + r[1][0]) / s,
+            (r[0][2] + r[2][0]) / s,
+        ]
     } else if r[1][1] > r[2][2] {
         let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
-        [(r[0][2] - r[2][0]) / s, (r[0][1] + r[1][0]) / s, 0.25 * s, (r[1][2] + r[2][1]) / s]
+        [
+            (r[0][2] - r[2][0]) / s,
+            (r[0][1] + r[1][0]) / s,
+            0.25 * s,
+            (r[1][2] + r[2][1]) / s,
+        ]
     } else {
         let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
-        [(r[1][0] - r[0][1]) / s, (r[0][2] + r[2][0]) / s, (r[1][2] + r[2][1]) / s, 0.25 * s]
+        [
+            (r[1][0] - r[0][1]) / s,
+            (r[0][2] + r[2][0]) / s,
+            (r[1][2] + r[2][1]) / s,
+            0.25 * s,
+        ]
     };
     let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
     q.map(|x| x / n)
@@ -195,9 +227,21 @@ pub fn quat_from_matrix(r: &[[f64; 3]; 3]) -> [f64; 4] {
 pub fn matrix_from_quat(q: [f64; 4]) -> [[f64; 3]; 3] {
     let [w, x, y, z] = q;
     [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-        [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
     ]
 }
 
@@ -224,7 +268,11 @@ pub fn slerp(a: [f64; 4], b: [f64; 4], s: f64) -> [f64; 4] {
 
 /// Pose between `a` (`s = 0`) and `b` (`s = 1`): slerped rotation, lerped centre.
 pub fn interpolate_pose(a: &Pose, b: &Pose, s: f64) -> Pose {
-    let q = slerp(quat_from_matrix(&a.rotation), quat_from_matrix(&b.rotation), s);
+    let q = slerp(
+        quat_from_matrix(&a.rotation),
+        quat_from_matrix(&b.rotation),
+        s,
+    );
     let t = [0, 1, 2].map(|k| (1.0 - s) * a.translation[k] + s * b.translation[k]);
     Pose {
         rotation: matrix_from_quat(q),
@@ -237,17 +285,27 @@ pub fn interpolate_pose(a: &Pose, b: &Pose, s: f64) -> Pose {
 /// the first key camera. Named `path0000`, `path0001`, ...
 pub fn camera_path(keys: &[NamedCamera], n: usize) -> Result<Vec<NamedCamera>, EvalError> {
     let Some(first) = keys.first() else {
-        return Err(EvalError::Invalid("a camera path needs at least one key camera".into()));
+        return Err(EvalError::Invalid(
+            "a camera path needs at least one key camera".into(),
+        ));
     };
     let segments = keys.len() - 1;
     Ok((0..n)
         .map(|i| {
-            let s = if n > 1 { i as f64 / (n - 1) as f64 } else { 0.0 } * segments as f64;
+            let s = if n > 1 {
+                i as f64 / (n - 1) as f64
+            } else {
+                0.0
+            } * segments as f64;
             let seg = (s.floor() as usize).min(segments.saturating_sub(1));
             let pose = if segments == 0 {
                 first.camera.pose
             } else {
-                interpolate_pose(&keys[seg].camera.pose, &keys[seg + 1].camera.pose, s - seg as f64)
+                interpolate_pose(
+                    &keys[seg].camera.pose,
+                    &keys[seg + 1].camera.pose,
+                    s - seg as f64,
+                )
             };
             NamedCamera {
                 name: format!("path{i:04}"),
@@ -271,7 +329,9 @@ mod tests {
     }
 
     fn max_diff(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> f64 {
-        (0..9).map(|i| (a[i / 3][i % 3] - b[i / 3][i % 3]).abs()).fold(0.0, f64::max)
+        (0..9)
+            .map(|i| (a[i / 3][i % 3] - b[i / 3][i % 3]).abs())
+            .fold(0.0, f64::max)
     }
 
     #[test]

@@ -6,19 +6,21 @@
 /// (Mikhailov, 2019): smooth and cheap, within about 0.13 per channel of the
 /// table (closest in the middle, loosest at the dark ends).
 pub fn turbo(x: f32) -> [f32; 3] {
-    let x = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
+    let x = if x.is_finite() {
+        x.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let x2 = x * x;
     let x3 = x2 * x;
     let x4 = x2 * x2;
     let x5 = x4 * x;
-    let r = 0.135_721_38 + 4.615_392_6 * x - 42.660_324 * x2 + 132.131_08 * x3
-        - 152.942_4 * x4
+    let r = 0.135_721_38 + 4.615_392_6 * x - 42.660_324 * x2 + 132.131_08 * x3 - 152.942_4 * x4
         + 59.286_38 * x5;
     let g = 0.091_402_61 + 2.194_188_4 * x + 4.842_966_6 * x2 - 14.185_034 * x3
         + 4.277_298_6 * x4
         + 2.829_566 * x5;
-    let b = 0.106_673_3 + 12.641_946 * x - 60.582_05 * x2 + 110.362_77 * x3
-        - 89.903_11 * x4
+    let b = 0.106_673_3 + 12.641_946 * x - 60.582_05 * x2 + 110.362_77 * x3 - 89.903_11 * x4
         + 27.348_25 * x5;
     [r.clamp(0.0, 1.0), g.clamp(0.0, 1.0), b.clamp(0.0, 1.0)]
 }

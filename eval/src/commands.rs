@@ -8,11 +8,14 @@ use datasets::points::{ClassMap, IGNORE_LABEL, read_labels_txt, read_ply, write_
 use datasets::text::TextEmbeddings;
 use datasets::{Scene, load_scene};
 
-use crate::cameras::{NamedCamera, camera_path, load_transforms_json, load_traj, resized};
+use crate::cameras::{NamedCamera, camera_path, load_traj, load_transforms_json, resized};
 use crate::error::EvalError;
 use crate::metrics::{ClassSplit, SegmentationScores, format_per_class, format_table};
 use crate::project::ProjectOptions;
-use crate::query::{cosine_scores, embedding_by_name, embedding_from_npy, normalize_scores, relevancy_image, relevancy_overlay};
+use crate::query::{
+    cosine_scores, embedding_by_name, embedding_from_npy, normalize_scores, relevancy_image,
+    relevancy_overlay,
+};
 use crate::render::{render_view, save_rgb8, save_view_pngs};
 use crate::run::{LoadedRun, load_run, read_json, write_json};
 use crate::segment::{
@@ -26,7 +29,9 @@ pub fn device_by_name(name: &str) -> Result<Device, EvalError> {
         "flex" => Ok(Device::flex()),
         #[allow(deprecated)]
         "ndarray" => Ok(Device::ndarray()),
-        o => Err(EvalError::Invalid(format!("unknown device {o:?} (expected flex or ndarray)"))),
+        o => Err(EvalError::Invalid(format!(
+            "unknown device {o:?} (expected flex or ndarray)"
+        ))),
     }
 }
 
@@ -109,7 +114,10 @@ impl Context {
     pub fn load(dir: &Path, device: &Device) -> Result<Self, EvalError> {
         let run = load_run(dir, device)?;
         let scene = load_scene(&run.meta.source)?;
-        Ok(Self { run, scene: Some(scene) })
+        Ok(Self {
+            run,
+            scene: Some(scene),
+        })
     }
 }
 
@@ -119,10 +127,16 @@ pub fn load_points(args: &PointArgs, scene: Option<&Scene>) -> Result<EvalPoints
     let texts = match (&args.embeddings, &args.names) {
         (Some(e), Some(n)) => Some(TextEmbeddings::load(e, n)?),
         (None, None) => None,
-        _ => return Err(EvalError::Invalid("--embeddings and --names go together".into())),
+        _ => {
+            return Err(EvalError::Invalid(
+                "--embeddings and --names go together".into(),
+            ));
+        }
     };
     let Some(ply) = &args.points else {
-        let scene = scene.ok_or_else(|| EvalError::Invalid("no --points and no scene to take them from".into()))?;
+        let scene = scene.ok_or_else(|| {
+            EvalError::Invalid("no --points and no scene to take them from".into())
+        })?;
         let mut p = EvalPoints::from_scene(scene)?;
         if let Some(t) = texts {
             reembed(&mut p, &t)?;
@@ -132,16 +146,18 @@ pub fn load_points(args: &PointArgs, scene: Option<&Scene>) -> Result<EvalPoints
     let cloud = read_ply(ply)?;
     let raw = match &args.labels {
         Some(l) => read_labels_txt(l, cloud.positions.len())?,
-        None => cloud
-            .labels
-            .clone()
-            .ok_or_else(|| EvalError::Invalid(format!("{}: no label property and no --labels", ply.display())))?,
+        None => cloud.labels.clone().ok_or_else(|| {
+            EvalError::Invalid(format!(
+                "{}: no label property and no --labels",
+                ply.display()
+            ))
+        })?,
     };
     let texts = match texts {
         Some(t) => t,
-        None => scene
-            .and_then(|s| s.classes.clone())
-            .ok_or_else(|| EvalError::Invalid("no --embeddings/--names and the scene has no classes".into()))?,
+        None => scene.and_then(|s| s.classes.clone()).ok_or_else(|| {
+            EvalError::Invalid("no --embeddings/--names and the scene has no classes".into())
+        })?,
     };
     let map = match &args.class_map {
         Some(m) => ClassMap::load_replica(m)?,
@@ -170,11 +186,20 @@ fn reembed(p: &mut EvalPoints, texts: &TextEmbeddings) -> Result<(), EvalError> 
         }
     }
     if keep.is_empty() {
-        return Err(EvalError::Invalid("none of the point classes has a text embedding".into()));
+        return Err(EvalError::Invalid(
+            "none of the point classes has a text embedding".into(),
+        ));
     }
     if keep.len() < p.names.len() {
-        let missing: Vec<&String> = p.names.iter().filter(|n| texts.index_of(n).is_none()).collect();
-        eprintln!("note: {} classes have no text embedding and are not evaluated: {missing:?}", missing.len());
+        let missing: Vec<&String> = p
+            .names
+            .iter()
+            .filter(|n| texts.index_of(n).is_none())
+            .collect();
+        eprintln!(
+            "note: {} classes have no text embedding and are not evaluated: {missing:?}",
+            missing.len()
+        );
     }
     p.labels = p
         .labels
@@ -182,7 +207,10 @@ fn reembed(p: &mut EvalPoints, texts: &TextEmbeddings) -> Result<(), EvalError> 
         .map(|&l| remap.get(l as usize).copied().unwrap_or(IGNORE_LABEL))
         .collect();
     p.names = keep.iter().map(|(n, _)| n.clone()).collect();
-    p.embeddings = keep.iter().flat_map(|&(_, j)| texts.row(j).to_vec()).collect();
+    p.embeddings = keep
+        .iter()
+        .flat_map(|&(_, j)| texts.row(j).to_vec())
+        .collect();
     p.dim = texts.dim;
     Ok(())
 }
@@ -195,21 +223,30 @@ pub fn select_cameras(
     scene: Option<&Scene>,
     cam_params: Option<&Path>,
 ) -> Result<(Vec<NamedCamera>, Option<Vec<usize>>), EvalError> {
-    let from_scene = |idx: Vec<usize>| -> Result<(Vec<NamedCamera>, Option<Vec<usize>>), EvalError> {
-        let scene = scene.ok_or_else(|| EvalError::Invalid("no scene to take cameras from".into()))?;
-        let idx = if idx.is_empty() { (0..scene.frames.len()).collect() } else { idx };
-        let cams = idx
-            .iter()
-            .map(|&i| {
-                scene
-                    .frames
-                    .get(i)
-                    .map(|f| NamedCamera { name: f.name.clone(), camera: f.camera })
-                    .ok_or_else(|| EvalError::Invalid(format!("frame {i} not in the scene")))
-            })
-            .collect::<Result<_, _>>()?;
-        Ok((cams, Some(idx)))
-    };
+    let from_scene =
+        |idx: Vec<usize>| -> Result<(Vec<NamedCamera>, Option<Vec<usize>>), EvalError> {
+            let scene =
+                scene.ok_or_else(|| EvalError::Invalid("no scene to take cameras from".into()))?;
+            let idx = if idx.is_empty() {
+                (0..scene.frames.len()).collect()
+            } else {
+                idx
+            };
+            let cams = idx
+                .iter()
+                .map(|&i| {
+                    scene
+                        .frames
+                        .get(i)
+                        .map(|f| NamedCamera {
+                            name: f.name.clone(),
+                            camera: f.camera,
+                        })
+                        .ok_or_else(|| EvalError::Invalid(format!("frame {i} not in the scene")))
+                })
+                .collect::<Result<_, _>>()?;
+            Ok((cams, Some(idx)))
+        };
     match spec {
         "train" => from_scene(run.split.train.clone()),
         "heldout" => from_scene(run.split.heldout.clone()),
@@ -223,7 +260,10 @@ pub fn select_cameras(
                 Some(c) => c.to_path_buf(),
                 None => {
                     let here = p.with_file_name("cam_params.json");
-                    let up = p.parent().and_then(|d| d.parent()).map(|d| d.join("cam_params.json"));
+                    let up = p
+                        .parent()
+                        .and_then(|d| d.parent())
+                        .map(|d| d.join("cam_params.json"));
                     match up {
                         Some(u) if !here.exists() && u.exists() => u,
                         _ => here,
@@ -258,10 +298,20 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
             .iter()
             .map(|&i| View {
                 camera: s.frames[i].camera,
-                depth: if sensor { s.frames[i].depth.as_ref() } else { None },
+                depth: if sensor {
+                    s.frames[i].depth.as_ref()
+                } else {
+                    None
+                },
             })
             .collect(),
-        _ => cams.iter().map(|c| View { camera: c.camera, depth: None }).collect(),
+        _ => cams
+            .iter()
+            .map(|c| View {
+                camera: c.camera,
+                depth: None,
+            })
+            .collect(),
     };
     let views = evenly(&views, args.max_views);
     let opts = SegmentOptions {
@@ -306,7 +356,10 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         std::fs::create_dir_all(parent).map_err(|e| EvalError::io(parent, e))?;
     }
     write_json(&out, &scores)?;
-    let dir = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     write_prediction_plys(dir, &format!("segmentation_{mode}"), &points, &pred)?;
     println!("wrote {}", out.display());
     Ok(scores)
@@ -348,21 +401,32 @@ pub struct RenderArgs {
 }
 
 fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamera>, EvalError> {
-    let (cams, _) = select_cameras(&args.cameras, &ctx.run, ctx.scene.as_ref(), args.cam_params.as_deref())?;
+    let (cams, _) = select_cameras(
+        &args.cameras,
+        &ctx.run,
+        ctx.scene.as_ref(),
+        args.cam_params.as_deref(),
+    )?;
     let cams = evenly(&cams, args.max_views);
     let cams = match args.camera_path {
         Some(n) => camera_path(&cams, n)?,
         None => cams,
     };
     let Some(first) = cams.first() else {
-        return Err(EvalError::Invalid(format!("no cameras selected by {:?}", args.cameras)));
+        return Err(EvalError::Invalid(format!(
+            "no cameras selected by {:?}",
+            args.cameras
+        )));
     };
     let k = first.camera.intrinsics;
     Ok(match (args.width, args.height) {
         (None, None) => cams,
         (w, h) => {
-            let w = w.unwrap_or_else(|| (h.unwrap_or(k.height) as f64 * k.width as f64 / k.height as f64).round() as u32);
-            let h = h.unwrap_or_else(|| (w as f64 * k.height as f64 / k.width as f64).round() as u32);
+            let w = w.unwrap_or_else(|| {
+                (h.unwrap_or(k.height) as f64 * k.width as f64 / k.height as f64).round() as u32
+            });
+            let h =
+                h.unwrap_or_else(|| (w as f64 * k.height as f64 / k.width as f64).round() as u32);
             resized(&cams, w.max(1), h.max(1))
         }
     })
@@ -373,11 +437,21 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, EvalError> {
     let device = device_by_name(&args.device)?;
     let ctx = Context::load(&args.run, &device)?;
     let cams = render_cameras(args, &ctx)?;
-    let out = args.out.clone().unwrap_or_else(|| ctx.run.dir.renders().join("eval"));
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| ctx.run.dir.renders().join("eval"));
     let mut written = Vec::new();
     for c in &cams {
         let m = &ctx.run.meta;
-        let v = render_view(&ctx.run.model, &c.camera, &m.scene_box, m.background, args.chunk, &device);
+        let v = render_view(
+            &ctx.run.model,
+            &c.camera,
+            &m.scene_box,
+            m.background,
+            args.chunk,
+            &device,
+        );
         written.extend(save_view_pngs(&v, &out, &c.name)?);
         println!("rendered {}", c.name);
     }
@@ -417,7 +491,13 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
     let device = device_by_name(&r.device)?;
     let ctx = Context::load(&r.run, &device)?;
     let (query, label) = match (&args.query, &args.query_npy) {
-        (_, Some(p)) => (embedding_from_npy(p)?, p.file_stem().and_then(|s| s.to_str()).unwrap_or("query").to_string()),
+        (_, Some(p)) => (
+            embedding_from_npy(p)?,
+            p.file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("query")
+                .to_string(),
+        ),
         (Some(name), None) => {
             let texts = match (&args.embeddings, &args.names) {
                 (Some(e), Some(n)) => TextEmbeddings::load(e, n)?,
@@ -425,19 +505,40 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
                     .scene
                     .as_ref()
                     .and_then(|s| s.classes.clone())
-                    .ok_or_else(|| EvalError::Invalid("no --embeddings/--names and the scene has no classes".into()))?,
+                    .ok_or_else(|| {
+                        EvalError::Invalid(
+                            "no --embeddings/--names and the scene has no classes".into(),
+                        )
+                    })?,
             };
-            (embedding_by_name(&texts, name)?, name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"))
+            (
+                embedding_by_name(&texts, name)?,
+                name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
+            )
         }
-        (None, None) => return Err(EvalError::Invalid("give --query NAME or --query-npy FILE".into())),
+        (None, None) => {
+            return Err(EvalError::Invalid(
+                "give --query NAME or --query-npy FILE".into(),
+            ));
+        }
     };
     let m = &ctx.run.meta;
     let pca = m.pca.as_ref();
-    let out = r.out.clone().unwrap_or_else(|| ctx.run.dir.renders().join("query"));
+    let out = r
+        .out
+        .clone()
+        .unwrap_or_else(|| ctx.run.dir.renders().join("query"));
     std::fs::create_dir_all(&out).map_err(|e| EvalError::io(&out, e))?;
     let mut written = Vec::new();
     for c in render_cameras(r, &ctx)? {
-        let v = render_view(&ctx.run.model, &c.camera, &m.scene_box, m.background, r.chunk, &device);
+        let v = render_view(
+            &ctx.run.model,
+            &c.camera,
+            &m.scene_box,
+            m.background,
+            r.chunk,
+            &device,
+        );
         let rel = relevancy_image(&v, &query, pca)?;
         let path = out.join(format!("{}_{label}_relevancy.png", c.name));
         save_rgb8(&path, v.width, v.height, relevancy_overlay(&v.rgb, &rel))?;
@@ -452,9 +553,21 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
         } else {
             read_ply(Path::new(spec))?
         };
-        let f = sampled_features(&ctx.run.model, &cloud.positions, &m.scene_box, args.radius, r.chunk, &device);
+        let f = sampled_features(
+            &ctx.run.model,
+            &cloud.positions,
+            &m.scene_box,
+            args.radius,
+            r.chunk,
+            &device,
+        );
         let rel = normalize_scores(&cosine_scores(&f, &query, pca)?);
-        cloud.colors = Some(relevancy_overlay(&vec![0.6; 3 * rel.len()], &rel).chunks(3).map(|c| [c[0], c[1], c[2]]).collect());
+        cloud.colors = Some(
+            relevancy_overlay(&vec![0.6; 3 * rel.len()], &rel)
+                .chunks(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
+        );
         let path = out.join(format!("{label}_relevancy.ply"));
         write_ply(&path, &cloud, &[("relevancy", &rel)])?;
         written.push(path);

@@ -1,7 +1,9 @@
 //! `eval`: segment, query and render trained OpenNeRF runs.
 
 use clap::{Parser, Subcommand};
-use eval::commands::{QueryArgs, RenderArgs, SegmentArgs, query_command, render_command, segment_command};
+use eval::commands::{
+    QueryArgs, RenderArgs, SegmentArgs, query_command, render_command, segment_command,
+};
 
 /// Zero-shot 3D semantic segmentation, relevancy queries and rendering of trained runs.
 #[derive(Parser)]

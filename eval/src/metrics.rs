@@ -129,18 +129,63 @@ pub struct ClassSplit {
 
 /// Replica's head classes (SPEC 7).
 pub const REPLICA_HEAD: [&str; 17] = [
-    "wall", "ceiling", "floor", "chair", "blinds", "sofa", "table", "rug", "window", "lamp",
-    "door", "pillow", "bench", "tv-screen", "cabinet", "pillar", "blanket",
+    "wall",
+    "ceiling",
+    "floor",
+    "chair",
+    "blinds",
+    "sofa",
+    "table",
+    "rug",
+    "window",
+    "lamp",
+    "door",
+    "pillow",
+    "bench",
+    "tv-screen",
+    "cabinet",
+    "pillar",
+    "blanket",
 ];
 /// Replica's common classes.
 pub const REPLICA_COMMON: [&str; 17] = [
-    "tv-stand", "cushion", "bin", "vent", "bed", "stool", "picture", "indoor-plant", "desk",
-    "comforter", "nightstand", "shelf", "vase", "plant-stand", "basket", "plate", "monitor",
+    "tv-stand",
+    "cushion",
+    "bin",
+    "vent",
+    "bed",
+    "stool",
+    "picture",
+    "indoor-plant",
+    "desk",
+    "comforter",
+    "nightstand",
+    "shelf",
+    "vase",
+    "plant-stand",
+    "basket",
+    "plate",
+    "monitor",
 ];
 /// Replica's tail classes.
 pub const REPLICA_TAIL: [&str; 17] = [
-    "pipe", "panel", "desk-organizer", "wall-plug", "book", "box", "clock", "sculpture",
-    "tissue-paper", "camera", "tablet", "pot", "bottle", "candle", "bowl", "cloth", "switch",
+    "pipe",
+    "panel",
+    "desk-organizer",
+    "wall-plug",
+    "book",
+    "box",
+    "clock",
+    "sculpture",
+    "tissue-paper",
+    "camera",
+    "tablet",
+    "pot",
+    "bottle",
+    "candle",
+    "bowl",
+    "cloth",
+    "switch",
 ];
 
 impl ClassSplit {
@@ -230,13 +275,7 @@ pub fn score(
         })
         .collect();
     let group = |g: usize| {
-        split.map(|s| {
-            group_score(
-                per_class
-                    .iter()
-                    .filter(|c| s.group_of(&c.name) == Some(g)),
-            )
-        })
+        split.map(|s| group_score(per_class.iter().filter(|c| s.group_of(&c.name) == Some(g))))
     };
     let points: u64 = cm.counts.iter().sum::<u64>() + cm.unpredicted.iter().sum::<u64>();
     let correct: u64 = (0..cm.classes).map(|c| cm.get(c, c)).sum();
@@ -294,7 +333,10 @@ pub fn format_table(rows: &[(&str, &SegmentationScores)]) -> String {
 
 /// Per-class table: name, group, GT points, IoU and accuracy in percent.
 pub fn format_per_class(r: &SegmentationScores, split: Option<&ClassSplit>) -> String {
-    let mut s = format!("{:<18} {:>6} {:>9} {:>6} {:>6}\n", "class", "group", "points", "IoU", "Acc");
+    let mut s = format!(
+        "{:<18} {:>6} {:>9} {:>6} {:>6}\n",
+        "class", "group", "points", "IoU", "Acc"
+    );
     for c in &r.per_class {
         let g = split
             .and_then(|sp| sp.group_of(&c.name))
@@ -333,7 +375,21 @@ mod tests {
     #[test]
     fn hand_computed_confusion() {
         let mut cm = ConfusionMatrix::new(4);
-        let gt = [0, 0, 0, 0, 0, 1, 1, 1, 2, 2, IGNORE_LABEL, IGNORE_LABEL, IGNORE_LABEL];
+        let gt = [
+            0,
+            0,
+            0,
+            0,
+            0,
+            1,
+            1,
+            1,
+            2,
+            2,
+            IGNORE_LABEL,
+            IGNORE_LABEL,
+            IGNORE_LABEL,
+        ];
         let pred = [0, 0, 0, 0, 1, 1, 1, 3, 2, 0, 0, 3, 2];
         cm.add_all(&gt, &pred);
         let n = names(&["wall", "chair", "vase", "switch"]);

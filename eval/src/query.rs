@@ -48,7 +48,11 @@ pub fn embedding_from_npy(path: &Path) -> Result<Vec<f32>, EvalError> {
 
 /// Cosine similarity of every row of `features` (`[n, k]`, the field's
 /// output space) with `query` (`[D]`), exact in the lifted space.
-pub fn cosine_scores(features: &[f32], query: &[f32], pca: Option<&Pca>) -> Result<Vec<f64>, EvalError> {
+pub fn cosine_scores(
+    features: &[f32],
+    query: &[f32],
+    pca: Option<&Pca>,
+) -> Result<Vec<f64>, EvalError> {
     let scorer = ClassScorer::new(query, query.len(), pca)?;
     let k = scorer.dim;
     if k == 0 || features.len() % k != 0 {
@@ -75,12 +79,22 @@ pub fn normalize_scores(scores: &[f64]) -> Vec<f32> {
     let span = hi - lo;
     scores
         .iter()
-        .map(|&s| if span > 1e-12 { ((s - lo) / span) as f32 } else { 0.0 })
+        .map(|&s| {
+            if span > 1e-12 {
+                ((s - lo) / span) as f32
+            } else {
+                0.0
+            }
+        })
         .collect()
 }
 
 /// Relevancy of every pixel of `view` in `[0, 1]`.
-pub fn relevancy_image(view: &RenderedView, query: &[f32], pca: Option<&Pca>) -> Result<Vec<f32>, EvalError> {
+pub fn relevancy_image(
+    view: &RenderedView,
+    query: &[f32],
+    pca: Option<&Pca>,
+) -> Result<Vec<f32>, EvalError> {
     if view.feature_dim == 0 {
         return Err(EvalError::Invalid("the view has no feature image".into()));
     }

@@ -262,12 +262,18 @@ pub fn top_components(sample: &[&[f32]], mean: &[f64], dim: usize, count: usize)
             continue;
         }
         // Deterministic start that is unlikely to be orthogonal to the answer.
-        let mut v: Vec<f64> = (0..dim).map(|i| 1.0 + ((i * 7 + axis * 3) % 5) as f64).collect();
+        let mut v: Vec<f64> = (0..dim)
+            .map(|i| 1.0 + ((i * 7 + axis * 3) % 5) as f64)
+            .collect();
         let mut lambda = 0.0;
         for _ in 0..200 {
             let mut w = vec![0.0; dim];
             for (a, wa) in w.iter_mut().enumerate() {
-                *wa = cov[a * dim..(a + 1) * dim].iter().zip(&v).map(|(c, x)| c * x).sum();
+                *wa = cov[a * dim..(a + 1) * dim]
+                    .iter()
+                    .zip(&v)
+                    .map(|(c, x)| c * x)
+                    .sum();
             }
             lambda = w.iter().map(|x| x * x).sum::<f64>().sqrt();
             if lambda < 1e-30 {

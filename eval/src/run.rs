@@ -199,7 +199,10 @@ mod tests {
         let err = read_model_config(&path).unwrap_err();
         assert!(err.to_string().contains("model"), "{err}");
         std::fs::write(&path, "{not json").unwrap();
-        assert!(matches!(read_model_config(&path), Err(EvalError::Json { .. })));
+        assert!(matches!(
+            read_model_config(&path),
+            Err(EvalError::Json { .. })
+        ));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

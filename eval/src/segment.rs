@@ -114,24 +114,27 @@ impl EvalPoints {
     /// The labelled point cloud and class embeddings a scene carries (the
     /// synthetic scene's defaults). Negative labels become [`IGNORE_LABEL`].
     pub fn from_scene(scene: &Scene) -> Result<Self, EvalError> {
-        let points = scene
-            .points
-            .as_ref()
-            .ok_or_else(|| EvalError::Invalid(format!("scene {} has no point cloud", scene.name)))?;
-        let classes = scene
-            .classes
-            .as_ref()
-            .ok_or_else(|| EvalError::Invalid(format!("scene {} has no class embeddings", scene.name)))?;
-        let labels = points
-            .labels
-            .as_ref()
-            .ok_or_else(|| EvalError::Invalid(format!("scene {}'s points have no labels", scene.name)))?;
+        let points = scene.points.as_ref().ok_or_else(|| {
+            EvalError::Invalid(format!("scene {} has no point cloud", scene.name))
+        })?;
+        let classes = scene.classes.as_ref().ok_or_else(|| {
+            EvalError::Invalid(format!("scene {} has no class embeddings", scene.name))
+        })?;
+        let labels = points.labels.as_ref().ok_or_else(|| {
+            EvalError::Invalid(format!("scene {}'s points have no labels", scene.name))
+        })?;
         let c = classes.names.len() as i64;
         Ok(Self {
             positions: points.positions.clone(),
             labels: labels
                 .iter()
-                .map(|&l| if (0..c).contains(&l) { l as u32 } else { IGNORE_LABEL })
+                .map(|&l| {
+                    if (0..c).contains(&l) {
+                        l as u32
+                    } else {
+                        IGNORE_LABEL
+                    }
+                })
                 .collect(),
             names: classes.names.clone(),
             embeddings: classes.data.clone(),
@@ -219,10 +222,16 @@ pub fn projected_features(
             },
         };
         let dim = r.feature_dim;
-        a.add_view(points, &view.camera, Some(depth), &opts.project, |h: &Hit, out| {
-            let i = scaled_index(h.u, h.v, k.width, k.height, rw, rh);
-            out.copy_from_slice(&r.feature[i * dim..(i + 1) * dim]);
-        });
+        a.add_view(
+            points,
+            &view.camera,
+            Some(depth),
+            &opts.project,
+            |h: &Hit, out| {
+                let i = scaled_index(h.u, h.v, k.width, k.height, rw, rh);
+                out.copy_from_slice(&r.feature[i * dim..(i + 1) * dim]);
+            },
+        );
         progress(vi + 1, views.len());
     }
     acc.ok_or_else(|| EvalError::Invalid("no views to project into".into()))
@@ -263,7 +272,10 @@ pub fn projected_2d_features(
 
 /// Class of every point from features `[n, k]` (`None` rows get
 /// [`NO_PREDICTION`]).
-pub fn predict<'a>(scorer: &ClassScorer, features: impl Iterator<Item = Option<&'a [f32]>>) -> Vec<u32> {
+pub fn predict<'a>(
+    scorer: &ClassScorer,
+    features: impl Iterator<Item = Option<&'a [f32]>>,
+) -> Vec<u32> {
     features
         .map(|f| f.map_or(NO_PREDICTION, |f| scorer.argmax(f)))
         .collect()
@@ -306,7 +318,16 @@ pub fn segment_with_field(
         check_dim(k)?;
         return Ok((predict(&scorer, f.chunks(k.max(1)).map(Some)), pos.len()));
     }
-    let acc = projected_features(model, pos, views, scene_box, background, opts, device, |_, _| {})?;
+    let acc = projected_features(
+        model,
+        pos,
+        views,
+        scene_box,
+        background,
+        opts,
+        device,
+        |_, _| {},
+    )?;
     check_dim(acc.dim)?;
     let seen = acc.counts.iter().filter(|&&c| c > 0).count();
     let means: Vec<Option<Vec<f32>>> = (0..pos.len()).map(|i| acc.mean(i)).collect();
@@ -348,7 +369,8 @@ pub fn segment_oracle(points: &EvalPoints) -> Result<Vec<u32>, EvalError> {
         .iter()
         .map(|&l| {
             if (l as usize) < points.names.len() {
-                let row: Vec<f32> = points.embeddings[l as usize * d..(l as usize + 1) * d].to_vec();
+                let row: Vec<f32> =
+                    points.embeddings[l as usize * d..(l as usize + 1) * d].to_vec();
                 scorer.argmax(&row)
             } else {
                 NO_PREDICTION
@@ -367,16 +389,31 @@ pub fn evaluate(mode: &str, points: &EvalPoints, pred: &[u32]) -> SegmentationSc
 /// Writes `{stem}_pred.ply` (points coloured by predicted class, with the
 /// predicted class as label) and `{stem}_error.ply` (green correct, red
 /// wrong, grey not evaluated or unpredicted) into `dir`.
-pub fn write_prediction_plys(dir: &Path, stem: &str, points: &EvalPoints, pred: &[u32]) -> Result<(), EvalError> {
+pub fn write_prediction_plys(
+    dir: &Path,
+    stem: &str,
+    points: &EvalPoints,
+    pred: &[u32],
+) -> Result<(), EvalError> {
     std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
     let colors = pred
         .iter()
-        .map(|&p| if p == NO_PREDICTION { [128; 3] } else { class_color(p as usize) })
+        .map(|&p| {
+            if p == NO_PREDICTION {
+                [128; 3]
+            } else {
+                class_color(p as usize)
+            }
+        })
         .collect();
     let cloud = PointCloud {
         positions: points.positions.clone(),
         colors: Some(colors),
-        labels: Some(pred.iter().map(|&p| if p == NO_PREDICTION { -1 } else { p as i64 }).collect()),
+        labels: Some(
+            pred.iter()
+                .map(|&p| if p == NO_PREDICTION { -1 } else { p as i64 })
+                .collect(),
+        ),
     };
     write_ply(&dir.join(format!("{stem}_pred.ply")), &cloud, &[])?;
     let err = PointCloud {
@@ -386,14 +423,22 @@ pub fn write_prediction_plys(dir: &Path, stem: &str, points: &EvalPoints, pred: 
                 .labels
                 .iter()
                 .zip(pred)
-                .map(|(&g, &p)| match (g == IGNORE_LABEL || p == NO_PREDICTION, g == p) {
-                    (true, _) => [128, 128, 128],
-                    (false, true) => [40, 200, 60],
-                    (false, false) => [220, 40, 40],
-                })
+                .map(
+                    |(&g, &p)| match (g == IGNORE_LABEL || p == NO_PREDICTION, g == p) {
+                        (true, _) => [128, 128, 128],
+                        (false, true) => [40, 200, 60],
+                        (false, false) => [220, 40, 40],
+                    },
+                )
                 .collect(),
         ),
-        labels: Some(points.labels.iter().map(|&l| if l == IGNORE_LABEL { -1 } else { l as i64 }).collect()),
+        labels: Some(
+            points
+                .labels
+                .iter()
+                .map(|&l| if l == IGNORE_LABEL { -1 } else { l as i64 })
+                .collect(),
+        ),
     };
     write_ply(&dir.join(format!("{stem}_error.ply")), &err, &[])?;
     Ok(())
@@ -401,13 +446,24 @@ pub fn write_prediction_plys(dir: &Path, stem: &str, points: &EvalPoints, pred: 
 
 /// Views of `scene`'s frames `indices` with their sensor depth (when
 /// `sensor_depth` and present); all frames when `indices` is empty.
-pub fn scene_views<'a>(scene: &'a Scene, indices: &[usize], sensor_depth: bool) -> Result<Vec<View<'a>>, EvalError> {
+pub fn scene_views<'a>(
+    scene: &'a Scene,
+    indices: &[usize],
+    sensor_depth: bool,
+) -> Result<Vec<View<'a>>, EvalError> {
     let all: Vec<usize> = (0..scene.frames.len()).collect();
-    let idx = if indices.is_empty() { &all[..] } else { indices };
+    let idx = if indices.is_empty() {
+        &all[..]
+    } else {
+        indices
+    };
     idx.iter()
         .map(|&i| {
             let f = scene.frames.get(i).ok_or_else(|| {
-                EvalError::Invalid(format!("frame index {i} but the scene has {} frames", scene.frames.len()))
+                EvalError::Invalid(format!(
+                    "frame index {i} but the scene has {} frames",
+                    scene.frames.len()
+                ))
             })?;
             Ok(View {
                 camera: f.camera,

@@ -108,11 +108,12 @@ impl ClassScorer {
         for i in 0..k {
             let ci = c[i] as f64;
             q += 2.0 * ci * self.mean_proj[i];
-            q += ci * self.gram[i * k..(i + 1) * k]
-                .iter()
-                .zip(c)
-                .map(|(g, &cj)| g * cj as f64)
-                .sum::<f64>();
+            q += ci
+                * self.gram[i * k..(i + 1) * k]
+                    .iter()
+                    .zip(c)
+                    .map(|(g, &cj)| g * cj as f64)
+                    .sum::<f64>();
         }
         q.max(0.0).sqrt()
     }
@@ -153,7 +154,9 @@ mod tests {
     use datasets::features::PcaTarget;
 
     fn lcg(seed: &mut u64) -> f32 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((*seed >> 33) as f64 / (1u64 << 31) as f64 - 0.5) as f32
     }
 
@@ -163,7 +166,9 @@ mod tests {
     fn compressed_cosine_equals_lifted_cosine() {
         let (d, n, classes) = (12, 64, 5);
         let mut s = 7u64;
-        let samples: Vec<f32> = (0..n * d).map(|i| lcg(&mut s) + 0.3 * (i % d) as f32 / d as f32).collect();
+        let samples: Vec<f32> = (0..n * d)
+            .map(|i| lcg(&mut s) + 0.3 * (i % d) as f32 / d as f32)
+            .collect();
         let pca = Pca::fit(&samples, d, PcaTarget::Components(4)).unwrap();
         let text: Vec<f32> = (0..classes * d).map(|_| lcg(&mut s)).collect();
         let scorer = ClassScorer::new(&text, d, Some(&pca)).unwrap();
@@ -177,8 +182,17 @@ mod tests {
             for j in 0..classes {
                 let t = &text[j * d..(j + 1) * d];
                 let tn = t.iter().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
-                let want = f.iter().zip(t).map(|(&a, &b)| a as f64 * b as f64).sum::<f64>() / (fnorm * tn);
-                assert!((got[j] - want).abs() < 1e-5, "class {j}: {} vs {want}", got[j]);
+                let want = f
+                    .iter()
+                    .zip(t)
+                    .map(|(&a, &b)| a as f64 * b as f64)
+                    .sum::<f64>()
+                    / (fnorm * tn);
+                assert!(
+                    (got[j] - want).abs() < 1e-5,
+                    "class {j}: {} vs {want}",
+                    got[j]
+                );
             }
         }
     }

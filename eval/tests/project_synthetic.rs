@@ -50,7 +50,9 @@ fn visible_points_match_pixel_labels_and_occluded_points_are_rejected() {
             }
             // Independent reference: trace the exact ray from the camera
             // towards the point; a surface clearly in front hides it.
-            let Some(proj) = cam.project(*p) else { continue };
+            let Some(proj) = cam.project(*p) else {
+                continue;
+            };
             let (u, v) = (proj.u.round(), proj.v.round());
             if u < 0.0 || v < 0.0 || u >= w || v >= h {
                 continue;
@@ -76,18 +78,28 @@ fn visible_points_match_pixel_labels_and_occluded_points_are_rejected() {
         "visible {visible} (agreement {rate:.4}), interior {interior} (agreement {interior_rate:.4}); \
          hidden {hidden}, rejected {hidden_rejected}"
     );
-    assert!(interior > 1000, "too few interior visible points: {interior}");
-    assert!(interior_rate > 0.99, "interior label agreement {interior_rate}");
+    assert!(
+        interior > 1000,
+        "too few interior visible points: {interior}"
+    );
+    assert!(
+        interior_rate > 0.99,
+        "interior label agreement {interior_rate}"
+    );
     assert!(rate > 0.85, "overall label agreement {rate}");
     assert!(hidden > 100, "too few occluded cases: {hidden}");
-    assert!(hidden_rejected as f64 / hidden as f64 > 0.99, "{hidden_rejected} of {hidden}");
+    assert!(
+        hidden_rejected as f64 / hidden as f64 > 0.99,
+        "{hidden_rejected} of {hidden}"
+    );
 }
 
 /// Whether the 3x3 neighbourhood of pixel `(x, y)` carries a single label.
 fn uniform(labels: &[u16], w: u32, h: u32, x: u32, y: u32) -> bool {
     let l = labels[(y * w + x) as usize];
-    (y.saturating_sub(1)..(y + 2).min(h))
-        .all(|yy| (x.saturating_sub(1)..(x + 2).min(w)).all(|xx| labels[(yy * w + xx) as usize] == l))
+    (y.saturating_sub(1)..(y + 2).min(h)).all(|yy| {
+        (x.saturating_sub(1)..(x + 2).min(w)).all(|xx| labels[(yy * w + xx) as usize] == l)
+    })
 }
 
 /// Without a depth image there is no occlusion test, so hidden points are
@@ -114,5 +126,8 @@ fn without_depth_hidden_points_are_accepted() {
         .iter()
         .filter(|p| visible_pixel(&frame.camera, **p, None, &opts).is_some())
         .count();
-    assert!(without > with && with > 0, "with depth {with}, without {without}");
+    assert!(
+        without > with && with > 0,
+        "with depth {with}, without {without}"
+    );
 }
