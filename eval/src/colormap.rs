@@ -29,8 +29,12 @@ pub fn turbo(x: f32) -> [f32; 3] {
 /// and point clouds coloured by class.
 pub fn class_color(index: usize) -> [u8; 3] {
     let h = (index as f32 * 0.618_034).fract();
-    let s = if index % 2 == 0 { 0.75 } else { 0.55 };
-    let v = if (index / 2) % 2 == 0 { 0.95 } else { 0.75 };
+    let s = if index.is_multiple_of(2) { 0.75 } else { 0.55 };
+    let v = if (index / 2).is_multiple_of(2) {
+        0.95
+    } else {
+        0.75
+    };
     hsv_to_rgb(h, s, v)
 }
 

@@ -32,11 +32,7 @@ pub fn embedding_by_name(texts: &TextEmbeddings, name: &str) -> Result<Vec<f32>,
 /// The query vector stored in `path` (`.npy` of shape `[D]` or `[1, D]`).
 pub fn embedding_from_npy(path: &Path) -> Result<Vec<f32>, EvalError> {
     let (shape, data) = read_npy_f32(path)?;
-    let ok = match shape.as_slice() {
-        [_] => true,
-        [1, _] => true,
-        _ => false,
-    };
+    let ok = matches!(shape.as_slice(), [_] | [1, _]);
     if !ok || data.is_empty() || data.iter().any(|v| !v.is_finite()) {
         return Err(EvalError::Invalid(format!(
             "{}: expected one finite embedding of shape [D] or [1, D], got {shape:?}",
@@ -55,7 +51,7 @@ pub fn cosine_scores(
 ) -> Result<Vec<f64>, EvalError> {
     let scorer = ClassScorer::new(query, query.len(), pca)?;
     let k = scorer.dim;
-    if k == 0 || features.len() % k != 0 {
+    if k == 0 || !features.len().is_multiple_of(k) {
         return Err(EvalError::Invalid(format!(
             "features of {} values do not split into rows of {k}",
             features.len()

@@ -4,8 +4,10 @@
 //! With a PCA basis the full feature is `f = mean + B^T c` (`B`: `k x D`).
 //! For a unit text embedding `t`:
 //!
-//!     f . t  = mean . t + c . (B t)
-//!     |f|^2  = |mean|^2 + 2 c . (B mean) + c^T (B B^T) c
+//! ```text
+//! f . t  = mean . t + c . (B t)
+//! |f|^2  = |mean|^2 + 2 c . (B mean) + c^T (B B^T) c
+//! ```
 //!
 //! so the cosine in the lifted space costs `O(k^2 + k C)` per point instead of
 //! `O(D (k + C))`, and equals lifting then comparing up to rounding (a test
@@ -38,7 +40,7 @@ impl ClassScorer {
     /// A scorer for `classes` embeddings (`C x D` row-major) and the run's
     /// PCA basis (`None` when the field predicts D-dimensional features).
     pub fn new(embeddings: &[f32], embed_dim: usize, pca: Option<&Pca>) -> Result<Self, EvalError> {
-        if embed_dim == 0 || embeddings.len() % embed_dim != 0 {
+        if embed_dim == 0 || !embeddings.len().is_multiple_of(embed_dim) {
             return Err(EvalError::Invalid(format!(
                 "embeddings of {} values do not split into rows of {embed_dim}",
                 embeddings.len()

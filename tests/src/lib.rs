@@ -39,11 +39,16 @@ pub fn scratch_dir() -> tempfile::TempDir {
 pub fn data_dir() -> Option<PathBuf> {
     let dir = std::env::var_os("OPENNERF_DATA")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")));
+        .unwrap_or_else(|| {
+            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"))
+        });
     if dir.exists() {
         Some(dir)
     } else {
-        println!("skipped: real data not found at {} (set OPENNERF_DATA)", dir.display());
+        println!(
+            "skipped: real data not found at {} (set OPENNERF_DATA)",
+            dir.display()
+        );
         None
     }
 }
@@ -51,7 +56,8 @@ pub fn data_dir() -> Option<PathBuf> {
 /// Whether the wgpu backend should be exercised: a Vulkan driver manifest
 /// is installed, or `OPENNERF_TEST_WGPU=1`.
 pub fn wgpu_enabled() -> bool {
-    std::env::var("OPENNERF_TEST_WGPU").is_ok_and(|v| v == "1") || train::backend::vulkan_available()
+    std::env::var("OPENNERF_TEST_WGPU").is_ok_and(|v| v == "1")
+        || train::backend::vulkan_available()
 }
 
 /// Serialises the training tests of one binary: the CPU backends draw the

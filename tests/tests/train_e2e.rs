@@ -43,7 +43,10 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
         s.heldout_psnr
     );
     let cos = s.heldout_feature_cosine.unwrap();
-    assert!(cos > init_cos + 0.1 && cos > 0.5, "feature cosine {cos} vs {init_cos}");
+    assert!(
+        cos > init_cos + 0.1 && cos > 0.5,
+        "feature cosine {cos} vs {init_cos}"
+    );
     assert!(s.heldout_depth_mae.unwrap() < 1.0);
     assert!(s.rays_per_second > 0.0 && s.peak_memory_bytes.unwrap() > 0);
 
@@ -59,19 +62,34 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
         "rays_per_second",
         "peak_memory_bytes",
     ] {
-        assert!(summary[key].is_number(), "summary.json: {key} = {}", summary[key]);
+        assert!(
+            summary[key].is_number(),
+            "summary.json: {key} = {}",
+            summary[key]
+        );
     }
     let split = read_json(&run.split());
     assert_eq!(split["heldout"], serde_json::json!([0, 4, 8, 12, 16]));
     let loaded = eval::run::load_run(dir.path(), &Device::flex()).unwrap();
     assert_eq!(loaded.split.heldout, vec![0, 4, 8, 12, 16]);
-    for name in ["frame000004_rgb.png", "frame000004_depth.png", "frame000004_feature.png"] {
+    for name in [
+        "frame000004_rgb.png",
+        "frame000004_depth.png",
+        "frame000004_feature.png",
+    ] {
         assert!(run.renders().join(name).exists(), "missing renders/{name}");
     }
     let metrics = std::fs::read_to_string(run.metrics()).unwrap();
-    let evals = metrics.lines().filter(|l| l.contains("\"event\":\"eval\"")).count();
+    let evals = metrics
+        .lines()
+        .filter(|l| l.contains("\"event\":\"eval\""))
+        .count();
     assert_eq!(evals, 3, "evaluations at 0, 100, 200");
-    let ckpts: Vec<usize> = list_checkpoints(&run.checkpoints()).unwrap().iter().map(|c| c.0).collect();
+    let ckpts: Vec<usize> = list_checkpoints(&run.checkpoints())
+        .unwrap()
+        .iter()
+        .map(|c| c.0)
+        .collect();
     assert_eq!(ckpts, vec![150, 300]);
 }
 
@@ -84,7 +102,14 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
     let mut config = tiny_config(scene, 2 * n);
     config.logging.eval_every = 0;
     config.logging.checkpoint_every = n;
-    let a = train::train_new(scene, config.clone(), 4, whole.path(), &session(BackendKind::Flex)).unwrap();
+    let a = train::train_new(
+        scene,
+        config.clone(),
+        4,
+        whole.path(),
+        &session(BackendKind::Flex),
+    )
+    .unwrap();
 
     let parts = scratch_dir();
     let first = SessionOptions {
@@ -98,7 +123,10 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
 
     // Same batches, same jitter, same Adam state: the same weights.
     let ck = |dir: &Path| {
-        let (_, p) = list_checkpoints(&dir.join("checkpoints")).unwrap().pop().unwrap();
+        let (_, p) = list_checkpoints(&dir.join("checkpoints"))
+            .unwrap()
+            .pop()
+            .unwrap();
         Checkpoint::read(&p).unwrap()
     };
     let (ca, cb) = (ck(whole.path()), ck(parts.path()));
@@ -107,7 +135,11 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
     let wa = weights(whole.path());
     let wb = weights(parts.path());
     assert_eq!(wa.len(), wb.len());
-    let max_diff = wa.iter().zip(&wb).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    let max_diff = wa
+        .iter()
+        .zip(&wb)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max);
     assert!(max_diff < 1e-4, "weights differ by up to {max_diff}");
     assert!(
         (a.summary.heldout_psnr - b.summary.heldout_psnr).abs() < 0.05,
@@ -123,9 +155,13 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
     let bytes = std::fs::read(&newest).unwrap();
     for damaged in [bytes[..bytes.len() / 2].to_vec(), vec![0x42u8; 4096]] {
         std::fs::write(&newest, &damaged).unwrap();
-        let err = train::resume(parts.path(), Some(3 * n), &session(BackendKind::Flex)).unwrap_err();
+        let err =
+            train::resume(parts.path(), Some(3 * n), &session(BackendKind::Flex)).unwrap_err();
         assert!(matches!(err, TrainError::Checkpoint { .. }), "{err}");
-        assert!(err.to_string().contains(&newest.display().to_string()), "{err}");
+        assert!(
+            err.to_string().contains(&newest.display().to_string()),
+            "{err}"
+        );
     }
     assert_eq!(Checkpoint::read(&older).unwrap().state.iteration, n);
 }
@@ -137,7 +173,8 @@ fn weights(dir: &Path) -> Vec<f32> {
     struct Collect(Vec<f32>);
     impl ModuleVisitor for Collect {
         fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-            self.0.extend(p.val().into_data().try_to_vec::<f32>().unwrap());
+            self.0
+                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
         }
     }
     let run = eval::run::load_run(dir, &Device::flex()).unwrap();
@@ -178,7 +215,10 @@ fn short_run_improves(
         s.heldout_psnr
     );
     let cos = s.heldout_feature_cosine.unwrap();
-    assert!(cos > cos0 + min_cosine_gain, "{backend}: feature cosine {cos} vs {cos0} at initialisation");
+    assert!(
+        cos > cos0 + min_cosine_gain,
+        "{backend}: feature cosine {cos} vs {cos0} at initialisation"
+    );
 }
 
 #[test]
@@ -189,9 +229,53 @@ fn ndarray_backend_trains() {
 #[test]
 fn wgpu_backend_trains_when_a_vulkan_driver_is_present() {
     if !wgpu_enabled() {
-        println!("skipped: no Vulkan driver (install mesa-vulkan-drivers or set OPENNERF_TEST_WGPU=1)");
+        println!(
+            "skipped: no Vulkan driver (install mesa-vulkan-drivers or set OPENNERF_TEST_WGPU=1)"
+        );
         return;
     }
     // A software Vulkan driver runs at a few GFLOP/s: a handful of small steps.
     short_run_improves(BackendKind::Wgpu, 12, 64, 8, 0.0, 0.2);
+}
+
+#[test]
+fn diverging_training_stops_after_bounded_non_finite_steps() {
+    let _guard = serial();
+    let scene = ci_scene();
+    let dir = scratch_dir();
+    let mut config = tiny_config(scene, 50);
+    // A learning rate of 1e30 blows the weights up in one step, after which
+    // every loss is non-finite.
+    config.schedule.lr_init = 1e30;
+    config.schedule.lr_final = 1e30;
+    config.schedule.warmup_iters = 0;
+    config.sampler.rays_per_batch = 32;
+    config.logging.eval_pixels = 32;
+    config.logging.checkpoint_every = 1;
+    config.logging.max_nonfinite_steps = 3;
+    let err =
+        train::train_new(scene, config, 4, dir.path(), &session(BackendKind::Flex)).unwrap_err();
+    let TrainError::Diverged {
+        count,
+        iteration,
+        last_checkpoint,
+    } = &err
+    else {
+        panic!("expected a divergence error, got {err}");
+    };
+    assert_eq!(*count, 3);
+    assert!(*iteration < 10, "stopped at {iteration}");
+    assert!(err.to_string().contains("non-finite"), "{err}");
+    let skipped = std::fs::read_to_string(dir.path().join("metrics.jsonl"))
+        .unwrap()
+        .lines()
+        .filter(|l| l.contains("\"event\":\"nonfinite\""))
+        .count();
+    assert_eq!(skipped, 3);
+    // Skipped steps never reach the weights: the checkpoints stay readable.
+    if let Some(path) = last_checkpoint {
+        let ck = Checkpoint::read(path).unwrap();
+        assert!(ck.state.iteration <= *iteration);
+    }
+    assert!(!dir.path().join("model.bpk").exists());
 }

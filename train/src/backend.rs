@@ -65,9 +65,9 @@ pub fn vulkan_available() -> bool {
         .any(|dir| {
             std::fs::read_dir(dir)
                 .map(|entries| {
-                    entries.flatten().any(|e| {
-                        e.path().extension().and_then(|x| x.to_str()) == Some("json")
-                    })
+                    entries
+                        .flatten()
+                        .any(|e| e.path().extension().and_then(|x| x.to_str()) == Some("json"))
                 })
                 .unwrap_or(false)
         })
@@ -116,7 +116,12 @@ mod tests {
             let x = Tensor::<1>::from_floats([1.0, 2.0, 3.0], &d).require_grad();
             let loss = (x.clone() * x.clone()).sum();
             let grads = loss.backward();
-            let g: Vec<f32> = x.grad(&grads).unwrap().into_data().try_to_vec::<f32>().unwrap();
+            let g: Vec<f32> = x
+                .grad(&grads)
+                .unwrap()
+                .into_data()
+                .try_to_vec::<f32>()
+                .unwrap();
             assert_eq!(g, vec![2.0, 4.0, 6.0], "{kind}");
         }
     }

@@ -66,7 +66,11 @@ pub fn sample_batch(
     iteration: usize,
 ) -> TrainBatch {
     let mut rng = ChaCha8Rng::seed_from_u64(iteration_seed(seed, iteration));
-    let n = if frames.is_empty() { 0 } else { settings.rays_per_batch };
+    let n = if frames.is_empty() {
+        0
+    } else {
+        settings.rays_per_batch
+    };
     let has_depth = frames.iter().any(|&f| scene.frames[f].depth.is_some());
     let feature_dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut batch = TrainBatch {
@@ -74,7 +78,10 @@ pub fn sample_batch(
         rgb: Vec::with_capacity(3 * n),
         depth: has_depth.then(|| Vec::with_capacity(n)),
         depth_weight: Vec::with_capacity(n),
-        feature: scene.features.as_ref().map(|_| Vec::with_capacity(n * feature_dim)),
+        feature: scene
+            .features
+            .as_ref()
+            .map(|_| Vec::with_capacity(n * feature_dim)),
         feature_dim,
     };
     for _ in 0..n {
@@ -97,7 +104,12 @@ pub fn sample_batch(
         }
         batch.depth_weight.push(frame.depth_weight);
         if let (Some(fs), Some(dst)) = (scene.features.as_ref(), batch.feature.as_mut()) {
-            dst.extend(fs.maps[f].lookup(x as f64, y as f64, w, h).iter().map(|v| v.to_f32()));
+            dst.extend(
+                fs.maps[f]
+                    .lookup(x as f64, y as f64, w, h)
+                    .iter()
+                    .map(|v| v.to_f32()),
+            );
         }
     }
     batch

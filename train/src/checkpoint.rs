@@ -246,7 +246,14 @@ mod tests {
     fn every_truncation_and_a_flipped_byte_are_rejected() {
         let bytes = sample().to_bytes();
         let p = Path::new("/x/ckpt.onck");
-        for cut in [0, 7, HEADER_LEN - 1, HEADER_LEN, bytes.len() / 2, bytes.len() - 1] {
+        for cut in [
+            0,
+            7,
+            HEADER_LEN - 1,
+            HEADER_LEN,
+            bytes.len() / 2,
+            bytes.len() - 1,
+        ] {
             let err = Checkpoint::from_bytes(&bytes[..cut], p).unwrap_err();
             assert!(err.to_string().contains("/x/ckpt.onck"), "{err}");
         }

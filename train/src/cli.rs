@@ -188,8 +188,17 @@ mod tests {
         assert_eq!(cli.dataset, DatasetKind::Synthetic);
         assert!(cli.resume.is_none());
         let cli = Cli::try_parse_from([
-            "train", "--dataset", "blender", "--data", "/d", "--downscale", "8", "--iters",
-            "100", "--backend", "ndarray",
+            "train",
+            "--dataset",
+            "blender",
+            "--data",
+            "/d",
+            "--downscale",
+            "8",
+            "--iters",
+            "100",
+            "--backend",
+            "ndarray",
         ])
         .unwrap();
         assert_eq!(cli.downscale, Some(8));

@@ -208,7 +208,7 @@ impl TrainConfig {
         let mut c = Self::tiny(feature_dim);
         c.model.mlp = c.model.mlp.clone().with_width(96).with_max_deg(12);
         c.model.num_samples = 48;
-        c.schedule.iterations = 1500;
+        c.schedule.iterations = 1000;
         c.schedule.warmup_iters = 50;
         c.logging = LoggingConfig {
             log_every: 25,
@@ -391,7 +391,10 @@ mod tests {
         assert_eq!(partial.schedule.iterations, 9);
         assert_eq!(partial.schedule.lr_init, c.schedule.lr_init);
         assert_eq!(partial.sampler.border_margin, 10);
-        assert!(TrainConfig::merged(&c, serde_json::json!({"model": {"mlp": {"width": "wide"}}})).is_err());
+        assert!(
+            TrainConfig::merged(&c, serde_json::json!({"model": {"mlp": {"width": "wide"}}}))
+                .is_err()
+        );
     }
 
     #[test]

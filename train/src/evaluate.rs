@@ -53,7 +53,9 @@ pub fn eval_pixels(
         let f = frames[rng.random_range(0..frames.len())];
         let frame = &scene.frames[f];
         let (w, h) = (frame.rgb.width, frame.rgb.height);
-        let m = margin.min((w.saturating_sub(1)) / 2).min((h.saturating_sub(1)) / 2);
+        let m = margin
+            .min((w.saturating_sub(1)) / 2)
+            .min((h.saturating_sub(1)) / 2);
         let x = rng.random_range(m..w - m);
         let y = rng.random_range(m..h - m);
         let ray = frame.camera.ray(x as f64, y as f64);
@@ -101,15 +103,18 @@ pub fn evaluate_pixels(
             (Some(f), Some(_)) => Some(lift_features(scene, eval::render::tensor_to_vec(f))),
             _ => None,
         };
-        let target_feat = pixels.feature.as_ref().map(|t| {
-            lift_features(scene, t[start * dim..(start + part.len()) * dim].to_vec())
-        });
+        let target_feat = pixels
+            .feature
+            .as_ref()
+            .map(|t| lift_features(scene, t[start * dim..(start + part.len()) * dim].to_vec()));
         let full = scene.features.as_ref().map_or(0, |f| f.full_dim);
         for i in 0..part.len() {
             let g = start + i;
             let d = pixels.depth.as_ref().map(|d| (depth[i], d[g]));
             let f = match (&feat, &target_feat) {
-                (Some(f), Some(t)) => Some((&f[i * full..(i + 1) * full], &t[i * full..(i + 1) * full])),
+                (Some(f), Some(t)) => {
+                    Some((&f[i * full..(i + 1) * full], &t[i * full..(i + 1) * full]))
+                }
                 _ => None,
             };
             acc.add(
@@ -153,17 +158,14 @@ pub fn evaluate_views(
             for x in 0..w {
                 let p = (y * w + x) as usize;
                 let depth = frame.depth.as_ref().map(|d| (view.depth[p], d.get(x, y)));
-                let target = scene
-                    .features
-                    .as_ref()
-                    .map(|fs| {
-                        let t: Vec<f32> = fs.maps[f]
-                            .lookup(x as f64, y as f64, w, h)
-                            .iter()
-                            .map(|v| v.to_f32())
-                            .collect();
-                        lift_features(scene, t)
-                    });
+                let target = scene.features.as_ref().map(|fs| {
+                    let t: Vec<f32> = fs.maps[f]
+                        .lookup(x as f64, y as f64, w, h)
+                        .iter()
+                        .map(|v| v.to_f32())
+                        .collect();
+                    lift_features(scene, t)
+                });
                 let feature = match (&lifted, &target) {
                     (Some(l), Some(t)) => Some((&l[p * full..(p + 1) * full], t.as_slice())),
                     _ => None,

@@ -138,7 +138,7 @@ pub struct Summary {
 pub fn split_frames(frames: usize, holdout_every: usize) -> eval::run::Split {
     let mut split = eval::run::Split::default();
     for i in 0..frames {
-        if holdout_every > 0 && frames > 1 && i % holdout_every == 0 {
+        if holdout_every > 0 && frames > 1 && i.is_multiple_of(holdout_every) {
             split.heldout.push(i);
         } else {
             split.train.push(i);
@@ -206,8 +206,18 @@ mod tests {
     #[test]
     fn accumulator_skips_invalid_depth_and_zero_features() {
         let mut acc = EvalAccumulator::default();
-        acc.add([0.5; 3], [0.6; 3], Some((2.0, 2.5)), Some((&[1.0, 0.0], &[1.0, 0.0])));
-        acc.add([0.5; 3], [0.4; 3], Some((2.0, 0.0)), Some((&[1.0, 0.0], &[0.0, 0.0])));
+        acc.add(
+            [0.5; 3],
+            [0.6; 3],
+            Some((2.0, 2.5)),
+            Some((&[1.0, 0.0], &[1.0, 0.0])),
+        );
+        acc.add(
+            [0.5; 3],
+            [0.4; 3],
+            Some((2.0, 0.0)),
+            Some((&[1.0, 0.0], &[0.0, 0.0])),
+        );
         acc.add([0.5; 3], [0.5; 3], None, Some((&[1.0, 0.0], &[0.0, 1.0])));
         let m = acc.finish();
         // Squared errors: 3 * 0.01 twice, 0 once, over 9 values.

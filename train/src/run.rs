@@ -17,7 +17,9 @@ use serde_json::json;
 
 use crate::backend::{BackendKind, peak_memory_bytes, training_device};
 use crate::batch::{iteration_seed, sample_batch};
-use crate::checkpoint::{Checkpoint, CheckpointState, checkpoint_path, list_checkpoints, prune_checkpoints};
+use crate::checkpoint::{
+    Checkpoint, CheckpointState, checkpoint_path, list_checkpoints, prune_checkpoints,
+};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels, evaluate_views};
@@ -75,7 +77,10 @@ pub fn train_new(
     config.set_feature_dim(scene.features.as_ref().map_or(0, |f| f.dim()));
     config.validate()?;
     if scene.frames.is_empty() {
-        return Err(TrainError::Config(format!("scene {} has no frames", scene.name)));
+        return Err(TrainError::Config(format!(
+            "scene {} has no frames",
+            scene.name
+        )));
     }
     let run = RunDir::new(out);
     std::fs::create_dir_all(&run.dir).map_err(|e| TrainError::io(&run.dir, e))?;
@@ -103,7 +108,9 @@ pub fn train_new(
         train_seconds: 0.0,
         rays_processed: 0,
     };
-    train_loop(scene, &config, &split, &run, model, optim, state, &device, session)
+    train_loop(
+        scene, &config, &split, &run, model, optim, state, &device, session,
+    )
 }
 
 /// Continues the run in `dir` from its newest checkpoint. `iterations`
@@ -118,9 +125,12 @@ pub fn resume(
     let mut config: TrainConfig = read_json(&run.config())?;
     let meta: SceneMeta = read_json(&run.scene())?;
     let split: Split = read_json(&run.split())?;
-    let (_, path) = list_checkpoints(&run.checkpoints())?
-        .pop()
-        .ok_or_else(|| TrainError::NoCheckpoint { path: dir.to_path_buf() })?;
+    let (_, path) =
+        list_checkpoints(&run.checkpoints())?
+            .pop()
+            .ok_or_else(|| TrainError::NoCheckpoint {
+                path: dir.to_path_buf(),
+            })?;
     let ckpt = Checkpoint::read(&path)?;
     if let Some(n) = iterations {
         config.schedule.iterations = n;
@@ -137,7 +147,9 @@ pub fn resume(
     }
     let device = training_device(session.backend, session.device_index);
     let (model, optim) = restore(&config, &ckpt, &path, &device)?;
-    train_loop(&scene, &config, &split, &run, model, optim, ckpt.state, &device, session)
+    train_loop(
+        &scene, &config, &split, &run, model, optim, ckpt.state, &device, session,
+    )
 }
 
 fn adam(config: &TrainConfig) -> ModuleOptimizer {
@@ -162,7 +174,9 @@ pub fn restore(
         .model
         .init(device)
         .try_load_record(record)
-        .map_err(|e| TrainError::checkpoint(path, format!("model does not match config.json: {e}")))?;
+        .map_err(|e| {
+            TrainError::checkpoint(path, format!("model does not match config.json: {e}"))
+        })?;
     let optim = adam(config)
         .from_bytes(Bytes::from_bytes_vec(ckpt.optimizer.clone()))
         .map_err(|e| TrainError::checkpoint(path, format!("optimiser record: {e}")))?;
@@ -263,9 +277,9 @@ fn train_loop(
     session: &SessionOptions,
 ) -> Result<RunOutcome, TrainError> {
     let log_cfg = config.logging;
-    let end = session
-        .stop_at
-        .map_or(config.schedule.iterations, |s| s.min(config.schedule.iterations));
+    let end = session.stop_at.map_or(config.schedule.iterations, |s| {
+        s.min(config.schedule.iterations)
+    });
     let heldout: Vec<usize> = if split.heldout.is_empty() {
         split.train.clone()
     } else {
@@ -285,7 +299,13 @@ fn train_loop(
     let wall_before = state.wall_seconds;
     let wall = |start: &Instant| wall_before + start.elapsed().as_secs_f64();
     let evaluate = |model: &OpenNerf| {
-        evaluate_pixels(&model.valid(), scene, &pixels, log_cfg.render_chunk, &inference)
+        evaluate_pixels(
+            &model.valid(),
+            scene,
+            &pixels,
+            log_cfg.render_chunk,
+            &inference,
+        )
     };
     if state.iteration == 0 {
         let m = evaluate(&model);
@@ -293,15 +313,20 @@ fn train_loop(
     }
     let bar = progress_bar(session, state.iteration, end);
     let mut consecutive_bad = 0usize;
-    let mut last_checkpoint: Option<PathBuf> = list_checkpoints(&run.checkpoints())?
-        .pop()
-        .map(|c| c.1);
+    let mut last_checkpoint: Option<PathBuf> =
+        list_checkpoints(&run.checkpoints())?.pop().map(|c| c.1);
     let mut window = (Instant::now(), 0u64);
     while state.iteration < end {
         if let Some(budget) = session.time_budget
             && session_start.elapsed().as_secs_f64() >= budget
         {
-            say(&bar, format!("time budget of {budget} s spent at iteration {}", state.iteration));
+            say(
+                &bar,
+                format!(
+                    "time budget of {budget} s spent at iteration {}",
+                    state.iteration
+                ),
+            );
             break;
         }
         let it = state.iteration;
@@ -314,10 +339,16 @@ fn train_loop(
         // The stratified jitter draws from the device generator: seeding it
         // per iteration makes a resumed run draw what the uninterrupted one would.
         device.seed(iteration_seed(state.seed ^ 0x6a09_e667_f3bc_c909, it));
-        let batch = sample_batch(scene, &split.train, &config.sampler, state.seed, it)
-            .to_tensors(device);
-        let (next, report) =
-            train_step(model, &mut optim, &batch, scene.background, &config.losses, rates);
+        let batch =
+            sample_batch(scene, &split.train, &config.sampler, state.seed, it).to_tensors(device);
+        let (next, report) = train_step(
+            model,
+            &mut optim,
+            &batch,
+            scene.background,
+            &config.losses,
+            rates,
+        );
         model = next;
         state.train_seconds += step_start.elapsed().as_secs_f64();
         state.iteration += 1;
@@ -335,10 +366,13 @@ fn train_loop(
                 "grad_l1": format!("{}", report.grad_l1),
                 "consecutive": consecutive_bad,
             }))?;
-            say(&bar, format!(
-                "iteration {it}: non-finite loss or gradient (loss {}, |grad| {}), step skipped",
-                report.loss, report.grad_l1
-            ));
+            say(
+                &bar,
+                format!(
+                    "iteration {it}: non-finite loss or gradient (loss {}, |grad| {}), step skipped",
+                    report.loss, report.grad_l1
+                ),
+            );
             if consecutive_bad >= log_cfg.max_nonfinite_steps.max(1) {
                 bar.abandon();
                 return Err(TrainError::Diverged {
@@ -349,7 +383,7 @@ fn train_loop(
             }
         }
         let i = state.iteration;
-        if report.applied && (i % log_cfg.log_every.max(1) == 0 || i == end) {
+        if report.applied && (i.is_multiple_of(log_cfg.log_every.max(1)) || i == end) {
             let secs = window.0.elapsed().as_secs_f64().max(1e-9);
             let rays_per_second = window.1 as f64 / secs;
             window = (Instant::now(), 0);
@@ -376,19 +410,32 @@ fn train_loop(
             ));
         }
         bar.set_position(i as u64);
-        if log_cfg.eval_every > 0 && i % log_cfg.eval_every == 0 && i < end {
+        if log_cfg.eval_every > 0 && i.is_multiple_of(log_cfg.eval_every) && i < end {
             let m = evaluate(&model);
             log.write(&eval_line("eval", i, &m, wall(&session_start)))?;
-            say(&bar, format!(
-                "iteration {i}: held-out psnr {:.2} dB{}{}",
-                m.psnr,
-                m.depth_mae.map(|d| format!(", depth mae {d:.3} m")).unwrap_or_default(),
-                m.feature_cosine.map(|c| format!(", feature cosine {c:.3}")).unwrap_or_default()
-            ));
+            say(
+                &bar,
+                format!(
+                    "iteration {i}: held-out psnr {:.2} dB{}{}",
+                    m.psnr,
+                    m.depth_mae
+                        .map(|d| format!(", depth mae {d:.3} m"))
+                        .unwrap_or_default(),
+                    m.feature_cosine
+                        .map(|c| format!(", feature cosine {c:.3}"))
+                        .unwrap_or_default()
+                ),
+            );
         }
-        if log_cfg.checkpoint_every > 0 && i % log_cfg.checkpoint_every == 0 && i < end {
+        if log_cfg.checkpoint_every > 0 && i.is_multiple_of(log_cfg.checkpoint_every) && i < end {
             state.wall_seconds = wall(&session_start);
-            last_checkpoint = Some(save_checkpoint(run, &model, &optim, &state, log_cfg.keep_checkpoints)?);
+            last_checkpoint = Some(save_checkpoint(
+                run,
+                &model,
+                &optim,
+                &state,
+                log_cfg.keep_checkpoints,
+            )?);
         }
     }
     bar.finish_and_clear();
@@ -397,12 +444,24 @@ fn train_loop(
     crate::checkpoint::write_atomic(&run.weights(), &model_bytes(&model)?)?;
     let valid = model.valid();
     let final_metrics = if session.final_render {
-        evaluate_views(&valid, scene, &heldout, log_cfg.render_chunk, &inference, &run.renders())?
+        evaluate_views(
+            &valid,
+            scene,
+            &heldout,
+            log_cfg.render_chunk,
+            &inference,
+            &run.renders(),
+        )?
     } else {
         evaluate_pixels(&valid, scene, &pixels, log_cfg.render_chunk, &inference)
     };
     let wall_seconds = wall(&session_start);
-    log.write(&eval_line("final", state.iteration, &final_metrics, wall_seconds))?;
+    log.write(&eval_line(
+        "final",
+        state.iteration,
+        &final_metrics,
+        wall_seconds,
+    ))?;
     let initial = initial_eval(&run.metrics());
     let summary = Summary {
         iterations: state.iteration,

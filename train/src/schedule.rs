@@ -40,10 +40,14 @@ impl ScheduleConfig {
     pub fn validate(&self) -> Result<(), String> {
         for (name, v) in [("lr_init", self.lr_init), ("lr_final", self.lr_final)] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("schedule.{name} must be positive and finite, got {v}"));
+                return Err(format!(
+                    "schedule.{name} must be positive and finite, got {v}"
+                ));
             }
         }
-        if !(self.warmup_factor.is_finite() && self.warmup_factor > 0.0 && self.warmup_factor <= 1.0)
+        if !(self.warmup_factor.is_finite()
+            && self.warmup_factor > 0.0
+            && self.warmup_factor <= 1.0)
         {
             return Err(format!(
                 "schedule.warmup_factor must be in (0, 1], got {}",
@@ -101,7 +105,8 @@ mod tests {
     #[test]
     fn warmup_follows_the_sine_ramp_then_decay_is_log_linear() {
         let c = cfg();
-        let decay = |i: usize| (1e-2f64.ln() + (1e-4f64.ln() - 1e-2f64.ln()) * i as f64 / 1000.0).exp();
+        let decay =
+            |i: usize| (1e-2f64.ln() + (1e-4f64.ln() - 1e-2f64.ln()) * i as f64 / 1000.0).exp();
         for i in [0, 10, 50, 99, 100, 101] {
             let s = (i as f64 / 100.0).min(1.0);
             let delay = 0.1 + 0.9 * (0.5 * std::f64::consts::PI * s).sin();

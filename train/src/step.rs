@@ -206,7 +206,13 @@ mod tests {
     fn tiny_model(device: &Device) -> OpenNerf {
         device.seed(3);
         OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-            .with_mlp(MipMlpConfig::new().with_width(16).with_depth(2).with_skip_layer(1).with_max_deg(4))
+            .with_mlp(
+                MipMlpConfig::new()
+                    .with_width(16)
+                    .with_depth(2)
+                    .with_skip_layer(1)
+                    .with_max_deg(4),
+            )
             .with_num_samples(8)
             .init(device)
     }
@@ -236,7 +242,8 @@ mod tests {
         struct V(Vec<Vec<f32>>);
         impl ModuleVisitor for V {
             fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-                self.0.push(p.val().into_data().try_to_vec::<f32>().unwrap());
+                self.0
+                    .push(p.val().into_data().try_to_vec::<f32>().unwrap());
             }
         }
         let mut v = V(Vec::new());
@@ -261,15 +268,29 @@ mod tests {
         let model = tiny_model(&device);
         let before = values(&model);
         let mut optim = AdamConfig::new().init();
-        let rates = StepRates { base: 1e-2, head: 1e-2 };
+        let rates = StepRates {
+            base: 1e-2,
+            head: 1e-2,
+        };
         let cfg = LossConfig::default();
-        let (model, report) = train_step(model, &mut optim, &batch(&device, f32::NAN), None, &cfg, rates);
+        let (model, report) = train_step(
+            model,
+            &mut optim,
+            &batch(&device, f32::NAN),
+            None,
+            &cfg,
+            rates,
+        );
         assert!(!report.applied);
         assert!(report.loss.is_nan());
         assert_eq!(values(&model), before);
         let record = format!("{:?}", optim.to_record());
-        assert!(record.contains("num_tensors: 0"), "no optimiser state may be created: {record}");
-        let (model, report) = train_step(model, &mut optim, &batch(&device, 0.5), None, &cfg, rates);
+        assert!(
+            record.contains("num_tensors: 0"),
+            "no optimiser state may be created: {record}"
+        );
+        let (model, report) =
+            train_step(model, &mut optim, &batch(&device, 0.5), None, &cfg, rates);
         assert!(report.applied && report.loss.is_finite() && report.grad_l1 > 0.0);
         assert_ne!(values(&model), before);
     }
@@ -282,9 +303,18 @@ mod tests {
         let model = tiny_model(&device);
         let (mlp0, head0) = (values(&model.mlp), values(&model.head));
         let mut optim = AdamConfig::new().with_epsilon(1e-12).init();
-        let rates = StepRates { base: 1e-4, head: 1e-2 };
-        let (model, report) =
-            train_step(model, &mut optim, &batch(&device, 0.5), None, &LossConfig::default(), rates);
+        let rates = StepRates {
+            base: 1e-4,
+            head: 1e-2,
+        };
+        let (model, report) = train_step(
+            model,
+            &mut optim,
+            &batch(&device, 0.5),
+            None,
+            &LossConfig::default(),
+            rates,
+        );
         assert!(report.applied);
         let dm = mean_abs_change(&mlp0, &values(&model.mlp));
         let dh = mean_abs_change(&head0, &values(&model.head));

@@ -74,9 +74,13 @@ impl Size {
 }
 
 fn rays(n: usize, device: &Device, seed: u64) -> Rays {
-    let mut state = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     let mut next = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
     };
     let v: Vec<NormalizedRay> = (0..n)
@@ -115,9 +119,23 @@ fn matmul_ceiling(device: &Device, w: usize) -> f64 {
 fn main() {
     let args = Args::parse();
     let size = if args.quick {
-        Size { rays: 256, samples: 32, width: 64, depth: 4, head_width: 64, feature_dim: 64 }
+        Size {
+            rays: 256,
+            samples: 32,
+            width: 64,
+            depth: 4,
+            head_width: 64,
+            feature_dim: 64,
+        }
     } else {
-        Size { rays: 1024, samples: 64, width: 256, depth: 8, head_width: 256, feature_dim: 768 }
+        Size {
+            rays: 1024,
+            samples: 64,
+            width: 256,
+            depth: 8,
+            head_width: 256,
+            feature_dim: 768,
+        }
     };
     let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
     let mlp = MipMlpConfig::new()
@@ -126,8 +144,14 @@ fn main() {
         .with_skip_layer(skip);
     println!(
         "step: {} rays x {}+{} samples, trunk {} x {}, head 2 x {} -> {}, Adam; {} timed steps",
-        size.rays, size.samples, size.samples, size.depth, size.width, size.head_width,
-        size.feature_dim, args.steps
+        size.rays,
+        size.samples,
+        size.samples,
+        size.depth,
+        size.width,
+        size.head_width,
+        size.feature_dim,
+        args.steps
     );
     println!(
         "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
@@ -153,10 +177,7 @@ fn main() {
             let mut optim = AdamConfig::new().init();
             let n = size.rays;
             let target = |c: usize| {
-                Tensor::<2>::from_data(
-                    TensorData::new(vec![0.5f32; n * c], [n, c]),
-                    &ad,
-                )
+                Tensor::<2>::from_data(TensorData::new(vec![0.5f32; n * c], [n, c]), &ad)
             };
             let batch = BatchTensors {
                 rays: rays(n, &ad, 1),
@@ -164,13 +185,22 @@ fn main() {
                 depth: None,
                 feature: Some(target(size.feature_dim)),
             };
-            let rates = StepRates { base: 1e-4, head: 1e-4 };
+            let rates = StepRates {
+                base: 1e-4,
+                head: 1e-4,
+            };
             let mut times = Vec::new();
             for step in 0..=args.steps {
                 let start = Instant::now();
                 let out = model.render_with(&batch.rays, true, None, path);
-                let (next, report) =
-                    train_step_from(model, &mut optim, out, &batch, &LossConfig::default(), rates);
+                let (next, report) = train_step_from(
+                    model,
+                    &mut optim,
+                    out,
+                    &batch,
+                    &LossConfig::default(),
+                    rates,
+                );
                 model = next;
                 let secs = start.elapsed().as_secs_f64();
                 assert!(report.applied, "benchmark step produced a non-finite loss");
@@ -183,7 +213,11 @@ fn main() {
             println!(
                 "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
                 backend.name(),
-                if top_k > 0 { format!("{label} (k={top_k})") } else { label.to_string() },
+                if top_k > 0 {
+                    format!("{label} (k={top_k})")
+                } else {
+                    label.to_string()
+                },
                 secs,
                 n as f64 / secs,
                 flops / 1e9,
@@ -193,5 +227,8 @@ fn main() {
             );
         }
     }
-    println!("matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device", w = size.width);
+    println!(
+        "matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device",
+        w = size.width
+    );
 }
