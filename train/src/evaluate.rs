@@ -142,7 +142,7 @@ pub fn evaluate_views(
     let mut acc = EvalAccumulator::default();
     for &f in frames {
         let frame = &scene.frames[f];
-        let view = eval::render::render_view(
+        let mut view = eval::render::render_view(
             model,
             &frame.camera,
             &scene.scene_box,
@@ -150,6 +150,11 @@ pub fn evaluate_views(
             chunk,
             device,
         );
+        if scene.features.is_none() {
+            // The head of a scene without features is a stub: no feature image.
+            view.feature.clear();
+            view.feature_dim = 0;
+        }
         eval::render::save_view_pngs(&view, renders_dir, &frame.name)?;
         let (w, h) = (view.width, view.height);
         let lifted = (view.feature_dim > 0).then(|| lift_features(scene, view.feature.clone()));
