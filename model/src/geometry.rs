@@ -274,7 +274,11 @@ impl Pose {
 
     /// Viewing direction (camera z axis) in world space.
     pub fn forward(&self) -> Vec3 {
-        [self.rotation[0][2], self.rotation[1][2], self.rotation[2][2]]
+        [
+            self.rotation[0][2],
+            self.rotation[1][2],
+            self.rotation[2][2],
+        ]
     }
 }
 
@@ -314,9 +318,7 @@ impl Camera {
     pub fn ray(&self, u: f64, v: f64) -> Ray {
         Ray {
             origin: self.pose.center(),
-            direction: self
-                .pose
-                .rotate(self.intrinsics.camera_direction(u, v)),
+            direction: self.pose.rotate(self.intrinsics.camera_direction(u, v)),
             radius: self.intrinsics.base_radius(),
         }
     }
@@ -350,7 +352,12 @@ impl Camera {
 /// to `up`, another world axis is used as the up hint, so the result is always
 /// a valid rotation.
 pub fn look_at(position: Vec3, target: Vec3, up: Vec3) -> Result<Pose, GeometryError> {
-    if position.iter().chain(&target).chain(&up).any(|v| !v.is_finite()) {
+    if position
+        .iter()
+        .chain(&target)
+        .chain(&up)
+        .any(|v| !v.is_finite())
+    {
         return Err(GeometryError::NonFinite);
     }
     let forward = sub(target, position);
