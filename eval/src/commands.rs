@@ -19,8 +19,8 @@ use crate::query::{
 use crate::render::{render_view, save_rgb8, save_view_pngs};
 use crate::run::{LoadedRun, load_run, read_json, write_json};
 use crate::segment::{
-    EvalPoints, SegmentMode, SegmentOptions, View, evaluate, sampled_features, segment_with_field,
-    write_prediction_plys,
+    EvalPoints, SegmentMode, SegmentOptions, View, sampled_features, segment_oracle,
+    segment_with_2d_features, segment_with_field, write_prediction_plys,
 };
 
 /// Compute device by name.
@@ -98,6 +98,11 @@ pub struct SegmentArgs {
     /// Compute device: flex or ndarray.
     #[arg(long, default_value = "flex")]
     pub device: String,
+    /// Also score the other field modes, the projection of the scene's own 2D
+    /// feature maps (no field: the bound the field is measured against) and
+    /// the ground-truth-feature oracle, in one table (`segmentation_compare.json`).
+    #[arg(long)]
+    pub compare: bool,
 }
 
 /// The loaded evaluation data of a command: the run, its scene when needed,
@@ -293,7 +298,7 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
     let points = load_points(&args.data, scene)?;
     let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
     let sensor = !args.rendered_depth;
-    let views: Vec<View<'_>> = match (idx, scene) {
+    let views: Vec<View<'_>> = match (&idx, scene) {
         (Some(idx), Some(s)) => idx
             .iter()
             .map(|&i| View {
@@ -314,6 +319,7 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
             .collect(),
     };
     let views = evenly(&views, args.max_views);
+    let view_frames = idx.as_ref().map(|i| evenly(i, args.max_views));
     let opts = SegmentOptions {
         mode,
         sample_radius: args.radius,
@@ -336,12 +342,12 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         Some(p) => Some(read_json::<ClassSplit>(p)?),
         None => points.split(),
     };
-    let mut scores = evaluate(&mode.to_string(), &points, &pred);
-    if args.split.is_some() {
+    let score_of = |name: &str, pred: &[u32]| {
         let mut cm = crate::metrics::ConfusionMatrix::new(points.names.len());
-        cm.add_all(&points.labels, &pred);
-        scores = crate::metrics::score(&mode.to_string(), &cm, &points.names, split.as_ref());
-    }
+        cm.add_all(&points.labels, pred);
+        crate::metrics::score(name, &cm, &points.names, split.as_ref())
+    };
+    let scores = score_of(&mode.to_string(), &pred);
     println!(
         "{} points, {} classes, {} views; {} points seen by a view",
         points.positions.len(),
@@ -362,6 +368,65 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         .unwrap_or(Path::new("."));
     write_prediction_plys(dir, &format!("segmentation_{mode}"), &points, &pred)?;
     println!("wrote {}", out.display());
+    if args.compare {
+        let mut rows = Vec::new();
+        for other in [
+            SegmentMode::Sampled,
+            SegmentMode::Project,
+            SegmentMode::Hybrid,
+        ] {
+            let pred = if other == mode {
+                pred.clone()
+            } else {
+                let opts = SegmentOptions {
+                    mode: other,
+                    ..opts.clone()
+                };
+                let (pred, _) = segment_with_field(
+                    &run.model,
+                    run.meta.pca.as_ref(),
+                    &points,
+                    &views,
+                    &run.meta.scene_box,
+                    run.meta.background,
+                    &opts,
+                    &device,
+                )?;
+                pred
+            };
+            rows.push(score_of(&other.to_string(), &pred));
+        }
+        let maps = match (&view_frames, scene.and_then(|s| s.features.as_ref())) {
+            (Some(frames), Some(set)) => frames
+                .iter()
+                .map(|&i| set.maps.get(i))
+                .collect::<Option<Vec<_>>>(),
+            _ => None,
+        };
+        match maps {
+            Some(maps) => {
+                let set = scene.and_then(|s| s.features.as_ref());
+                let pred = segment_with_2d_features(
+                    &maps,
+                    set.and_then(|f| f.pca.as_ref()),
+                    &points,
+                    &views,
+                    &opts.project,
+                )?;
+                rows.push(score_of("2D-feature projection", &pred));
+            }
+            None => eprintln!(
+                "note: no 2D feature maps for these cameras; the 2D-feature bound is skipped"
+            ),
+        }
+        rows.push(score_of("oracle (GT features)", &segment_oracle(&points)?));
+        let table: Vec<(&str, &SegmentationScores)> =
+            rows.iter().map(|r| (r.mode.as_str(), r)).collect();
+        print!("{}", format_table(&table));
+        let compare = dir.join("segmentation_compare.json");
+        write_json(&compare, &rows)?;
+        println!("wrote {}", compare.display());
+    }
     Ok(scores)
 }
 

@@ -147,6 +147,7 @@ fn train_then_segment_in_every_mode() {
         split: None,
         out: Some(out.clone()),
         device: "flex".into(),
+        compare: true,
     };
     let scores = segment_command(&args).expect("segment command");
     assert_eq!(scores.mode, "hybrid");
@@ -162,6 +163,25 @@ fn train_then_segment_in_every_mode() {
             .is_some_and(|a| a.len() == points.names.len())
     );
     assert!(dir.path().join("seg/segmentation_hybrid_pred.ply").exists());
+    // `--compare`: the three field modes, the 2D-feature bound and the oracle.
+    let compare: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("seg/segmentation_compare.json"))
+            .expect("compare json"),
+    )
+    .expect("parse compare");
+    let rows = compare.as_array().expect("rows");
+    let modes: Vec<&str> = rows.iter().filter_map(|r| r["mode"].as_str()).collect();
+    assert_eq!(
+        modes,
+        [
+            "sampled",
+            "project",
+            "hybrid",
+            "2D-feature projection",
+            "oracle (GT features)"
+        ]
+    );
+    assert_eq!(rows[4]["all"]["miou"].as_f64(), Some(1.0));
     assert!(
         dir.path()
             .join("seg/segmentation_hybrid_error.ply")
