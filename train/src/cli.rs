@@ -77,7 +77,7 @@ impl std::str::FromStr for Resolution {
 /// Without arguments it trains a small model on the synthetic CI scene for a
 /// few minutes on the CPU and prints where the results are.
 #[derive(Debug, Clone, Parser)]
-#[command(name = "train", version, about, long_about = None)]
+#[command(name = "train", version)]
 pub struct Cli {
     /// Compute backend.
     #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
