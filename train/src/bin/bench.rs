@@ -21,12 +21,16 @@ use train::step::{StepRates, train_step_from};
 #[derive(Debug, Parser)]
 #[command(name = "bench", about = "Training-step throughput on the CPU backends")]
 struct Args {
-    /// Small sizes (256 rays x 32 samples, width 64, 64-d head) for a quick check.
+    /// Small sizes (256 rays x 16+16 samples, width 64, 64-d head) for a quick check.
     #[arg(long)]
     quick: bool,
     /// Timed steps per case (after one untimed warm-up step).
     #[arg(long, default_value_t = 2)]
     steps: usize,
+    /// Samples per ray at each level [default: 32, i.e. 64 per ray over coarse
+    /// and fine, the reference step's 64 samples; 16 with --quick].
+    #[arg(long)]
+    samples: Option<usize>,
     /// Samples whose weights feed the head in the composited path.
     #[arg(long, default_value_t = 16)]
     top_k: usize,
@@ -121,21 +125,26 @@ fn main() {
     let size = if args.quick {
         Size {
             rays: 256,
-            samples: 32,
+            samples: 16,
             width: 64,
             depth: 4,
             head_width: 64,
             feature_dim: 64,
         }
     } else {
+        // The reference step: 1024 rays x 64 samples (32 coarse + 32 fine).
         Size {
             rays: 1024,
-            samples: 64,
+            samples: 32,
             width: 256,
             depth: 8,
             head_width: 256,
             feature_dim: 768,
         }
+    };
+    let size = Size {
+        samples: args.samples.unwrap_or(size.samples),
+        ..size
     };
     let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
     let mlp = MipMlpConfig::new()
