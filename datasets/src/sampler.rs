@@ -71,13 +71,30 @@ impl RayBatch {
 #[derive(Debug, Clone)]
 pub struct RaySampler {
     config: SamplerConfig,
+    frames: Option<Vec<usize>>,
     drawn: u64,
 }
 
 impl RaySampler {
     /// A sampler that has drawn no batch yet.
     pub fn new(config: SamplerConfig) -> Self {
-        Self { config, drawn: 0 }
+        Self {
+            config,
+            frames: None,
+            drawn: 0,
+        }
+    }
+
+    /// Draws only from the scene frames listed in `frames` (checked when a
+    /// batch is drawn).
+    pub fn with_frames(mut self, frames: Vec<usize>) -> Self {
+        self.frames = Some(frames);
+        self
+    }
+
+    /// The frames drawn from, `None` for all of them.
+    pub fn frames(&self) -> Option<&[usize]> {
+        self.frames.as_deref()
     }
 
     /// The settings.
@@ -98,7 +115,10 @@ impl RaySampler {
     /// The next batch: pixels uniform over frames, then uniform inside the
     /// frame's border margin.
     pub fn next_batch(&mut self, scene: &Scene) -> Result<RayBatch, DatasetError> {
-        let batch = sample_batch(&self.config, scene, self.drawn)?;
+        let batch = match &self.frames {
+            Some(frames) => sample_batch_from(&self.config, scene, frames, self.drawn)?,
+            None => sample_batch(&self.config, scene, self.drawn)?,
+        };
         self.drawn += 1;
         Ok(batch)
     }
@@ -111,19 +131,41 @@ fn axis_range(size: u32, margin: u32) -> (u32, u32) {
     (m, size - m)
 }
 
-/// Batch number `index` for `config` (pure function of seed and index).
+/// Batch number `index` for `config` over all frames of `scene` (pure
+/// function of seed and index).
 pub fn sample_batch(
     config: &SamplerConfig,
     scene: &Scene,
     index: u64,
 ) -> Result<RayBatch, DatasetError> {
+    let all: Vec<usize> = (0..scene.frames.len()).collect();
+    sample_batch_from(config, scene, &all, index)
+}
+
+/// Batch number `index` for `config`, drawn only from the frames of `scene`
+/// listed in `frames` (for instance the training frames, held-out ones left
+/// out). A pure function of seed, index and `frames`; `pixels` keeps the
+/// scene's frame indices. Listing every frame in order gives
+/// [`sample_batch`]'s batch.
+pub fn sample_batch_from(
+    config: &SamplerConfig,
+    scene: &Scene,
+    frames: &[usize],
+    index: u64,
+) -> Result<RayBatch, DatasetError> {
     let err = |m: &str| DatasetError::invalid(&scene.name, m.to_string());
-    if scene.frames.is_empty() {
-        return Err(err("scene has no frames to sample rays from"));
+    if frames.is_empty() {
+        return Err(err("no frames to sample rays from"));
     }
-    if let Some(f) = scene
-        .frames
+    if let Some(&bad) = frames.iter().find(|&&f| f >= scene.frames.len()) {
+        return Err(err(&format!(
+            "frame index {bad} out of range: the scene has {} frames",
+            scene.frames.len()
+        )));
+    }
+    if let Some(f) = frames
         .iter()
+        .map(|&f| &scene.frames[f])
         .find(|f| f.rgb.width == 0 || f.rgb.height == 0)
     {
         return Err(err(&format!("frame {} has an empty image", f.name)));
@@ -131,7 +173,7 @@ pub fn sample_batch(
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
     rng.set_stream(index);
     let n = config.rays_per_batch;
-    let has_depth = scene.frames.iter().any(|f| f.depth.is_some());
+    let has_depth = frames.iter().any(|&f| scene.frames[f].depth.is_some());
     let feature_dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut b = RayBatch {
         rays: Vec::with_capacity(n),
@@ -146,7 +188,7 @@ pub fn sample_batch(
         pixels: Vec::with_capacity(n),
     };
     for _ in 0..n {
-        let fi = rng.random_range(0..scene.frames.len());
+        let fi = frames[rng.random_range(0..frames.len())];
         let frame = &scene.frames[fi];
         let (w, h) = (frame.rgb.width, frame.rgb.height);
         let (x0, x1) = axis_range(w, config.border_margin);

@@ -1,7 +1,7 @@
 //! Ray sampler: determinism, resume, border margin, targets and rays.
 
 use datasets::features::FeatureSet;
-use datasets::sampler::{RaySampler, SamplerConfig, frame_rays, sample_batch};
+use datasets::sampler::{RaySampler, SamplerConfig, frame_rays, sample_batch, sample_batch_from};
 use datasets::{DepthImage, FeatureMap, Frame, RgbImage, Scene, SceneSource};
 use half::f16;
 use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
@@ -204,4 +204,45 @@ fn tiny_images_shrink_the_margin() {
         .next_batch(&s)
         .expect_err("no frames");
     assert!(err.to_string().contains("no frames"));
+}
+
+#[test]
+fn a_frame_subset_is_respected_and_deterministic() {
+    let s = scene(true);
+    let subset = [0usize, 2];
+    let batch = |seed: u64, index: u64| {
+        sample_batch_from(&config(seed), &s, &subset, index).expect("batch")
+    };
+    let b = batch(5, 3);
+    assert_eq!(b.len(), 512);
+    // Only listed frames are drawn, both of them, with the scene's indices.
+    assert!(b.pixels.iter().all(|p| p[0] == 0 || p[0] == 2));
+    assert!(b.pixels.iter().any(|p| p[0] == 0) && b.pixels.iter().any(|p| p[0] == 2));
+    for (k, &[f, x, y]) in b.pixels.iter().enumerate() {
+        let fr = &s.frames[f as usize];
+        assert!(x >= 10 && x < fr.rgb.width - 10 && y >= 10 && y < fr.rgb.height - 10);
+        assert_eq!(b.rgb[k][2], f as f32 / 10.0);
+        assert_eq!(b.depth_weight.as_ref().expect("weights")[k], 0.5 + f as f32);
+    }
+    // A pure function of (seed, index): same pair, same batch; either changed,
+    // another batch; a sampler restricted to the subset resumes onto it.
+    assert_eq!(batch(5, 3), b);
+    assert_ne!(batch(5, 4).pixels, b.pixels);
+    assert_ne!(batch(6, 3).pixels, b.pixels);
+    let mut sampler = RaySampler::new(config(5)).with_frames(subset.to_vec());
+    sampler.set_batches_drawn(3);
+    assert_eq!(sampler.next_batch(&s).expect("batch"), b);
+    // Listing every frame gives the unrestricted batch.
+    assert_eq!(
+        sample_batch_from(&config(5), &s, &[0, 1, 2], 3).expect("batch"),
+        sample_batch(&config(5), &s, 3).expect("batch")
+    );
+    // Frames without depth leave no depth targets even if others have some.
+    let no_depth = sample_batch_from(&config(5), &s, &[1], 0).expect("batch");
+    assert!(no_depth.depth.is_none() && no_depth.depth_weight.is_none());
+    // Bad subsets are errors, not panics.
+    let err = sample_batch_from(&config(5), &s, &[0, 3], 0).expect_err("out of range");
+    assert!(err.to_string().contains("out of range"), "{err}");
+    let err = sample_batch_from(&config(5), &s, &[], 0).expect_err("empty");
+    assert!(err.to_string().contains("no frames"), "{err}");
 }

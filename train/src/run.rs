@@ -16,7 +16,7 @@ use model::OpenNerf;
 use serde_json::json;
 
 use crate::backend::{BackendKind, peak_memory_bytes, training_device};
-use crate::batch::{iteration_seed, sample_batch};
+use crate::batch::{iteration_seed, sample_batch, to_tensors};
 use crate::checkpoint::{
     Checkpoint, CheckpointState, checkpoint_path, list_checkpoints, prune_checkpoints,
 };
@@ -339,8 +339,10 @@ fn train_loop(
         // The stratified jitter draws from the device generator: seeding it
         // per iteration makes a resumed run draw what the uninterrupted one would.
         device.seed(iteration_seed(state.seed ^ 0x6a09_e667_f3bc_c909, it));
-        let batch =
-            sample_batch(scene, &split.train, &config.sampler, state.seed, it).to_tensors(device);
+        let batch = to_tensors(
+            &sample_batch(scene, &split.train, &config.sampler, state.seed, it)?,
+            device,
+        );
         let (next, report) = train_step(
             model,
             &mut optim,
