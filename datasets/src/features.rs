@@ -67,7 +67,7 @@ impl FeatureSet {
             }
         }
         let basis = Pca::fit(&samples, full_dim, target)?;
-        let maps = maps.iter().map(|m| compress(m, &basis)).collect();
+        let maps = maps.iter().map(|m| compress_map(m, &basis)).collect();
         Ok(Self {
             maps,
             pca: Some(basis),
@@ -98,8 +98,8 @@ fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
         .collect()
 }
 
-/// A map projected onto `pca`'s `k` components.
-fn compress(map: &FeatureMap, pca: &Pca) -> FeatureMap {
+/// A map projected onto `pca`'s `k` components (stored as f16 coefficients).
+pub fn compress_map(map: &FeatureMap, pca: &Pca) -> FeatureMap {
     let full: Vec<f32> = map.data.iter().map(|h| h.to_f32()).collect();
     FeatureMap {
         width: map.width,
@@ -301,7 +301,7 @@ pub fn load_features(
     let basis = Pca::fit(&samples, full_dim, target)?;
     let maps = slots
         .iter()
-        .map(|s| s.read().map(|m| compress(&m, &basis)))
+        .map(|s| s.read().map(|m| compress_map(&m, &basis)))
         .collect::<Result<_, _>>()?;
     Ok(FeatureSet {
         maps,

@@ -13,7 +13,6 @@ use std::f64::consts::PI;
 use std::fmt;
 use std::str::FromStr;
 
-use half::f16;
 use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -23,7 +22,7 @@ pub use room::{Room, build_room};
 
 use crate::error::DatasetError;
 use crate::extractor::{FeatureExtractor, SimulatedExtractor};
-use crate::features::{FeatureSet, Pca, PcaTarget};
+use crate::features::{FeatureSet, PcaTarget, compress_map};
 use crate::points::PointCloud;
 use crate::scene::{FeatureMap, Frame, Scene, SceneSource};
 
@@ -257,24 +256,13 @@ fn extract_all(
         .ok_or_else(|| DatasetError::invalid("<synthetic scene>", "PCA fit returned no basis"))?;
     let maps = parallel_maps(frames, |f| {
         let m = extractor.extract(&f.rgb)?;
-        Ok(compress(&m, &basis))
+        Ok(compress_map(&m, &basis))
     })?;
     Ok(FeatureSet {
         maps,
         pca: Some(basis),
         full_dim,
     })
-}
-
-/// A map projected onto `pca`'s components.
-fn compress(map: &FeatureMap, pca: &Pca) -> FeatureMap {
-    let full: Vec<f32> = map.data.iter().map(|h| h.to_f32()).collect();
-    FeatureMap {
-        width: map.width,
-        height: map.height,
-        dim: pca.k,
-        data: pca.project(&full).into_iter().map(f16::from_f32).collect(),
-    }
 }
 
 /// `f` over all frames in scoped threads, results in frame order.
