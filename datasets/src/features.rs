@@ -58,13 +58,7 @@ impl FeatureSet {
         let picks = sample_plan(&sizes, seed);
         let mut samples = Vec::new();
         for (m, idx) in maps.iter().zip(&picks) {
-            for &p in idx {
-                samples.extend(
-                    m.data[p * full_dim..(p + 1) * full_dim]
-                        .iter()
-                        .map(|h| h.to_f32()),
-                );
-            }
+            gather_pixels(m, idx, &mut samples);
         }
         let basis = Pca::fit(&samples, full_dim, target)?;
         let maps = maps.iter().map(|m| compress_map(m, &basis)).collect();
@@ -96,6 +90,15 @@ fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
             }
         })
         .collect()
+}
+
+/// Appends the feature vectors of the map pixels `pixels` to `out` as f32
+/// (the PCA fitting sample).
+fn gather_pixels(map: &FeatureMap, pixels: &[usize], out: &mut Vec<f32>) {
+    let d = map.dim;
+    for &p in pixels {
+        out.extend(map.data[p * d..(p + 1) * d].iter().map(|h| h.to_f32()));
+    }
 }
 
 /// A map projected onto `pca`'s `k` components (stored as f16 coefficients).
@@ -289,14 +292,7 @@ pub fn load_features(
     let picks = sample_plan(&sizes, seed);
     let mut samples = Vec::new();
     for (s, idx) in slots.iter().zip(&picks) {
-        let m = s.read()?;
-        for &p in idx {
-            samples.extend(
-                m.data[p * full_dim..(p + 1) * full_dim]
-                    .iter()
-                    .map(|h| h.to_f32()),
-            );
-        }
+        gather_pixels(&s.read()?, idx, &mut samples);
     }
     let basis = Pca::fit(&samples, full_dim, target)?;
     let maps = slots
