@@ -515,6 +515,7 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, EvalError> {
             &m.scene_box,
             m.background,
             args.chunk,
+            m.feature_dim.is_some(),
             &device,
         );
         written.extend(save_view_pngs(&v, &out, &c.name)?);
@@ -602,6 +603,7 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
             &m.scene_box,
             m.background,
             r.chunk,
+            true,
             &device,
         );
         let rel = relevancy_image(&v, &query, pca)?;

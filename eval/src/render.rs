@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use burn::tensor::{Device, Tensor};
 use model::geometry::{Camera, NormalizedRay, SceneBox};
-use model::{OpenNerf, Rays};
+use model::{FeatureMode, OpenNerf, Rays};
 
 use crate::colormap::{to_u8, turbo};
 use crate::error::EvalError;
@@ -72,15 +72,23 @@ pub fn tensor_to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
 }
 
 /// Renders every pixel of `camera` with the fine level of `model`, `chunk`
-/// rays at a time (the peak memory is that of one chunk).
+/// rays at a time (the peak memory is that of one chunk). The feature image
+/// is rendered only when `features` is set (runs trained without feature
+/// targets have no meaningful head, and skipping it saves its cost).
 pub fn render_view(
     model: &OpenNerf,
     camera: &Camera,
     scene_box: &SceneBox,
     background: Option<[f32; 3]>,
     chunk: usize,
+    features: bool,
     device: &Device,
 ) -> RenderedView {
+    let mode = if features {
+        FeatureMode::Composited
+    } else {
+        FeatureMode::None
+    };
     let rays = camera_rays(camera, scene_box);
     let n = rays.len();
     let chunk = chunk.max(1);
@@ -91,7 +99,7 @@ pub fn render_view(
     let mut feature_dim = 0;
     for part in rays.chunks(chunk) {
         let batch = Rays::from_normalized(part, device);
-        let out = model.render_inference(&batch, chunk, background).fine;
+        let out = model.render_inference(&batch, chunk, background, mode).fine;
         rgb.extend(tensor_to_vec(out.rgb));
         depth.extend(tensor_to_vec(out.depth));
         acc.extend(tensor_to_vec(out.acc));

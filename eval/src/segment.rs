@@ -204,7 +204,7 @@ pub fn projected_features(
             ((k.height as f64 * opts.render_scale).round() as u32).max(1),
         );
         let cam = view.camera.scaled(rw, rh);
-        let r = render_view(model, &cam, scene_box, background, opts.chunk, device);
+        let r = render_view(model, &cam, scene_box, background, opts.chunk, true, device);
         if r.feature_dim == 0 {
             return Err(EvalError::Invalid("the model renders no features".into()));
         }

@@ -256,12 +256,15 @@ impl OpenNerf {
     }
 
     /// Deterministic rendering in chunks of `chunk` rays (for full images);
-    /// outputs are detached, so no graph is kept between chunks.
+    /// outputs are detached, so no graph is kept between chunks. `mode`
+    /// chooses how (and whether) the feature head is evaluated: scenes
+    /// without feature targets pass [`FeatureMode::None`] and skip it.
     pub fn render_inference(
         &self,
         rays: &Rays,
         chunk: usize,
         background: Option<[f32; 3]>,
+        mode: FeatureMode,
     ) -> RenderOutputs {
         let chunk = chunk.max(1);
         let n = rays.len();
@@ -270,13 +273,13 @@ impl OpenNerf {
         let mut start = 0;
         while start < n {
             let end = (start + chunk).min(n);
-            let out = self.render(&rays.slice(start..end), false, background);
+            let out = self.render_with(&rays.slice(start..end), false, background, mode);
             coarse.push(out.coarse.detach());
             fine.push(out.fine.detach());
             start = end;
         }
         if coarse.is_empty() {
-            return self.render(rays, false, background);
+            return self.render_with(rays, false, background, mode);
         }
         RenderOutputs {
             coarse: LevelOutputs::cat(coarse),

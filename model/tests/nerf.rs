@@ -303,7 +303,24 @@ fn inference_chunks_and_point_queries() {
         let model = small_config(3, 8).init(&device);
         let rays = Rays::from_normalized(&camera_rays(10, 6), &device);
         let whole = model.render(&rays, false, None);
-        let chunked = model.render_inference(&rays, 3, None);
+        let chunked = model.render_inference(&rays, 3, None, FeatureMode::Composited);
+        // Without the feature head: same colour and depth, no feature image.
+        let plain = model.render_inference(&rays, 3, None, FeatureMode::None);
+        assert!(plain.fine.feature.is_none() && plain.coarse.feature.is_none());
+        assert_close(
+            &vec(plain.fine.rgb.clone()),
+            &vec(whole.fine.rgb.clone()),
+            1e-6,
+            1e-5,
+            name,
+        );
+        assert_close(
+            &vec(plain.fine.depth.clone()),
+            &vec(whole.fine.depth.clone()),
+            1e-5,
+            1e-5,
+            name,
+        );
         assert_close(
             &vec(chunked.fine.rgb),
             &vec(whole.fine.rgb),

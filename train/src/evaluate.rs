@@ -96,7 +96,14 @@ pub fn evaluate_pixels(
     let mut start = 0;
     for part in pixels.rays.chunks(chunk.max(1)) {
         let rays = model::Rays::from_normalized(part, device);
-        let out = model.render_inference(&rays, chunk, scene.background).fine;
+        let mode = if dim > 0 {
+            model::FeatureMode::Composited
+        } else {
+            model::FeatureMode::None
+        };
+        let out = model
+            .render_inference(&rays, chunk, scene.background, mode)
+            .fine;
         let rgb = eval::render::tensor_to_vec(out.rgb);
         let depth = eval::render::tensor_to_vec(out.depth);
         let feat = match (out.feature, pixels.feature.as_ref()) {
@@ -148,6 +155,7 @@ pub fn evaluate_views(
             &scene.scene_box,
             scene.background,
             chunk,
+            scene.features.is_some(),
             device,
         );
         if scene.features.is_none() {
