@@ -5,10 +5,9 @@ use std::path::Path;
 
 use burn::tensor::Device;
 use datasets::Scene;
+use datasets::sampler::{SamplerConfig, sample_batch_from};
 use model::OpenNerf;
 use model::geometry::NormalizedRay;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 
 use crate::error::TrainError;
 use crate::metrics::{EvalAccumulator, EvalMetrics};
@@ -28,8 +27,9 @@ pub struct EvalPixels {
     pub feature: Option<Vec<f32>>,
 }
 
-/// Draws up to `count` pixels (at least `margin` pixels from the border)
-/// uniformly from `frames` of `scene`, with a fixed `seed`.
+/// Draws `count` pixels (at least `margin` pixels from the border)
+/// uniformly from `frames` of `scene`, with a fixed `seed`, through the
+/// same sampler as training (so targets are looked up the same way).
 pub fn eval_pixels(
     scene: &Scene,
     frames: &[usize],
@@ -37,39 +37,28 @@ pub fn eval_pixels(
     margin: u32,
     min_near: f64,
     seed: u64,
-) -> EvalPixels {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xe7a1_0000);
-    let has_depth = frames.iter().any(|&f| scene.frames[f].depth.is_some());
-    let mut out = EvalPixels {
-        rays: Vec::new(),
-        rgb: Vec::new(),
-        depth: has_depth.then(Vec::new),
-        feature: scene.features.as_ref().map(|_| Vec::new()),
+) -> Result<EvalPixels, TrainError> {
+    if frames.is_empty() || count == 0 {
+        return Ok(EvalPixels {
+            rays: Vec::new(),
+            rgb: Vec::new(),
+            depth: None,
+            feature: None,
+        });
+    }
+    let config = SamplerConfig {
+        rays_per_batch: count,
+        border_margin: margin,
+        seed: seed ^ 0xe7a1_0000,
+        min_near,
     };
-    if frames.is_empty() {
-        return out;
-    }
-    for _ in 0..count {
-        let f = frames[rng.random_range(0..frames.len())];
-        let frame = &scene.frames[f];
-        let (w, h) = (frame.rgb.width, frame.rgb.height);
-        let m = margin
-            .min((w.saturating_sub(1)) / 2)
-            .min((h.saturating_sub(1)) / 2);
-        let x = rng.random_range(m..w - m);
-        let y = rng.random_range(m..h - m);
-        let ray = frame.camera.ray(x as f64, y as f64);
-        out.rays.push(scene.scene_box.normalize_ray(&ray, min_near));
-        out.rgb.push(frame.rgb.get(x, y));
-        if let Some(d) = out.depth.as_mut() {
-            d.push(frame.depth.as_ref().map_or(0.0, |img| img.get(x, y)));
-        }
-        if let (Some(fs), Some(dst)) = (scene.features.as_ref(), out.feature.as_mut()) {
-            let v = fs.maps[f].lookup(x as f64, y as f64, w, h);
-            dst.extend(v.iter().map(|h| h.to_f32()));
-        }
-    }
-    out
+    let batch = sample_batch_from(&config, scene, frames, 0)?;
+    Ok(EvalPixels {
+        rays: batch.rays,
+        rgb: batch.rgb,
+        depth: batch.depth,
+        feature: batch.features,
+    })
 }
 
 /// Lifts PCA coefficients to the full feature space when the scene's

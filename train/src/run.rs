@@ -292,7 +292,7 @@ fn train_loop(
         config.sampler.border_margin,
         config.sampler.min_near,
         config.seed,
-    );
+    )?;
     let inference = device.clone().without_autodiff();
     let mut log = MetricsLog::open(&run.metrics())?;
     let session_start = Instant::now();
