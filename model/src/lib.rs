@@ -13,6 +13,6 @@ pub mod render;
 pub mod sampling;
 
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
-pub use loss::{depth_huber, open_set_cosine, rgb_mse};
+pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse};
 pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, Rays, RenderOutputs};
 pub use render::Composite;

@@ -38,20 +38,67 @@ pub fn depth_huber(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>, delta:
     huber.mul(weight.mask_fill(invalid, 0.0)).sum().div(count)
 }
 
-/// Open-set loss: mean of `1 - cos(pred, target)` over rays whose target norm
-/// exceeds [`COSINE_EPS`]; zero-norm targets are skipped, zero-norm
-/// predictions give a finite loss and gradient. Zero when none is valid.
+/// The space feature predictions and targets live in, as the loss needs it.
+///
+/// With PCA the field predicts coefficients `c` of the lifted feature
+/// `f = m + U^T c` (`U`: `k x D`, orthonormal rows). The cosine that matters
+/// (for segmentation and queries) is the one between lifted features, and it
+/// depends on `|c|`: a short prediction lifts towards the scene's mean `m`.
+/// With orthonormal `U` it has a closed form in `O(k)` per ray:
+///
+/// ```text
+/// f . g = |m|^2 + (U m) . (c + c') + c . c'
+/// |f|^2 = |m|^2 + 2 (U m) . c + |c|^2
+/// ```
+#[derive(Debug, Clone)]
+pub enum FeatureSpace {
+    /// Features are compared as they are (no PCA).
+    Identity,
+    /// PCA coefficients of `m + U^T c`.
+    Lifted {
+        /// `U m`, `[1, k]`.
+        mean_proj: Tensor<2>,
+        /// `|m|^2`.
+        mean_sq: f32,
+    },
+}
+
+/// Open-set loss: mean of `1 - cos(lift(pred), lift(target))` over the rays
+/// whose `mask` is 1 and whose lifted target has a norm above
+/// [`COSINE_EPS`] (targets without a value are skipped, never trained
+/// towards); zero-norm predictions give a finite loss and gradient. Zero
+/// when no ray is valid.
 ///
 /// # Shapes
-/// - `pred`, `target`: `[n, k]`; output: `[1]`.
-pub fn open_set_cosine(pred: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
+/// - `pred`, `target`: `[n, k]`; `mask`: `[n, 1]` (1 = target, 0 = none);
+///   output: `[1]`.
+pub fn open_set_cosine(
+    pred: Tensor<2>,
+    target: Tensor<2>,
+    mask: Tensor<2>,
+    space: &FeatureSpace,
+) -> Tensor<1> {
     let eps2 = COSINE_EPS * COSINE_EPS;
-    let t_norm2 = target.clone().square().sum_dim(1);
-    let valid = t_norm2.clone().greater_elem(eps2);
+    let dot = pred.clone().mul(target.clone()).sum_dim(1);
+    let p2 = pred.clone().square().sum_dim(1);
+    let t2 = target.clone().square().sum_dim(1);
+    let (dot, p2, t2) = match space {
+        FeatureSpace::Identity => (dot, p2, t2),
+        FeatureSpace::Lifted { mean_proj, mean_sq } => {
+            let pm = pred.mul(mean_proj.clone()).sum_dim(1);
+            let tm = target.mul(mean_proj.clone()).sum_dim(1);
+            (
+                dot.add(pm.clone()).add(tm.clone()).add_scalar(*mean_sq),
+                p2.add(pm.mul_scalar(2.0)).add_scalar(*mean_sq),
+                t2.add(tm.mul_scalar(2.0)).add_scalar(*mean_sq),
+            )
+        }
+    };
+    let valid = t2.clone().greater_elem(eps2).bool_and(mask.greater_elem(0.5));
     let count = valid.clone().float().sum().clamp_min(1.0);
-    let p_norm = pred.clone().square().sum_dim(1).clamp_min(eps2).sqrt();
-    let t_norm = t_norm2.clamp_min(eps2).sqrt();
-    let cos = pred.mul(target).sum_dim(1).div(p_norm.mul(t_norm));
+    let p_norm = p2.clamp_min(eps2).sqrt();
+    let t_norm = t2.clamp_min(eps2).sqrt();
+    let cos = dot.div(p_norm.mul(t_norm));
     cos.neg()
         .add_scalar(1.0)
         .mask_fill(valid.bool_not(), 0.0)

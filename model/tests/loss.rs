@@ -7,7 +7,7 @@ mod common;
 
 use burn::tensor::Device;
 use common::{assert_close, devices, tensor, vec};
-use model::{depth_huber, open_set_cosine, rgb_mse};
+use model::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse};
 
 #[test]
 fn rgb_mse_matches_direct() {
@@ -79,7 +79,12 @@ fn cosine_loss_handles_zero_norms() {
         // f16-range (cos = -1/3).
         let want = (1.0 + 1.0 + (1.0 + 1.0 / 3.0)) / 3.0;
         let p = tensor(pred, [4, 3], &device).require_grad();
-        let loss = open_set_cosine(p.clone(), tensor(target.clone(), [4, 3], &device));
+        let loss = open_set_cosine(
+            p.clone(),
+            tensor(target.clone(), [4, 3], &device),
+            tensor(vec![1.0; 4], [4, 1], &device),
+            &FeatureSpace::Identity,
+        );
         assert_close(&vec(loss.clone()), &[want], 1e-6, 1e-5, name);
         let grads = loss.backward();
         let g = vec(p.grad(&grads).expect("gradient"));
@@ -89,7 +94,107 @@ fn cosine_loss_handles_zero_norms() {
         let all_zero = vec(open_set_cosine(
             tensor(vec![1.0, 2.0], [1, 2], &device),
             tensor(vec![0.0, 0.0], [1, 2], &device),
+            tensor(vec![1.0], [1, 1], &device),
+            &FeatureSpace::Identity,
         ));
         assert_eq!(all_zero, vec![0.0], "{name}: no valid target");
+    }
+}
+
+/// A `k x d` matrix with orthonormal rows (Gram-Schmidt of seeded rows) and
+/// a mean vector, in f64.
+fn pca_basis(k: usize, d: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let mut s = seed;
+    let mut next = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let mut rows: Vec<Vec<f64>> = Vec::new();
+    while rows.len() < k {
+        let mut r: Vec<f64> = (0..d).map(|_| next()).collect();
+        for q in &rows {
+            let p: f64 = r.iter().zip(q).map(|(a, b)| a * b).sum();
+            r.iter_mut().zip(q).for_each(|(a, b)| *a -= p * b);
+        }
+        let n = r.iter().map(|a| a * a).sum::<f64>().sqrt();
+        r.iter_mut().for_each(|a| *a /= n);
+        rows.push(r);
+    }
+    let mean = (0..d).map(|_| 2.0 * next()).collect();
+    (rows, mean)
+}
+
+fn lift(u: &[Vec<f64>], m: &[f64], c: &[f32]) -> Vec<f64> {
+    let mut f = m.to_vec();
+    for (row, &ci) in u.iter().zip(c) {
+        f.iter_mut().zip(row).for_each(|(a, b)| *a += ci as f64 * b);
+    }
+    f
+}
+
+fn cos64(a: &[f64], b: &[f64]) -> f64 {
+    let dot: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    let na = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let nb = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+    dot / (na * nb)
+}
+
+/// With PCA targets the loss is the cosine of the lifted features `m + U^T c`
+/// (an f64 explicit lift is the reference), not of the centred coefficients:
+/// a prediction half as long as its target has centred cosine 1 but lifts to
+/// another direction, and must be penalised. Masked rays do not count and get
+/// no gradient.
+#[test]
+fn cosine_loss_compares_lifted_features() {
+    let (k, d) = (3, 7);
+    let (u, m) = pca_basis(k, d, 11);
+    let um: Vec<f32> = u
+        .iter()
+        .map(|r| r.iter().zip(&m).map(|(a, b)| a * b).sum::<f64>() as f32)
+        .collect();
+    let msq = m.iter().map(|x| x * x).sum::<f64>() as f32;
+    let target = vec![0.8, -0.4, 0.3, 0.1, 0.9, -0.7, -1.2, 0.2, 0.5, 2.0, 1.0, 0.0];
+    // Ray 0: half the target (centred cosine 1); rays 1-2: other values;
+    // ray 3 is masked out.
+    let pred = vec![0.4, -0.2, 0.15, -0.3, 0.2, 0.4, 0.0, 0.0, 0.0, 9.0, 9.0, 9.0];
+    let mask = vec![1.0, 1.0, 1.0, 0.0];
+    let want: f64 = (0..3)
+        .map(|r| {
+            1.0 - cos64(
+                &lift(&u, &m, &pred[r * k..(r + 1) * k]),
+                &lift(&u, &m, &target[r * k..(r + 1) * k]),
+            )
+        })
+        .sum::<f64>()
+        / 3.0;
+    let half = 1.0 - cos64(&lift(&u, &m, &pred[..k]), &lift(&u, &m, &target[..k]));
+    assert!(half > 1e-3, "the half-length prediction lifts elsewhere: {half}");
+    for (name, device) in devices(false) {
+        let device: Device = device.autodiff();
+        let space = FeatureSpace::Lifted {
+            mean_proj: tensor(um.clone(), [1, k], &device),
+            mean_sq: msq,
+        };
+        let p = tensor(pred.clone(), [4, k], &device).require_grad();
+        let loss = open_set_cosine(
+            p.clone(),
+            tensor(target.clone(), [4, k], &device),
+            tensor(mask.clone(), [4, 1], &device),
+            &space,
+        );
+        assert_close(&vec(loss.clone()), &[want as f32], 1e-6, 1e-5, name);
+        let single = open_set_cosine(
+            tensor(pred[..k].to_vec(), [1, k], &device),
+            tensor(target[..k].to_vec(), [1, k], &device),
+            tensor(vec![1.0], [1, 1], &device),
+            &space,
+        );
+        assert_close(&vec(single), &[half as f32], 1e-6, 1e-4, name);
+        let g = vec(p.grad(&loss.backward()).expect("gradient"));
+        assert!(g.iter().all(|v| v.is_finite()), "{name}: {g:?}");
+        assert!(g[..k].iter().any(|v| v.abs() > 1e-4), "{name}: {g:?}");
+        assert_eq!(&g[3 * k..], &[0.0, 0.0, 0.0], "{name}: masked ray");
     }
 }
