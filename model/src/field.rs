@@ -223,8 +223,9 @@ impl FeatureHeadConfig {
 /// Open-set feature head. Its input is the trunk feature *detached*, so the
 /// feature loss never moves density or colour. The hidden activation and the
 /// linear output layer are exposed separately: because the output layer is
-/// linear, `sum w (A h + b) = A (sum w h) + b sum w`, so the renderer
-/// composites hidden activations and applies the output layer once per ray.
+/// linear, the weighted mean of `A h + b` is `A (mean h) + b`, so the
+/// renderer averages hidden activations and applies the output layer once
+/// per ray.
 #[derive(Module, Debug)]
 pub struct FeatureHead {
     /// Hidden ReLU layers.
@@ -244,21 +245,6 @@ impl FeatureHead {
             h = relu(layer.forward(h));
         }
         h
-    }
-
-    /// Output layer applied to a composited hidden activation: `A h + b acc`,
-    /// where `acc` is the sum of the weights used to composite `h`.
-    ///
-    /// # Shapes
-    /// - `hidden_sum`: `[rays, hidden_width]`; `acc`: `[rays, 1]`.
-    /// - output: `[rays, out_dim]`.
-    pub fn output_composited(&self, hidden_sum: Tensor<2>, acc: Tensor<2>) -> Tensor<2> {
-        let out = self.output.forward(hidden_sum);
-        match &self.output.bias {
-            // forward added b once; it must be b * acc.
-            Some(b) => out.add(acc.sub_scalar(1.0).mul(b.val().unsqueeze_dim::<2>(0))),
-            None => out,
-        }
     }
 
     /// Per-sample feature (hidden layers and output layer).

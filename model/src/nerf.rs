@@ -9,7 +9,7 @@ use burn::tensor::{Device, Int, Tensor, TensorData};
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
 use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
-use crate::render::{composite, composite_features};
+use crate::render::{composite, composite_features_mean};
 use crate::sampling::{resample_t_vals, stratified_t_vals};
 
 /// Configuration of [`OpenNerf`].
@@ -139,7 +139,9 @@ pub struct LevelOutputs {
     pub depth: Tensor<2>,
     /// Accumulated opacity, `[n, 1]`.
     pub acc: Tensor<2>,
-    /// Composited open-set feature, `[n, out_dim]`, when computed at this level.
+    /// Open-set feature, `[n, out_dim]`, when computed at this level: the
+    /// weighted mean of the samples' features (`sum w o / sum w`, detached
+    /// weights), i.e. the feature of what the ray hits.
     pub feature: Option<Tensor<2>>,
     /// Compositing weights, `[n, samples]`.
     pub weights: Tensor<2>,
@@ -319,7 +321,7 @@ impl OpenNerf {
             FeatureMode::PerSample => {
                 let f = self.head.forward(field.trunk);
                 let [_, c] = f.dims();
-                Some(composite_features(
+                Some(composite_features_mean(
                     comp.weights.clone(),
                     f.reshape([n, s, c]),
                 ))
@@ -338,8 +340,10 @@ impl OpenNerf {
         }
     }
 
-    /// Feature by compositing the head's hidden activations (optionally on
-    /// the top-k samples only) and applying the output layer once per ray.
+    /// Feature by averaging the head's hidden activations with the (detached)
+    /// weights, optionally over the top-k samples only, and applying the
+    /// linear output layer once per ray: `A (sum w h / sum w) + b` equals the
+    /// weighted mean of the per-sample features `A h + b`.
     fn composited_feature(
         &self,
         trunk: Tensor<2>,
@@ -361,9 +365,8 @@ impl OpenNerf {
         };
         let hidden = self.head.hidden(trunk);
         let [_, hd] = hidden.dims();
-        let acc = weights.clone().sum_dim(1);
-        let hsum = composite_features(weights, hidden.reshape([n, s, hd]));
-        self.head.output_composited(hsum, acc)
+        let hmean = composite_features_mean(weights, hidden.reshape([n, s, hd]));
+        self.head.output.forward(hmean)
     }
 
     /// Features at 3D points (normalised frame), encoding each point as an

@@ -80,14 +80,22 @@ pub fn composite_values(weights: Tensor<2>, values: Tensor<3>) -> Tensor<2> {
         .reshape([rays, c])
 }
 
-/// Composites features with given weights, which are detached first so that
-/// the feature loss never reaches density.
+/// Floor of the opacity a composited feature is divided by.
+pub const FEATURE_ACC_EPS: f32 = 1e-6;
+
+/// The weighted mean of features along each ray, `sum w f / sum w`, with the
+/// weights detached. A feature is what the ray *hits*: dividing by the
+/// opacity keeps rays with `acc < 1` (the start of training, thin surfaces,
+/// top-k samples) from being pulled towards zero, which after a PCA lift
+/// `m + U^T c` would mean towards the scene's mean feature.
 ///
 /// # Shapes
 /// - `weights`: `[rays, samples]`; `features`: `[rays, samples, c]`.
 /// - output: `[rays, c]`.
-pub fn composite_features(weights: Tensor<2>, features: Tensor<3>) -> Tensor<2> {
-    composite_values(weights.detach(), features)
+pub fn composite_features_mean(weights: Tensor<2>, features: Tensor<3>) -> Tensor<2> {
+    let weights = weights.detach();
+    let acc = weights.clone().sum_dim(1).clamp_min(FEATURE_ACC_EPS);
+    composite_values(weights, features).div(acc)
 }
 
 /// Full compositing of one level: weights, colour, depth and opacity.

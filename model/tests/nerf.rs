@@ -12,8 +12,8 @@ use burn::tensor::{Device, Gradients, Tensor};
 use common::{assert_close, devices, tensor, vec};
 use model::geometry::{Camera, Intrinsics, NormalizedRay, SceneBox, look_at};
 use model::{
-    FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays, open_set_cosine,
-    rgb_mse,
+    FeatureHeadConfig, FeatureMode, FeatureSpace, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays,
+    open_set_cosine, rgb_mse,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -90,20 +90,24 @@ fn open_set_loss_does_not_reach_density_or_colour() {
             &device,
         );
 
-        let out = model.render(&rays, true, None);
-        let feat = out.fine.feature.expect("fine feature");
-        let grads = open_set_cosine(feat, target).backward();
-        let mlp = grad_max(&model.mlp, &grads);
-        assert!(mlp.len() >= 12, "{name}: visited {} MLP params", mlp.len());
-        assert!(
-            mlp.iter().all(|&(_, g)| g == 0.0),
-            "{name}: open-set loss reached the MLP: {mlp:?}"
-        );
-        let head = grad_max(&model.head, &grads);
-        assert!(
-            head.iter().all(|&(_, g)| g > 0.0),
-            "{name}: head gradient missing: {head:?}"
-        );
+        for mode in [FeatureMode::Composited, FeatureMode::PerSample] {
+            let out = model.render_with(&rays, true, None, mode);
+            let feat = out.fine.feature.expect("fine feature");
+            let mask = Tensor::<2>::ones([16, 1], &device);
+            let grads =
+                open_set_cosine(feat, target.clone(), mask, &FeatureSpace::Identity).backward();
+            let mlp = grad_max(&model.mlp, &grads);
+            assert!(mlp.len() >= 12, "{name}: visited {} MLP params", mlp.len());
+            assert!(
+                mlp.iter().all(|&(_, g)| g == 0.0),
+                "{name} {mode:?}: open-set loss reached the MLP: {mlp:?}"
+            );
+            let head = grad_max(&model.head, &grads);
+            assert!(
+                head.iter().all(|&(_, g)| g > 0.0),
+                "{name} {mode:?}: head gradient missing: {head:?}"
+            );
+        }
 
         let out = model.render(&rays, true, None);
         let target_rgb = Tensor::<2>::random(
@@ -208,8 +212,10 @@ fn top_k_one_uses_the_heaviest_sample() {
             .iter()
             .enumerate()
             .fold((0, -1.0f32), |a, (i, &v)| if v > a.1 { (i, v) } else { a });
+        // The weighted mean over one sample is that sample's feature.
+        assert!(wmax > 0.0);
         let want: Vec<f32> = (0..4)
-            .map(|k| wmax * per_sample[(r * s + imax) * 4 + k])
+            .map(|k| per_sample[(r * s + imax) * 4 + k])
             .collect();
         assert_close(
             &got[r * 4..r * 4 + 4],
@@ -446,6 +452,43 @@ fn render_extremes_stay_finite() {
                     );
                 }
             }
+        }
+    }
+}
+
+/// The feature of a ray is the weighted *mean* of its samples' features:
+/// with a head whose output is the constant `b`, every ray's feature is `b`,
+/// also where the opacity is far below 1 (short rays through thin density).
+/// Without the division by the opacity it would be `acc * b`, which after a
+/// PCA lift `m + U^T c` pulls such pixels towards the scene mean.
+#[test]
+fn features_are_weighted_means_also_where_acc_is_below_one() {
+    for (name, device) in devices(false) {
+        device.seed(5);
+        let mut model = small_config(3, 8).init(&device);
+        let b = [0.7f32, -1.3, 2.0];
+        let w = model.head.output.weight.val();
+        model.head.output.weight = Param::from_tensor(w.zeros_like());
+        model.head.output.bias = Some(Param::from_tensor(tensor(b.to_vec(), [3], &device)));
+        // Short rays (far - near = 0.02 normalised units) keep acc small.
+        let rays: Vec<NormalizedRay> = camera_rays(12, 3)
+            .into_iter()
+            .map(|mut r| {
+                r.far = r.near + 0.02;
+                r
+            })
+            .collect();
+        let rays = Rays::from_normalized(&rays, &device);
+        for mode in [FeatureMode::Composited, FeatureMode::PerSample] {
+            let out = model.render_with(&rays, false, None, mode).fine;
+            let acc = vec(out.acc);
+            assert!(
+                acc.iter().all(|&a| a > 1e-4 && a < 0.5),
+                "{name}: acc {acc:?}"
+            );
+            let f = vec(out.feature.expect("feature"));
+            let want: Vec<f32> = (0..12).flat_map(|_| b).collect();
+            assert_close(&f, &want, 1e-4, 1e-4, &format!("{name} {mode:?}"));
         }
     }
 }
