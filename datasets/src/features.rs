@@ -12,7 +12,7 @@ use half::f16;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-pub use pca::{Pca, PcaTarget};
+pub use pca::{AUTO_EXPLAINED_VARIANCE, Pca, PcaSetting, PcaTarget};
 
 use crate::error::DatasetError;
 use crate::npy::NpyInfo;
@@ -20,6 +20,24 @@ use crate::scene::FeatureMap;
 
 /// Pixels sampled (over all maps) to fit a PCA basis.
 const PCA_SAMPLES: usize = 8192;
+
+/// A full-dimensional feature vector with a norm below this carries no
+/// target (extractors write zeros where they have no prediction).
+pub const ZERO_FEATURE_NORM: f32 = 1e-6;
+
+/// Whether a full-dimensional feature vector is a target: finite and not
+/// (numerically) zero.
+pub fn is_full_target(v: &[f16]) -> bool {
+    let mut n2 = 0f32;
+    for x in v {
+        let x = x.to_f32();
+        if !x.is_finite() {
+            return false;
+        }
+        n2 += x * x;
+    }
+    n2 >= ZERO_FEATURE_NORM * ZERO_FEATURE_NORM
+}
 
 /// Feature maps of a scene, one per frame, possibly PCA-compressed.
 #[derive(Debug, Clone, PartialEq)]
@@ -73,6 +91,26 @@ impl FeatureSet {
     pub fn dim(&self) -> usize {
         self.pca.as_ref().map_or(self.full_dim, |p| p.k)
     }
+
+    /// Whether a stored map pixel (`dim()` values) is a training target.
+    /// Compressed maps mark pixels without a target (a zero feature, which
+    /// compresses to `-U m`, not to "nothing") with NaN coefficients;
+    /// uncompressed maps are checked in the full space.
+    pub fn is_target(&self, v: &[f16]) -> bool {
+        if self.pca.is_some() {
+            v.iter().all(|x| x.is_finite())
+        } else {
+            is_full_target(v)
+        }
+    }
+
+    /// The target of frame `frame` at image point `(u, v)` of its
+    /// `width x height` image, `None` where there is none (no map for the
+    /// frame, or a pixel without a target).
+    pub fn target(&self, frame: usize, u: f64, v: f64, width: u32, height: u32) -> Option<&[f16]> {
+        let t = self.maps.get(frame)?.lookup(u, v, width, height);
+        self.is_target(t).then_some(t)
+    }
 }
 
 /// Which pixels of each map feed the PCA fit: about `PCA_SAMPLES` in all,
@@ -93,22 +131,38 @@ fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
 }
 
 /// Appends the feature vectors of the map pixels `pixels` to `out` as f32
-/// (the PCA fitting sample).
+/// (the PCA fitting sample). Pixels without a target (zero vectors) are left
+/// out: they are not part of the feature distribution.
 fn gather_pixels(map: &FeatureMap, pixels: &[usize], out: &mut Vec<f32>) {
     let d = map.dim;
     for &p in pixels {
-        out.extend(map.data[p * d..(p + 1) * d].iter().map(|h| h.to_f32()));
+        let v = &map.data[p * d..(p + 1) * d];
+        if is_full_target(v) {
+            out.extend(v.iter().map(|h| h.to_f32()));
+        }
     }
 }
 
 /// A map projected onto `pca`'s `k` components (stored as f16 coefficients).
+/// Pixels without a target (zero or non-finite vectors) get NaN
+/// coefficients, which [`FeatureSet::is_target`] reads as "no target".
 pub fn compress_map(map: &FeatureMap, pca: &Pca) -> FeatureMap {
-    let full: Vec<f32> = map.data.iter().map(|h| h.to_f32()).collect();
+    let d = map.dim;
+    let mut data = Vec::with_capacity((map.width * map.height) as usize * pca.k);
+    let mut full = vec![0f32; d];
+    for v in map.data.chunks_exact(d.max(1)) {
+        if is_full_target(v) {
+            full.iter_mut().zip(v).for_each(|(o, h)| *o = h.to_f32());
+            data.extend(pca.project(&full).into_iter().map(f16::from_f32));
+        } else {
+            data.extend(std::iter::repeat_n(f16::NAN, pca.k));
+        }
+    }
     FeatureMap {
         width: map.width,
         height: map.height,
         dim: pca.k,
-        data: pca.project(&full).into_iter().map(f16::from_f32).collect(),
+        data,
     }
 }
 
@@ -302,6 +356,38 @@ pub fn load_features(
     Ok(FeatureSet {
         maps,
         pca: Some(basis),
+        full_dim,
+    })
+}
+
+/// Loads the maps of `source` and compresses each, as it is read, with a
+/// given `basis` (the one stored with a run), so that a reloaded or extended
+/// scene has targets in exactly the space its field was trained in.
+pub fn load_features_with_basis(
+    source: &FeatureSource,
+    image_sizes: &[(u32, u32)],
+    basis: &Pca,
+) -> Result<FeatureSet, DatasetError> {
+    let slots = plan(source, image_sizes)?;
+    let full_dim = slots.first().map_or(0, |s| s.d);
+    if let Some(s) = slots.first()
+        && basis.dim != full_dim
+    {
+        return Err(DatasetError::invalid(
+            &s.info.path,
+            format!(
+                "feature maps have dimension {full_dim} but the stored PCA basis expects {}",
+                basis.dim
+            ),
+        ));
+    }
+    let maps = slots
+        .iter()
+        .map(|s| s.read().map(|m| compress_map(&m, basis)))
+        .collect::<Result<_, _>>()?;
+    Ok(FeatureSet {
+        maps,
+        pca: Some(basis.clone()),
         full_dim,
     })
 }

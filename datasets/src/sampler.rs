@@ -16,8 +16,9 @@ pub struct SamplerConfig {
     /// Rays per batch.
     pub rays_per_batch: usize,
     /// Pixels this close to the image border are never drawn (10 by default:
-    /// feature maps and resized images are least reliable there). Shrunk for
-    /// images too small to keep any pixel.
+    /// feature maps and resized images are least reliable there). Given for
+    /// an image whose shorter side is [`MARGIN_REFERENCE_SIDE`] pixels and
+    /// scaled with the image (see [`scaled_margin`]).
     pub border_margin: u32,
     /// Seed of the pixel draws.
     pub seed: u64,
@@ -47,8 +48,12 @@ pub struct RayBatch {
     pub depth: Option<Vec<f32>>,
     /// Per-ray depth loss weight (the frame's `depth_weight`, 0 without depth).
     pub depth_weight: Option<Vec<f32>>,
-    /// `n x feature_dim` feature targets, zeros where a frame has no map.
+    /// `n x feature_dim` feature targets, zeros where there is no target.
     pub features: Option<Vec<f32>>,
+    /// Per ray, 1 where the feature target is valid and 0 where there is none
+    /// (a frame without a map, a zero or masked map pixel); see
+    /// [`crate::features::FeatureSet::target`].
+    pub feature_mask: Option<Vec<f32>>,
     /// Channels per feature target (0 without features).
     pub feature_dim: usize,
     /// `[frame, x, y]` of every ray.
@@ -124,11 +129,33 @@ impl RaySampler {
     }
 }
 
+/// The shorter image side a border margin is given for: a margin of `m`
+/// pixels means `m` pixels on a 640x360 image (the paper's Replica
+/// resolution) and proportionally more or fewer on larger or smaller images,
+/// so that the same fraction of every image is left out.
+pub const MARGIN_REFERENCE_SIDE: u32 = 360;
+
+/// The border margin in pixels of a `width x height` image for a margin of
+/// `margin` pixels at [`MARGIN_REFERENCE_SIDE`] (rounded; at most a
+/// quarter of the shorter side, so that half of each axis stays usable).
+pub fn scaled_margin(margin: u32, width: u32, height: u32) -> u32 {
+    let side = width.min(height);
+    let m = (margin as f64 * side as f64 / MARGIN_REFERENCE_SIDE as f64).round() as u32;
+    m.min(side / 4)
+}
+
 /// Pixel range `[lo, hi)` along an axis of `size` pixels with `margin`, kept
 /// non-empty by shrinking the margin.
 fn axis_range(size: u32, margin: u32) -> (u32, u32) {
     let m = margin.min(size.saturating_sub(1) / 2);
     (m, size - m)
+}
+
+/// The pixels of a `width x height` image that `config` draws from:
+/// `([x0, x1), [y0, y1))`.
+pub fn interior(config_margin: u32, width: u32, height: u32) -> ((u32, u32), (u32, u32)) {
+    let m = scaled_margin(config_margin, width, height);
+    (axis_range(width, m), axis_range(height, m))
 }
 
 /// Batch number `index` for `config` over all frames of `scene` (pure
@@ -184,6 +211,7 @@ pub fn sample_batch_from(
             .features
             .as_ref()
             .map(|_| Vec::with_capacity(n * feature_dim)),
+        feature_mask: scene.features.as_ref().map(|_| Vec::with_capacity(n)),
         feature_dim,
         pixels: Vec::with_capacity(n),
     };
@@ -191,8 +219,7 @@ pub fn sample_batch_from(
         let fi = frames[rng.random_range(0..frames.len())];
         let frame = &scene.frames[fi];
         let (w, h) = (frame.rgb.width, frame.rgb.height);
-        let (x0, x1) = axis_range(w, config.border_margin);
-        let (y0, y1) = axis_range(h, config.border_margin);
+        let ((x0, x1), (y0, y1)) = interior(config.border_margin, w, h);
         let x = rng.random_range(x0..x1);
         let y = rng.random_range(y0..y1);
         let ray = frame.camera.ray(x as f64, y as f64);
@@ -212,14 +239,20 @@ pub fn sample_batch_from(
                 }
             }
         }
-        if let (Some(out), Some(fs)) = (b.features.as_mut(), scene.features.as_ref()) {
-            match fs.maps.get(fi) {
-                Some(map) => out.extend(
-                    map.lookup(x as f64, y as f64, w, h)
-                        .iter()
-                        .map(|v| v.to_f32()),
-                ),
-                None => out.extend(std::iter::repeat_n(0.0, feature_dim)),
+        if let (Some(out), Some(mask), Some(fs)) = (
+            b.features.as_mut(),
+            b.feature_mask.as_mut(),
+            scene.features.as_ref(),
+        ) {
+            match fs.target(fi, x as f64, y as f64, w, h) {
+                Some(t) => {
+                    out.extend(t.iter().map(|v| v.to_f32()));
+                    mask.push(1.0);
+                }
+                None => {
+                    out.extend(std::iter::repeat_n(0.0, feature_dim));
+                    mask.push(0.0);
+                }
             }
         }
     }

@@ -1,7 +1,9 @@
 //! Ray sampler: determinism, resume, border margin, targets and rays.
 
-use datasets::features::FeatureSet;
-use datasets::sampler::{RaySampler, SamplerConfig, frame_rays, sample_batch, sample_batch_from};
+use datasets::features::{FeatureSet, PcaTarget};
+use datasets::sampler::{
+    RaySampler, SamplerConfig, frame_rays, sample_batch, sample_batch_from, scaled_margin,
+};
 use datasets::{DepthImage, FeatureMap, Frame, RgbImage, Scene, SceneSource};
 use half::f16;
 use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
@@ -86,6 +88,7 @@ fn scene(with_features: bool) -> Scene {
         source: SceneSource::Synthetic {
             seed: 0,
             size: "ci".into(),
+            pca: None,
         },
     }
 }
@@ -117,8 +120,10 @@ fn batches_are_deterministic_and_resumable() {
 #[test]
 fn pixels_respect_border_and_cover_frames_evenly() {
     let s = scene(false);
+    // 60 px at a 360-px side: 5 px on the 40x30 frames, 4 px on the 24x24 one.
     let mut sampler = RaySampler::new(SamplerConfig {
         rays_per_batch: 6000,
+        border_margin: 60,
         ..config(1)
     });
     let b = sampler.next_batch(&s).expect("batch");
@@ -126,8 +131,10 @@ fn pixels_respect_border_and_cover_frames_evenly() {
     let (mut xmin, mut xmax) = (u32::MAX, 0);
     for &[f, x, y] in &b.pixels {
         let img = &s.frames[f as usize].rgb;
+        let m = scaled_margin(60, img.width, img.height);
+        assert_eq!(m, if f == 2 { 4 } else { 5 });
         assert!(
-            x >= 10 && x < img.width - 10 && y >= 10 && y < img.height - 10,
+            x >= m && x < img.width - m && y >= m && y < img.height - m,
             "{f} {x} {y}"
         );
         counts[f as usize] += 1;
@@ -136,11 +143,79 @@ fn pixels_respect_border_and_cover_frames_evenly() {
             xmax = xmax.max(x);
         }
     }
-    // Every allowed column is reachable (10..30 for a 40-wide frame).
-    assert_eq!((xmin, xmax), (10, 29));
+    // Every allowed column is reachable (5..35 for a 40-wide frame).
+    assert_eq!((xmin, xmax), (5, 34));
     // Frames are drawn uniformly: 2000 expected each, sd ~ 37.
     for c in counts {
         assert!((c as f64 - 2000.0).abs() < 200.0, "{counts:?}");
+    }
+}
+
+/// The margin is given for a 360-px shorter side and scales with the
+/// image, so small images are not mostly border.
+#[test]
+fn the_margin_scales_with_the_image() {
+    assert_eq!(scaled_margin(10, 640, 360), 10);
+    assert_eq!(scaled_margin(10, 320, 180), 5);
+    assert_eq!(scaled_margin(10, 96, 54), 2);
+    assert_eq!(scaled_margin(10, 1200, 680), 19);
+    assert_eq!(scaled_margin(0, 1200, 680), 0);
+    // Never more than a quarter of the shorter side.
+    assert_eq!(scaled_margin(10_000, 40, 30), 7);
+}
+
+/// Zero feature vectors (extractors write them where they have no
+/// prediction) are not targets: rays there are masked, whether the maps are
+/// stored at full dimension or PCA-compressed (where a zero vector would
+/// otherwise compress to `-U m`, a valid-looking target), and they are left
+/// out of the PCA fit.
+#[test]
+fn pixels_without_a_feature_target_are_masked() {
+    for compress in [false, true] {
+        let mut s = scene(true);
+        let mut fs = s.features.take().expect("features");
+        // Frame 0 has no prediction anywhere.
+        fs.maps[0].data.iter_mut().for_each(|v| *v = f16::ZERO);
+        let maps = fs.maps.clone();
+        if compress {
+            fs = FeatureSet::from_maps(maps.clone(), Some(PcaTarget::Components(1)), 0)
+                .expect("pca");
+            // The fit saw every pixel of frames 1 and 2 and none of frame 0.
+            let mut mean = [0f64; 2];
+            let mut n = 0.0;
+            for m in &maps[1..] {
+                for px in m.data.chunks(2) {
+                    mean[0] += px[0].to_f64();
+                    mean[1] += px[1].to_f64();
+                    n += 1.0;
+                }
+            }
+            let pca = fs.pca.as_ref().expect("basis");
+            for c in 0..2 {
+                let want = mean[c] / n;
+                assert!(
+                    (pca.mean[c] as f64 - want).abs() < 1e-3 * want.abs(),
+                    "mean[{c}] {} vs {want}",
+                    pca.mean[c]
+                );
+            }
+        }
+        s.features = Some(fs);
+        let b = RaySampler::new(config(4)).next_batch(&s).expect("batch");
+        let mask = b.feature_mask.as_ref().expect("mask");
+        let feats = b.features.as_ref().expect("features");
+        let dim = b.feature_dim;
+        for (k, &[f, _, _]) in b.pixels.iter().enumerate() {
+            let row = &feats[k * dim..(k + 1) * dim];
+            if f == 0 {
+                assert_eq!(mask[k], 0.0, "compress {compress}");
+                assert!(row.iter().all(|&v| v == 0.0));
+            } else {
+                assert_eq!(mask[k], 1.0, "compress {compress}");
+                assert!(row.iter().all(|v| v.is_finite()));
+            }
+        }
+        assert!(b.pixels.iter().any(|p| p[0] == 0));
     }
 }
 
@@ -192,13 +267,22 @@ fn frame_rays_are_row_major() {
 }
 
 #[test]
-fn tiny_images_shrink_the_margin() {
+fn tiny_images_keep_pixels_to_draw() {
     let mut s = scene(false);
     s.frames = vec![frame(0, 3, 2, false)];
-    let b = RaySampler::new(config(0)).next_batch(&s).expect("batch");
-    // Width 3 keeps only the middle column; height 2 keeps both rows.
-    assert!(b.pixels.iter().all(|&[_, x, y]| x == 1 && y < 2));
-    assert!(b.pixels.iter().any(|p| p[2] == 0) && b.pixels.iter().any(|p| p[2] == 1));
+    let b = RaySampler::new(SamplerConfig {
+        border_margin: 10_000,
+        ..config(0)
+    })
+    .next_batch(&s)
+    .expect("batch");
+    // The margin is capped at a quarter of the shorter side (0 here), so
+    // every pixel of a 3x2 image can be drawn.
+    for x in 0..3 {
+        for y in 0..2 {
+            assert!(b.pixels.iter().any(|p| p[1] == x && p[2] == y), "{x} {y}");
+        }
+    }
     s.frames.clear();
     let err = RaySampler::new(config(0))
         .next_batch(&s)
@@ -220,7 +304,8 @@ fn a_frame_subset_is_respected_and_deterministic() {
     assert!(b.pixels.iter().any(|p| p[0] == 0) && b.pixels.iter().any(|p| p[0] == 2));
     for (k, &[f, x, y]) in b.pixels.iter().enumerate() {
         let fr = &s.frames[f as usize];
-        assert!(x >= 10 && x < fr.rgb.width - 10 && y >= 10 && y < fr.rgb.height - 10);
+        let m = scaled_margin(10, fr.rgb.width, fr.rgb.height);
+        assert!(x >= m && x < fr.rgb.width - m && y >= m && y < fr.rgb.height - m);
         assert_eq!(b.rgb[k][2], f as f32 / 10.0);
         assert_eq!(b.depth_weight.as_ref().expect("weights")[k], 0.5 + f as f32);
     }

@@ -29,6 +29,60 @@ pub enum PcaTarget {
     ExplainedVariance(f64),
 }
 
+/// How a scene's feature maps are compressed, as users choose it
+/// (`--pca auto|off|K`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PcaSetting {
+    /// Full dimension D.
+    Off,
+    /// The fewest components explaining [`AUTO_EXPLAINED_VARIANCE`] of the
+    /// variance.
+    Auto,
+    /// Exactly this many components.
+    Components(usize),
+}
+
+/// Explained-variance target of [`PcaSetting::Auto`].
+pub const AUTO_EXPLAINED_VARIANCE: f64 = 0.99;
+
+impl PcaSetting {
+    /// The fitting target, `None` for no compression.
+    pub fn target(self) -> Option<PcaTarget> {
+        match self {
+            Self::Off => None,
+            Self::Auto => Some(PcaTarget::ExplainedVariance(AUTO_EXPLAINED_VARIANCE)),
+            Self::Components(k) => Some(PcaTarget::Components(k)),
+        }
+    }
+}
+
+impl std::str::FromStr for PcaSetting {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim() {
+            "auto" => Ok(Self::Auto),
+            "off" => Ok(Self::Off),
+            k => match k.parse::<usize>() {
+                Ok(k) if k >= 1 => Ok(Self::Components(k)),
+                _ => Err(format!(
+                    "expected auto, off or a number of components >= 1, got {s:?}"
+                )),
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for PcaSetting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Off => write!(f, "off"),
+            Self::Auto => write!(f, "auto"),
+            Self::Components(k) => write!(f, "{k}"),
+        }
+    }
+}
+
 impl Pca {
     /// Fits a basis to `samples` (`n x dim`, row-major).
     ///
