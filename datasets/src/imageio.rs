@@ -10,12 +10,40 @@ use crate::scene::{DepthImage, RgbImage};
 
 /// Decodes any supported image file.
 pub fn open(path: &Path) -> Result<DynamicImage, DatasetError> {
-    image::ImageReader::open(path)
-        .map_err(|e| DatasetError::io(path, e))?
+    let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, e))?;
+    if let Some(problem) = jpeg_truncation(&bytes) {
+        return Err(DatasetError::invalid(path, problem));
+    }
+    image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| DatasetError::io(path, e))?
         .decode()
         .map_err(|e| DatasetError::invalid(path, format!("cannot decode image: {e}")))
+}
+
+/// Why a JPEG file is incomplete, if it is one and is. The decoder fills
+/// the missing part of a truncated JPEG with grey without an error, so a
+/// cut-off copy would otherwise be trained on as it is. The image data
+/// follows the last start-of-scan marker (`FF DA`) and must be closed by an
+/// end-of-image marker (`FF D9`); inside the entropy-coded data `FF` is
+/// always followed by `00` or a restart marker, so no other `FF D9` occurs
+/// there (an embedded thumbnail's markers come before the main scan).
+pub fn jpeg_truncation(bytes: &[u8]) -> Option<String> {
+    if !bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        return None;
+    }
+    let find_last = |marker: u8| bytes.windows(2).rposition(|w| w == [0xFF, marker]);
+    let Some(scan) = find_last(0xDA) else {
+        return Some("JPEG file has no image data (no start-of-scan marker; truncated?)".into());
+    };
+    match find_last(0xD9) {
+        Some(end) if end > scan => None,
+        _ => Some(format!(
+            "JPEG file is truncated: its image data stops after {} bytes without an \
+             end-of-image marker (copy the file again)",
+            bytes.len()
+        )),
+    }
 }
 
 /// Loads a colour image as linear-in-file `[0, 1]` RGB, compositing any alpha

@@ -110,13 +110,28 @@ impl NpyInfo {
             ));
         }
         let shape: Vec<usize> = header.shape().iter().map(|&d| d as usize).collect();
+        // A damaged or hostile header can announce a shape whose element
+        // count wraps around; every later size computation relies on this.
+        let need = shape
+            .iter()
+            .try_fold(1usize, |n, &d| n.checked_mul(d))
+            .and_then(|n| n.checked_mul(dtype.size()))
+            .and_then(|b| u64::try_from(b).ok())
+            .and_then(|b| b.checked_add(reader.count))
+            .ok_or_else(|| {
+                DatasetError::invalid(
+                    path,
+                    format!(
+                        "shape {shape:?} has more elements than can be addressed (damaged header?)"
+                    ),
+                )
+            })?;
         let info = Self {
             path: path.to_path_buf(),
             dtype,
             shape,
             data_offset: reader.count,
         };
-        let need = info.data_offset + (info.len() * dtype.size()) as u64;
         if file_len < need {
             return Err(DatasetError::invalid(
                 path,
@@ -155,12 +170,11 @@ impl NpyInfo {
 
     /// Reads `count` elements starting at element `start`, as raw bytes.
     fn read_bytes(&self, start: usize, count: usize) -> Result<Vec<u8>, DatasetError> {
-        if start + count > self.len() {
+        if start.checked_add(count).is_none_or(|end| end > self.len()) {
             return Err(DatasetError::invalid(
                 &self.path,
                 format!(
-                    "read of elements {start}..{} is past the end ({})",
-                    start + count,
+                    "read of {count} elements from element {start} is past the end ({})",
                     self.len()
                 ),
             ));
@@ -169,7 +183,7 @@ impl NpyInfo {
         let size = self.dtype.size();
         file.seek(SeekFrom::Start(self.data_offset + (start * size) as u64))
             .map_err(|e| DatasetError::io(&self.path, e))?;
-        let mut bytes = vec![0u8; count * size];
+        let mut bytes = allocate(&self.path, count * size)?;
         file.read_exact(&mut bytes)
             .map_err(|e| DatasetError::io(&self.path, e))?;
         Ok(bytes)
@@ -192,6 +206,45 @@ impl NpyInfo {
         let bytes = self.read_bytes(start, count)?;
         Ok(decode(&bytes, self.dtype, |v| v, |h| h.to_f64()))
     }
+}
+
+/// Total physical memory in bytes (`MemTotal` of `/proc/meminfo`), where known.
+fn physical_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kb.checked_mul(1024)
+}
+
+/// A zeroed buffer of `len` bytes for the data of `path`, or an error naming
+/// the file when it cannot be held in memory. An allocation failure would
+/// abort the process, and with memory overcommit a buffer larger than the
+/// machine "succeeds" and is killed later, so both are checked up front.
+fn allocate(path: &Path, len: usize) -> Result<Vec<u8>, DatasetError> {
+    let too_large = |what: String| {
+        DatasetError::invalid(
+            path,
+            format!(
+                "reading this array needs {:.1} GB of memory, {what}; is the shape in its \
+                 header right? (feature maps may be stored at a lower resolution than the images)",
+                len as f64 / 1e9
+            ),
+        )
+    };
+    if let Some(total) = physical_memory()
+        && len as u64 > total
+    {
+        return Err(too_large(format!(
+            "more than this machine has ({:.1} GB)",
+            total as f64 / 1e9
+        )));
+    }
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(len)
+        .map_err(|_| too_large("which cannot be allocated".into()))?;
+    bytes.resize(len, 0);
+    Ok(bytes)
 }
 
 /// Decodes little-endian elements; `from_f64` converts f32/f64 values (via
