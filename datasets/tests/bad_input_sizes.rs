@@ -100,7 +100,11 @@ fn feature_map_larger_than_memory_is_an_error_not_an_abort() {
 fn jpeg_bytes() -> Vec<u8> {
     // Busy content, so that most of the file is image data after the headers.
     let img = image::RgbImage::from_fn(64, 48, |x, y| {
-        image::Rgb([(x * 37 % 251) as u8, (y * 53 % 241) as u8, ((x * y) % 256) as u8])
+        image::Rgb([
+            (x * 37 % 251) as u8,
+            (y * 53 % 241) as u8,
+            ((x * y) % 256) as u8,
+        ])
     });
     let mut out = std::io::Cursor::new(Vec::new());
     image::DynamicImage::ImageRgb8(img)
