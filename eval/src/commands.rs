@@ -6,15 +6,16 @@ use std::path::{Path, PathBuf};
 use burn::tensor::Device;
 use datasets::points::{ClassMap, IGNORE_LABEL, read_labels_txt, read_ply, write_ply};
 use datasets::text::TextEmbeddings;
-use datasets::{Scene, load_scene};
+use datasets::{Scene, load_scene_with_basis};
 
+use crate::backend::{BackendKind, parse_device_index};
 use crate::cameras::{NamedCamera, camera_path, load_traj, load_transforms_json, resized};
 use crate::error::EvalError;
 use crate::metrics::{ClassSplit, SegmentationScores, format_per_class, format_table};
 use crate::project::ProjectOptions;
 use crate::query::{
-    cosine_scores, embedding_by_name, embedding_from_npy, normalize_scores, relevancy_image,
-    relevancy_overlay,
+    RELEVANCY_THRESHOLD, RelevancyScale, cosine_scores, embedding_by_name, embedding_from_npy,
+    normalize_scores, relevancy_overlay, view_cosines,
 };
 use crate::render::{render_view, save_rgb8, save_view_pngs};
 use crate::run::{LoadedRun, load_run, read_json, write_json};
@@ -23,16 +24,9 @@ use crate::segment::{
     segment_with_2d_features, segment_with_field, write_prediction_plys,
 };
 
-/// Compute device by name.
-pub fn device_by_name(name: &str) -> Result<Device, EvalError> {
-    match name {
-        "flex" => Ok(Device::flex()),
-        #[allow(deprecated)]
-        "ndarray" => Ok(Device::ndarray()),
-        o => Err(EvalError::Invalid(format!(
-            "unknown device {o:?} (expected flex or ndarray)"
-        ))),
-    }
+/// The compute device of `--backend` and `--device`, as in `train`.
+pub fn device_of(backend: BackendKind, index: Option<usize>) -> Device {
+    crate::backend::device(backend, index)
 }
 
 /// Where the points and classes come from (all optional: the run's scene
@@ -84,7 +78,7 @@ pub struct SegmentArgs {
     #[arg(long)]
     pub max_views: Option<usize>,
     /// Radius (metres) of the Gaussian a point is queried with.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     pub radius: f64,
     /// Rays or points per forward pass.
     #[arg(long, default_value_t = 4096)]
@@ -92,12 +86,17 @@ pub struct SegmentArgs {
     /// Head / common / tail split (JSON `{"head": [...], "common": [...], "tail": [...]}`).
     #[arg(long)]
     pub split: Option<PathBuf>,
-    /// Output JSON (default: `segmentation.json` in the run directory).
+    /// Output directory for `segmentation.json`, the prediction and error
+    /// point clouds and, with `--compare`, `segmentation_compare.json`
+    /// [default: the run directory].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Compute device: flex or ndarray.
-    #[arg(long, default_value = "flex")]
-    pub device: String,
+    /// Compute backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
+    pub backend: BackendKind,
+    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
+    #[arg(long, value_parser = parse_device_index)]
+    pub device: Option<usize>,
     /// Also score the other field modes, the projection of the scene's own 2D
     /// feature maps (no field: the bound the field is measured against) and
     /// the ground-truth-feature oracle, in one table (`segmentation_compare.json`).
@@ -118,7 +117,7 @@ impl Context {
     /// Loads the run and rebuilds its scene.
     pub fn load(dir: &Path, device: &Device) -> Result<Self, EvalError> {
         let run = load_run(dir, device)?;
-        let scene = load_scene(&run.meta.source)?;
+        let scene = load_scene_with_basis(&run.meta.source, run.meta.pca.as_ref())?;
         Ok(Self {
             run,
             scene: Some(scene),
@@ -168,6 +167,8 @@ pub fn load_points(args: &PointArgs, scene: Option<&Scene>) -> Result<EvalPoints
         Some(m) => ClassMap::load_replica(m)?,
         None => ClassMap::identity(texts.names.clone()),
     };
+    let label_file = args.labels.as_deref().unwrap_or(ply);
+    crate::checks::labels_in_range(&raw, &map, label_file, args.class_map.as_deref())?;
     let mut p = EvalPoints {
         positions: cloud.positions,
         labels: map.map(&raw),
@@ -247,7 +248,13 @@ pub fn select_cameras(
                             name: f.name.clone(),
                             camera: f.camera,
                         })
-                        .ok_or_else(|| EvalError::Invalid(format!("frame {i} not in the scene")))
+                        .ok_or_else(|| {
+                            EvalError::Invalid(format!(
+                                "{}: frame {i} is not in the scene, which has {} frames",
+                                run.dir.split().display(),
+                                scene.frames.len()
+                            ))
+                        })
                 })
                 .collect::<Result<_, _>>()?;
             Ok((cams, Some(idx)))
@@ -291,7 +298,8 @@ pub fn evenly<T: Clone>(v: &[T], n: Option<usize>) -> Vec<T> {
 /// Runs `segment`: predictions, scores (printed and written as JSON) and the
 /// prediction / error PLYs next to the JSON.
 pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalError> {
-    let device = device_by_name(&args.device)?;
+    crate::checks::segment_args(args)?;
+    let device = device_of(args.backend, args.device);
     let mode: SegmentMode = args.mode.parse()?;
     let ctx = Context::load(&args.run, &device)?;
     let scene = ctx.scene.as_ref();
@@ -328,6 +336,11 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         project: ProjectOptions::default(),
     };
     let run = &ctx.run;
+    let busy = crate::visual::spinner(format!(
+        "segmenting {} points ({mode}, {} views)",
+        points.positions.len(),
+        views.len()
+    ));
     let (pred, seen) = segment_with_field(
         &run.model,
         run.meta.pca.as_ref(),
@@ -338,6 +351,7 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         &opts,
         &device,
     )?;
+    busy.finish_and_clear();
     let split = match &args.split {
         Some(p) => Some(read_json::<ClassSplit>(p)?),
         None => points.split(),
@@ -357,17 +371,19 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
     );
     print!("{}", format_table(&[(&mode.to_string(), &scores)]));
     print!("{}", format_per_class(&scores, split.as_ref()));
-    let out = args.out.clone().unwrap_or_else(|| run.dir.segmentation());
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| EvalError::io(parent, e))?;
-    }
+    let dir = args.out.clone().unwrap_or_else(|| run.dir.dir.clone());
+    std::fs::create_dir_all(&dir).map_err(|e| EvalError::io(&dir, e))?;
+    let out = dir.join("segmentation.json");
     write_json(&out, &scores)?;
-    let dir = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    write_prediction_plys(dir, &format!("segmentation_{mode}"), &points, &pred)?;
-    println!("wrote {}", out.display());
+    let stem = format!("segmentation_{mode}");
+    write_prediction_plys(&dir, &stem, &points, &pred)?;
+    for path in [
+        out.clone(),
+        dir.join(format!("{stem}_pred.ply")),
+        dir.join(format!("{stem}_error.ply")),
+    ] {
+        println!("wrote {}", path.display());
+    }
     if args.compare {
         let mut rows = Vec::new();
         for other in [
@@ -460,9 +476,12 @@ pub struct RenderArgs {
     /// Output directory (default: `renders/eval` in the run directory).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Compute device: flex or ndarray.
-    #[arg(long, default_value = "flex")]
-    pub device: String,
+    /// Compute backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
+    pub backend: BackendKind,
+    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
+    #[arg(long, value_parser = parse_device_index)]
+    pub device: Option<usize>,
 }
 
 fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamera>, EvalError> {
@@ -499,7 +518,8 @@ fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamera>, 
 
 /// Runs `render`: colour, depth and feature-PCA PNGs per camera. Returns the written files.
 pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, EvalError> {
-    let device = device_by_name(&args.device)?;
+    crate::checks::render_args(args)?;
+    let device = device_of(args.backend, args.device);
     let ctx = Context::load(&args.run, &device)?;
     let cams = render_cameras(args, &ctx)?;
     let out = args
@@ -507,6 +527,8 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, EvalError> {
         .clone()
         .unwrap_or_else(|| ctx.run.dir.renders().join("eval"));
     let mut written = Vec::new();
+    let mut animation = Vec::new();
+    let bar = crate::visual::progress(cams.len(), "rendering");
     for c in &cams {
         let m = &ctx.run.meta;
         let v = render_view(
@@ -519,7 +541,29 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, EvalError> {
             &device,
         );
         written.extend(save_view_pngs(&v, &out, &c.name)?);
-        println!("rendered {}", c.name);
+        // A scene frame rendered at its own size is shown next to its
+        // ground truth and the error between them.
+        let truth = ctx
+            .scene
+            .as_ref()
+            .and_then(|s| s.frames.iter().find(|f| f.name == c.name));
+        if let Some((w, h, px)) = truth.and_then(|f| crate::visual::comparison(&f.rgb, &v)) {
+            let path = out.join(format!("{}_compare.png", c.name));
+            save_rgb8(&path, w, h, px)?;
+            written.push(path);
+        }
+        if args.camera_path.is_some() {
+            animation.push(v.rgb.iter().map(|&x| crate::colormap::to_u8(x)).collect());
+        }
+        bar.inc(1);
+        crate::visual::note(&bar, format!("rendered {}", c.name));
+    }
+    bar.finish_and_clear();
+    if let Some(first) = cams.first().filter(|_| !animation.is_empty()) {
+        let k = first.camera.intrinsics;
+        let path = out.join("path.gif");
+        crate::visual::write_gif(&path, k.width, k.height, &animation, 10)?;
+        written.push(path);
     }
     Ok(written)
 }
@@ -546,7 +590,7 @@ pub struct QueryArgs {
     #[arg(long)]
     pub points: Option<String>,
     /// Radius (metres) of the Gaussian a point is queried with.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     pub radius: f64,
 }
 
@@ -554,7 +598,8 @@ pub struct QueryArgs {
 /// with a per-point `relevancy` scalar. Returns the written files.
 pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
     let r = &args.render;
-    let device = device_by_name(&r.device)?;
+    crate::checks::query_args(args)?;
+    let device = device_of(r.backend, r.device);
     let ctx = Context::load(&r.run, &device)?;
     let (query, label) = match (&args.query, &args.query_npy) {
         (_, Some(p)) => (
@@ -589,6 +634,11 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
         }
     };
     let m = &ctx.run.meta;
+    let source = match &args.query_npy {
+        Some(p) => p.display().to_string(),
+        None => format!("--query {label}"),
+    };
+    crate::checks::query_dimension(&query, m, &r.run, &source)?;
     let pca = m.pca.as_ref();
     let out = r
         .out
@@ -596,7 +646,11 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
         .unwrap_or_else(|| ctx.run.dir.renders().join("query"));
     std::fs::create_dir_all(&out).map_err(|e| EvalError::io(&out, e))?;
     let mut written = Vec::new();
-    for c in render_cameras(r, &ctx)? {
+    // Every view is scored first, so that one relevancy scale spans them all.
+    let cams = render_cameras(r, &ctx)?;
+    let bar = crate::visual::progress(cams.len(), "rendering");
+    let mut views = Vec::with_capacity(cams.len());
+    for c in &cams {
         let v = render_view(
             &ctx.run.model,
             &c.camera,
@@ -606,9 +660,41 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
             true,
             &device,
         );
-        let rel = relevancy_image(&v, &query, pca)?;
+        let scores = view_cosines(&v, &query, pca)?;
+        views.push((c, v.width, v.height, v.rgb, scores));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let scale = RelevancyScale::spanning(views.iter().map(|v| v.4.as_slice()));
+    println!(
+        "relevancy scale over {} views: cosine {:.3} -> 0, {:.3} -> 1; highlighted from {RELEVANCY_THRESHOLD} (cosine {:.3})",
+        views.len(),
+        scale.lo,
+        scale.hi,
+        scale.lo + RELEVANCY_THRESHOLD as f64 * (scale.hi - scale.lo)
+    );
+    let (mut animation, mut gif_size) = (Vec::new(), (0, 0));
+    for (c, w, h, rgb, scores) in &views {
+        let overlay = relevancy_overlay(rgb, &scale.apply(scores));
+        let (bw, px) = crate::visual::with_colour_bar(
+            *w,
+            *h,
+            &overlay,
+            RELEVANCY_THRESHOLD,
+            scale.lo,
+            scale.hi,
+        );
         let path = out.join(format!("{}_{label}_relevancy.png", c.name));
-        save_rgb8(&path, v.width, v.height, relevancy_overlay(&v.rgb, &rel))?;
+        if r.camera_path.is_some() {
+            animation.push(px.clone());
+            gif_size = (bw, *h);
+        }
+        save_rgb8(&path, bw, *h, px)?;
+        written.push(path);
+    }
+    if !animation.is_empty() {
+        let path = out.join(format!("{label}_relevancy.gif"));
+        crate::visual::write_gif(&path, gif_size.0, gif_size.1, &animation, 10)?;
         written.push(path);
     }
     if let Some(spec) = &args.points {

@@ -3,7 +3,9 @@
 //! with its metrics, and relevancy queries.
 #![warn(missing_docs)]
 
+pub mod backend;
 pub mod cameras;
+pub mod checks;
 pub mod colormap;
 pub mod commands;
 pub mod error;
@@ -14,5 +16,6 @@ pub mod render;
 pub mod run;
 pub mod segment;
 pub mod similarity;
+pub mod visual;
 
 pub use error::EvalError;

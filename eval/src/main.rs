@@ -23,8 +23,20 @@ enum Command {
     Render(RenderArgs),
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+fn main() -> std::process::ExitCode {
+    // Printed as one line per cause (not through `main`'s `Debug`, which adds
+    // a backtrace whenever RUST_BACKTRACE is set), like `train`.
+    match run(Cli::parse()) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
         Command::Segment(a) => {
             segment_command(&a)?;
         }

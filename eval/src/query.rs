@@ -85,7 +85,64 @@ pub fn normalize_scores(scores: &[f64]) -> Vec<f32> {
         .collect()
 }
 
-/// Relevancy of every pixel of `view` in `[0, 1]`.
+/// One linear map from cosine similarity to relevancy in `[0, 1]`, shared
+/// by every view of a query: the lowest cosine over all views maps to 0, the
+/// highest to 1. Scaling each view on its own would give every view a "hot"
+/// region, even one that does not show the queried class at all.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RelevancyScale {
+    /// Cosine at relevancy 0.
+    pub lo: f64,
+    /// Cosine at relevancy 1.
+    pub hi: f64,
+}
+
+impl RelevancyScale {
+    /// The scale spanning every finite score of `sets`.
+    pub fn spanning<'a>(sets: impl IntoIterator<Item = &'a [f64]>) -> Self {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &s in sets.into_iter().flatten() {
+            if s.is_finite() {
+                lo = lo.min(s);
+                hi = hi.max(s);
+            }
+        }
+        if lo > hi {
+            (lo, hi) = (0.0, 0.0);
+        }
+        Self { lo, hi }
+    }
+
+    /// Relevancy of each score (0 for a constant scale).
+    pub fn apply(&self, scores: &[f64]) -> Vec<f32> {
+        let span = self.hi - self.lo;
+        scores
+            .iter()
+            .map(|&s| {
+                if span > 1e-12 && s.is_finite() {
+                    ((s - self.lo) / span).clamp(0.0, 1.0) as f32
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+}
+
+/// Cosine similarity of every pixel of `view`'s feature image with `query`.
+pub fn view_cosines(
+    view: &RenderedView,
+    query: &[f32],
+    pca: Option<&Pca>,
+) -> Result<Vec<f64>, EvalError> {
+    if view.feature_dim == 0 {
+        return Err(EvalError::Invalid("the view has no feature image".into()));
+    }
+    cosine_scores(&view.feature, query, pca)
+}
+
+/// Relevancy of every pixel of `view` in `[0, 1]`, scaled over this view
+/// alone (see [`RelevancyScale`] for a scale shared across views).
 pub fn relevancy_image(
     view: &RenderedView,
     query: &[f32],
@@ -133,6 +190,22 @@ mod tests {
         assert_eq!(&o[0..3], &turbo(1.0).map(to_u8));
         assert_eq!(&o[6..9], &turbo(n[2]).map(to_u8));
         assert_eq!(normalize_scores(&[3.0, 3.0]), vec![0.0, 0.0]);
+    }
+
+    #[test]
+    fn one_scale_across_views_leaves_a_view_without_the_class_cold() {
+        // View a shows the class (cosine 0.9), view b does not (at most 0.3).
+        let a = [0.9, 0.1, 0.2];
+        let b = [0.3, 0.1, 0.25];
+        let scale = RelevancyScale::spanning([&a[..], &b[..]]);
+        assert_eq!((scale.lo, scale.hi), (0.1, 0.9));
+        let rb = scale.apply(&b);
+        assert!(rb.iter().all(|&r| r < RELEVANCY_THRESHOLD), "{rb:?}");
+        assert_eq!(scale.apply(&a)[0], 1.0);
+        // Scaled alone, view b would have been "hot" where it is least cold.
+        assert_eq!(normalize_scores(&b)[0], 1.0);
+        let flat = RelevancyScale::spanning([&[0.5, 0.5][..]]);
+        assert_eq!(flat.apply(&[0.5]), vec![0.0]);
     }
 
     #[test]

@@ -145,8 +145,9 @@ fn train_then_segment_in_every_mode() {
         radius: 0.01,
         chunk: 4096,
         split: None,
-        out: Some(out.clone()),
-        device: "flex".into(),
+        out: Some(dir.path().join("seg")),
+        backend: eval::backend::BackendKind::Flex,
+        device: None,
         compare: true,
     };
     let scores = segment_command(&args).expect("segment command");

@@ -1,55 +1,11 @@
 //! From the `--backend` flag to a Burn device. Everything downstream takes a
 //! runtime [`Device`], so the one training step runs unchanged on each.
 
-use burn::tensor::{Device, DeviceKind};
-use serde::{Deserialize, Serialize};
+use burn::tensor::Device;
 
-/// The compute backends this build supports.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum BackendKind {
-    /// Burn's pure-Rust CPU backend (fastest on the CPU).
-    #[default]
-    Flex,
-    /// The ndarray CPU backend (reference; slower).
-    Ndarray,
-    /// wgpu (Vulkan / Metal / DX12), a GPU or a software Vulkan driver.
-    Wgpu,
-}
-
-impl BackendKind {
-    /// Lower-case name as used on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Flex => "flex",
-            Self::Ndarray => "ndarray",
-            Self::Wgpu => "wgpu",
-        }
-    }
-}
-
-impl std::fmt::Display for BackendKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// The inference device (no autodiff) for `kind`. For wgpu, `index` picks
-/// the discrete GPU with that index; without it wgpu's default adapter is
-/// used (which is also how a software Vulkan driver is reached). The device
-/// is always chosen explicitly: with the wgpu feature compiled in, Burn's
-/// `Device::default()` would silently pick wgpu.
-pub fn device(kind: BackendKind, index: Option<usize>) -> Device {
-    match kind {
-        BackendKind::Flex => Device::flex(),
-        #[allow(deprecated)] // ndarray is kept as a reference backend on purpose
-        BackendKind::Ndarray => Device::ndarray(),
-        BackendKind::Wgpu => Device::wgpu(match index {
-            Some(i) => DeviceKind::DiscreteGpu(i),
-            None => DeviceKind::DefaultDevice,
-        }),
-    }
-}
+// One definition for both binaries, so `--backend` and `--device` mean the
+// same in `train` and `eval`.
+pub use eval::backend::{BackendKind, device};
 
 /// The training device: [`device`] with autodiff enabled.
 pub fn training_device(kind: BackendKind, index: Option<usize>) -> Device {

@@ -1,0 +1,312 @@
+//! The `eval` binary on bad arguments and inputs (an error naming the flag
+//! or file, never a panic or a silently wrong result) and on the outputs
+//! meant for reading: held-out renders next to the ground truth, camera-path
+//! GIFs, relevancy images with one scale, `segment --out DIR`.
+//!
+//! The run directory is made here without training: an untrained tiny field
+//! on the synthetic CI scene loads, renders and segments like a trained one.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+use burn::module::Module;
+use burn::tensor::Device;
+use datasets::SceneMeta;
+use datasets::points::{PointCloud, write_ply};
+use datasets::synthetic::{SceneSize, generate};
+use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+
+/// A run directory of an untrained tiny field on the synthetic CI scene
+/// (seed 0), made once per test binary; tests copy it when they change it.
+fn run_dir() -> &'static Path {
+    static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let scene = generate(0, SceneSize::Ci).expect("CI scene");
+        let features = scene.features.as_ref().expect("features");
+        let config = OpenNerfConfig::new(
+            FeatureHeadConfig::new(features.dim())
+                .with_width(8)
+                .with_layers(1),
+        )
+        .with_mlp(
+            MipMlpConfig::new()
+                .with_width(16)
+                .with_depth(2)
+                .with_skip_layer(1)
+                .with_max_deg(4),
+        )
+        .with_num_samples(4);
+        let bytes = config
+            .init(&Device::flex())
+            .into_record()
+            .into_bytes()
+            .expect("serialise");
+        std::fs::write(dir.path().join("model.bpk"), bytes.to_vec()).expect("weights");
+        let json = |name: &str, v: serde_json::Value| {
+            std::fs::write(dir.path().join(name), v.to_string()).expect("write json");
+        };
+        json("config.json", serde_json::json!({ "model": config }));
+        let meta = SceneMeta {
+            source: scene.source.clone(),
+            scene_box: scene.scene_box,
+            background: scene.background,
+            pca: features.pca.clone(),
+            feature_dim: Some(features.full_dim),
+        };
+        json("scene.json", serde_json::to_value(&meta).expect("meta"));
+        let n = scene.frames.len();
+        json(
+            "split.json",
+            serde_json::json!({
+                "train": (1..n).collect::<Vec<_>>(),
+                "heldout": [0],
+            }),
+        );
+        dir
+    })
+    .path()
+}
+
+fn copy_run(to: &Path) -> PathBuf {
+    let dst = to.join("run");
+    std::fs::create_dir_all(&dst).expect("mkdir");
+    for name in ["model.bpk", "config.json", "scene.json", "split.json"] {
+        std::fs::copy(run_dir().join(name), dst.join(name)).expect("copy");
+    }
+    dst
+}
+
+fn eval(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_eval"))
+        .args(args)
+        .output()
+        .expect("the eval binary runs")
+}
+
+/// Asserts the command failed cleanly (no panic) with every `words` in its
+/// error output.
+fn assert_refused(args: &[&str], words: &[&str]) {
+    let out = eval(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{args:?} succeeded: {err}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for w in words {
+        assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
+    }
+}
+
+const MISSING: &str = "/nonexistent/run";
+
+#[test]
+fn zero_sizes_and_counts_are_refused_by_flag() {
+    for (args, flag) in [
+        (
+            &["render", "--run", MISSING, "--width", "0"][..],
+            "--width 0",
+        ),
+        (&["render", "--run", MISSING, "--height", "0"], "--height 0"),
+        (
+            &["render", "--run", MISSING, "--max-views", "0"],
+            "--max-views 0",
+        ),
+        (
+            &["render", "--run", MISSING, "--camera-path", "0"],
+            "--camera-path 0",
+        ),
+        (
+            &["query", "--run", MISSING, "--query", "sofa", "--width", "0"],
+            "--width 0",
+        ),
+        (
+            &["segment", "--run", MISSING, "--max-views", "0"],
+            "--max-views 0",
+        ),
+        (
+            &["segment", "--run", MISSING, "--render-scale", "0"],
+            "--render-scale 0",
+        ),
+    ] {
+        assert_refused(args, &[flag]);
+    }
+    // 0 views is not "all views": the message says how to get all of them.
+    assert_refused(
+        &["segment", "--run", MISSING, "--max-views", "0"],
+        &["leave the flag out"],
+    );
+}
+
+#[test]
+fn nan_or_negative_radius_is_refused() {
+    for r in ["NaN", "-0.5", "inf"] {
+        assert_refused(&["segment", "--run", MISSING, "--radius", r], &["--radius"]);
+        assert_refused(
+            &["query", "--run", MISSING, "--query", "sofa", "--radius", r],
+            &["--radius"],
+        );
+    }
+}
+
+#[test]
+fn device_means_an_adapter_index_as_in_train() {
+    assert_refused(
+        &["render", "--run", MISSING, "--device", "ndarray"],
+        &["--backend ndarray"],
+    );
+    assert_refused(
+        &["render", "--run", MISSING, "--device", "0"],
+        &["--device", "--backend wgpu"],
+    );
+}
+
+#[test]
+fn query_embedding_of_the_wrong_dimension_is_refused() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let q = tmp.path().join("q7.npy");
+    datasets::npy::write_npy_f32(&q, &[7], &[0.1; 7]).expect("npy");
+    let run = run_dir().display().to_string();
+    assert_refused(
+        &[
+            "query",
+            "--run",
+            &run,
+            "--query-npy",
+            q.to_str().expect("utf-8"),
+        ],
+        &["q7.npy", "7 values", "features have"],
+    );
+}
+
+#[test]
+fn split_with_a_frame_outside_the_scene_names_the_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let run = copy_run(tmp.path());
+    std::fs::write(
+        run.join("split.json"),
+        r#"{"train": [1], "heldout": [999]}"#,
+    )
+    .expect("write");
+    let r = run.display().to_string();
+    assert_refused(
+        &["render", "--run", &r, "--cameras", "heldout"],
+        &["split.json", "frame 999"],
+    );
+}
+
+#[test]
+fn point_labels_outside_the_classes_are_refused() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let ply = tmp.path().join("labels_out_of_range.ply");
+    let cloud = PointCloud {
+        positions: vec![[0.0, 0.0, 0.0], [0.1, 0.2, 0.3]],
+        colors: None,
+        labels: Some(vec![1000, 2000]),
+    };
+    write_ply(&ply, &cloud, &[]).expect("ply");
+    let run = run_dir().display().to_string();
+    assert_refused(
+        &[
+            "segment",
+            "--run",
+            &run,
+            "--points",
+            ply.to_str().expect("utf-8"),
+        ],
+        &["labels_out_of_range.ply", "outside the"],
+    );
+}
+
+#[test]
+fn render_writes_truth_render_error_panels_and_a_path_gif() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("renders");
+    let run = run_dir().display().to_string();
+    let o = out.display().to_string();
+    let r = eval(&["render", "--run", &run, "--out", &o]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let cmp = image::open(out.join("frame000000_compare.png")).expect("comparison image");
+    let rgb = image::open(out.join("frame000000_rgb.png")).expect("render");
+    assert_eq!(cmp.width(), 3 * rgb.width());
+
+    let r = eval(&["render", "--run", &run, "--out", &o, "--camera-path", "4"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(stdout.contains("path.gif"), "{stdout}");
+    let gif = std::fs::File::open(out.join("path.gif")).expect("gif");
+    let frames = image::codecs::gif::GifDecoder::new(std::io::BufReader::new(gif)).expect("decode");
+    use image::AnimationDecoder;
+    assert_eq!(frames.into_frames().count(), 4);
+}
+
+#[test]
+fn segment_out_is_a_directory_and_every_file_is_listed() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("seg");
+    let run = run_dir().display().to_string();
+    let o = out.display().to_string();
+    let r = eval(&[
+        "segment",
+        "--run",
+        &run,
+        "--out",
+        &o,
+        "--max-views",
+        "2",
+        "--render-scale",
+        "0.5",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    for name in [
+        "segmentation.json",
+        "segmentation_hybrid_pred.ply",
+        "segmentation_hybrid_error.ply",
+    ] {
+        assert!(out.join(name).exists(), "{name} not written");
+        assert!(
+            stdout.contains(&format!("wrote {}", out.join(name).display())),
+            "{stdout}"
+        );
+    }
+    // An existing file is not a directory to write into.
+    let file = out.join("segmentation.json").display().to_string();
+    assert_refused(
+        &["segment", "--run", &run, "--out", &file],
+        &["--out", "directory"],
+    );
+}
+
+#[test]
+fn relevancy_images_share_one_scale_and_carry_a_colour_bar() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("q");
+    let run = run_dir().display().to_string();
+    let o = out.display().to_string();
+    let r = eval(&[
+        "query",
+        "--run",
+        &run,
+        "--query",
+        "sofa",
+        "--cameras",
+        "all",
+        "--max-views",
+        "3",
+        "--out",
+        &o,
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(stdout.contains("relevancy scale over 3 views"), "{stdout}");
+    let written: Vec<PathBuf> = std::fs::read_dir(&out)
+        .expect("out dir")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    assert_eq!(written.len(), 3, "{written:?}");
+    for p in &written {
+        let img = image::open(p).expect("png");
+        // Wider than the 96-pixel view: the colour bar and its labels.
+        assert!(img.width() > 96, "{}: {}", p.display(), img.width());
+    }
+}
