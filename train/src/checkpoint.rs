@@ -195,14 +195,100 @@ pub fn list_checkpoints(dir: &Path) -> Result<Vec<(usize, PathBuf)>, TrainError>
 
 /// Deletes all but the newest `keep` checkpoints in `dir` (keeping at least
 /// one earlier good checkpoint next to the newest one guards against a
-/// damaged newest file).
+/// damaged newest file), and the temporary files of writes that a killed
+/// process left behind.
 pub fn prune_checkpoints(dir: &Path, keep: usize) -> Result<(), TrainError> {
     let all = list_checkpoints(dir)?;
     let n = all.len().saturating_sub(keep.max(1));
     for (_, path) in &all[..n] {
         std::fs::remove_file(path).map_err(|e| TrainError::io(path, e))?;
     }
+    remove_stale_temp_files(dir)?;
     Ok(())
+}
+
+/// The process id in a temporary name written by [`write_atomic`]
+/// (`.NAME.tmp-PID`).
+fn temp_file_pid(name: &str) -> Option<u32> {
+    let (_, pid) = name.strip_prefix('.')?.rsplit_once(".tmp-")?;
+    pid.parse().ok()
+}
+
+/// Whether process `pid` is running. Where `/proc` does not exist, only this
+/// process counts as running (two trainings writing one run directory at the
+/// same time are not supported anyway).
+fn process_alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    let proc = Path::new("/proc");
+    proc.is_dir() && proc.join(pid.to_string()).exists()
+}
+
+/// Deletes the temporary files in `dir` that [`write_atomic`] calls of
+/// processes no longer running left behind (a kill during a write leaves
+/// one; the real file it was to replace is intact). Returns what was deleted.
+pub fn remove_stale_temp_files(dir: &Path) -> Result<Vec<PathBuf>, TrainError> {
+    if !dir.is_dir() {
+        return Ok(Vec::new());
+    }
+    let mut removed = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| TrainError::io(dir, e))? {
+        let path = entry.map_err(|e| TrainError::io(dir, e))?.path();
+        let stale = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(temp_file_pid)
+            .is_some_and(|pid| !process_alive(pid));
+        if stale && path.is_file() {
+            std::fs::remove_file(&path).map_err(|e| TrainError::io(&path, e))?;
+            removed.push(path);
+        }
+    }
+    Ok(removed)
+}
+
+/// The newest checkpoint in `dir` that reads back intact, its path, and the
+/// errors of the newer ones that did not (each renamed to `*.damaged`, so it
+/// is kept for inspection but never listed or pruned as a checkpoint again).
+/// Keeping an older checkpoint next to the newest is for exactly this case.
+pub fn newest_intact(dir: &Path) -> Result<(Checkpoint, PathBuf, Vec<TrainError>), TrainError> {
+    let all = list_checkpoints(dir)?;
+    let mut damaged = Vec::new();
+    for (_, path) in all.iter().rev() {
+        match Checkpoint::read(path) {
+            Ok(ckpt) => {
+                for (_, bad) in all.iter().rev().take(damaged.len()) {
+                    let mut aside = bad.clone().into_os_string();
+                    aside.push(".damaged");
+                    std::fs::rename(bad, &aside).map_err(|e| TrainError::io(bad, e))?;
+                }
+                return Ok((ckpt, path.clone(), damaged));
+            }
+            Err(e @ TrainError::Checkpoint { .. }) => damaged.push(e),
+            Err(e) => return Err(e),
+        }
+    }
+    match damaged.len() {
+        0 => Err(TrainError::NoCheckpoint {
+            path: dir.parent().unwrap_or(dir).to_path_buf(),
+        }),
+        1 => Err(damaged.remove(0)),
+        n => {
+            let first = damaged.remove(0);
+            Err(TrainError::checkpoint(
+                dir,
+                format!(
+                    "all {n} checkpoints are damaged; the newest: {first}; {}",
+                    damaged
+                        .iter()
+                        .map(|e| e.to_string())
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                ),
+            ))
+        }
+    }
 }
 
 #[cfg(test)]
@@ -267,6 +353,53 @@ mod tests {
         }
         let garbage: Vec<u8> = (0..500u32).map(|i| (i * 31 % 251) as u8).collect();
         assert!(Checkpoint::from_bytes(&garbage, p).is_err());
+    }
+
+    #[test]
+    fn stale_temporary_files_are_removed_and_live_ones_kept() {
+        let d = tmpdir("stale");
+        // A pid far above any pid_max: no such process.
+        let stale = d.join(".ckpt-00000020.onck.tmp-4000000000");
+        let live = d.join(format!(".ckpt-00000040.onck.tmp-{}", std::process::id()));
+        std::fs::write(&stale, b"half a checkpoint").unwrap();
+        std::fs::write(&live, b"being written").unwrap();
+        sample().write(&checkpoint_path(&d, 20)).unwrap();
+        prune_checkpoints(&d, 2).unwrap();
+        assert!(!stale.exists(), "a dead process's temporary file is left");
+        assert!(
+            live.exists(),
+            "this process's own temporary file was removed"
+        );
+        assert!(checkpoint_path(&d, 20).exists());
+        assert_eq!(temp_file_pid(".model.bpk.tmp-12"), Some(12));
+        assert_eq!(temp_file_pid("model.bpk"), None);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn a_damaged_newest_checkpoint_falls_back_to_the_older_one() {
+        let d = tmpdir("fallback");
+        let mut older = sample();
+        older.state.iteration = 20;
+        older.write(&checkpoint_path(&d, 20)).unwrap();
+        sample().write(&checkpoint_path(&d, 40)).unwrap();
+        let newest = checkpoint_path(&d, 40);
+        let bytes = std::fs::read(&newest).unwrap();
+        std::fs::write(&newest, &bytes[..bytes.len() / 2]).unwrap();
+        let (ckpt, path, damaged) = newest_intact(&d).unwrap();
+        assert_eq!(ckpt.state.iteration, 20);
+        assert_eq!(path, checkpoint_path(&d, 20));
+        assert_eq!(damaged.len(), 1);
+        assert!(damaged[0].to_string().contains("ckpt-00000040"));
+        // The damaged file is kept aside, no longer listed as a checkpoint.
+        let its: Vec<usize> = list_checkpoints(&d).unwrap().iter().map(|c| c.0).collect();
+        assert_eq!(its, vec![20]);
+        assert!(d.join("ckpt-00000040.onck.damaged").exists());
+        // With every checkpoint damaged the error names the newest.
+        std::fs::write(checkpoint_path(&d, 20), b"garbage").unwrap();
+        let err = newest_intact(&d).unwrap_err().to_string();
+        assert!(err.contains("ckpt-00000020"), "{err}");
+        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
