@@ -5,6 +5,7 @@
 //! ray sampler.
 #![warn(missing_docs)]
 
+pub mod balance;
 pub mod blender;
 pub mod error;
 pub mod extractor;
@@ -29,8 +30,24 @@ use std::path::PathBuf;
 /// Loads (or generates) the scene `source` describes. Disk formats read
 /// their options from `options` (missing fields take their defaults).
 pub fn load_scene(source: &SceneSource) -> Result<Scene, DatasetError> {
+    load_scene_with_basis(source, None)
+}
+
+/// [`load_scene`], compressing the feature maps with `basis` (a run's
+/// stored PCA basis) instead of fitting one: a rebuilt scene then has
+/// exactly the targets its field was trained on.
+pub fn load_scene_with_basis(
+    source: &SceneSource,
+    basis: Option<&features::Pca>,
+) -> Result<Scene, DatasetError> {
     match source {
-        SceneSource::Synthetic { seed, size } => synthetic::generate(*seed, size.parse()?),
+        SceneSource::Synthetic { seed, size, pca } => {
+            let size: synthetic::SceneSize = size.parse()?;
+            let target = pca.map_or(size.pca_target(), |p| p.target());
+            let mut scene = synthetic::generate_with(*seed, size, target, basis)?;
+            scene.source = source.clone();
+            Ok(scene)
+        }
         SceneSource::Disk {
             format,
             path,
@@ -47,10 +64,12 @@ pub fn load_scene(source: &SceneSource) -> Result<Scene, DatasetError> {
                 DatasetError::invalid(path, format!("bad {format} loader options: {e}"))
             };
             match format.as_str() {
-                "replica" => replica::load_replica(
-                    path,
-                    &serde_json::from_value(opts(options)).map_err(bad)?,
-                ),
+                "replica" => {
+                    let mut o: replica::ReplicaOptions =
+                        serde_json::from_value(opts(options)).map_err(bad)?;
+                    o.basis = basis.cloned();
+                    replica::load_replica(path, &o)
+                }
                 "blender" => blender::load_blender(
                     path,
                     &serde_json::from_value(opts(options)).map_err(bad)?,

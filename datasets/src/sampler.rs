@@ -180,6 +180,23 @@ pub fn sample_batch_from(
     frames: &[usize],
     index: u64,
 ) -> Result<RayBatch, DatasetError> {
+    check_frames(scene, frames)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    rng.set_stream(index);
+    let picks: Vec<(usize, u32, u32)> = (0..config.rays_per_batch)
+        .map(|_| {
+            let fi = frames[rng.random_range(0..frames.len())];
+            let frame = &scene.frames[fi];
+            let ((x0, x1), (y0, y1)) =
+                interior(config.border_margin, frame.rgb.width, frame.rgb.height);
+            (fi, rng.random_range(x0..x1), rng.random_range(y0..y1))
+        })
+        .collect();
+    Ok(batch_at(config, scene, frames, &picks))
+}
+
+/// Checks that `frames` can be sampled from: non-empty, in range, non-empty images.
+pub(crate) fn check_frames(scene: &Scene, frames: &[usize]) -> Result<(), DatasetError> {
     let err = |m: &str| DatasetError::invalid(&scene.name, m.to_string());
     if frames.is_empty() {
         return Err(err("no frames to sample rays from"));
@@ -197,9 +214,18 @@ pub fn sample_batch_from(
     {
         return Err(err(&format!("frame {} has an empty image", f.name)));
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
-    rng.set_stream(index);
-    let n = config.rays_per_batch;
+    Ok(())
+}
+
+/// The rays and targets of the pixels `picks` (`(frame, x, y)`); `frames`
+/// decides whether the batch carries depth (any of them has it).
+pub(crate) fn batch_at(
+    config: &SamplerConfig,
+    scene: &Scene,
+    frames: &[usize],
+    picks: &[(usize, u32, u32)],
+) -> RayBatch {
+    let n = picks.len();
     let has_depth = frames.iter().any(|&f| scene.frames[f].depth.is_some());
     let feature_dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut b = RayBatch {
@@ -215,13 +241,9 @@ pub fn sample_batch_from(
         feature_dim,
         pixels: Vec::with_capacity(n),
     };
-    for _ in 0..n {
-        let fi = frames[rng.random_range(0..frames.len())];
+    for &(fi, x, y) in picks {
         let frame = &scene.frames[fi];
         let (w, h) = (frame.rgb.width, frame.rgb.height);
-        let ((x0, x1), (y0, y1)) = interior(config.border_margin, w, h);
-        let x = rng.random_range(x0..x1);
-        let y = rng.random_range(y0..y1);
         let ray = frame.camera.ray(x as f64, y as f64);
         b.rays
             .push(scene.scene_box.normalize_ray(&ray, config.min_near));
@@ -256,7 +278,7 @@ pub fn sample_batch_from(
             }
         }
     }
-    Ok(b)
+    b
 }
 
 /// Rays through every pixel of `camera`'s image, row-major, for rendering.

@@ -1,0 +1,216 @@
+//! Feature-balanced ray sampling: pixels are drawn with a probability that
+//! grows with the rarity of their feature target, so that small objects (a
+//! few dozen pixels in a few views) receive more than a handful of rays in a
+//! whole training run.
+//!
+//! Rarity needs no labels: the training frames' feature targets are
+//! clustered (k-means in the maps' own space, PCA coefficients when
+//! compressed) and a pixel of a cluster holding the fraction `f` of all
+//! pixels is drawn with weight `f^-power`. `power = 0` is uniform sampling,
+//! `power = 1` gives every cluster the same share of rays. Because the
+//! weight follows the target, a surface point seen close up (where the
+//! extractor recognises it: a rare feature) gets more rays from those views
+//! than from far views where it smears into its surroundings (a common
+//! feature).
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::DatasetError;
+use crate::sampler::{RayBatch, SamplerConfig, batch_at, check_frames, interior};
+use crate::scene::Scene;
+
+/// Map pixels sampled to fit the cluster centres.
+const FIT_SAMPLES: usize = 16_384;
+/// Lloyd iterations of the k-means fit.
+const ITERATIONS: usize = 10;
+
+/// How rays are balanced over features.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BalanceConfig {
+    /// Feature clusters.
+    pub clusters: usize,
+    /// Exponent of the rarity weight `f^-power` (0 = uniform).
+    pub power: f64,
+}
+
+/// A block of image pixels that share one map pixel (so one target).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Cell {
+    frame: usize,
+    x: (u32, u32),
+    y: (u32, u32),
+}
+
+/// Draws seeded batches of pixels with feature-balanced probabilities.
+#[derive(Debug, Clone)]
+pub struct BalancedSampler {
+    frames: Vec<usize>,
+    cells: Vec<Cell>,
+    /// Cumulative cell weights (weight x pixel count).
+    cdf: Vec<f64>,
+    /// Fraction of the interior pixels in each cluster (the last entry:
+    /// pixels without a target).
+    pub cluster_fractions: Vec<f64>,
+}
+
+/// For each map column (or row) `m` of a map `map_len` wide, the image
+/// pixels `[a, b)` inside `[lo, hi)` whose nearest map pixel is `m`.
+fn spans(image_len: u32, map_len: u32, lo: u32, hi: u32) -> Vec<(u32, u32, u32)> {
+    let mut out: Vec<(u32, u32, u32)> = Vec::new();
+    for p in lo..hi {
+        let m = (((p as f64 + 0.5) * map_len as f64 / image_len as f64).floor() as u32)
+            .min(map_len - 1);
+        match out.last_mut() {
+            Some(last) if last.0 == m => last.2 = p + 1,
+            _ => out.push((m, p, p + 1)),
+        }
+    }
+    out
+}
+
+fn dist2(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+fn nearest(v: &[f32], centres: &[f32], dim: usize) -> usize {
+    let mut best = (0, f32::INFINITY);
+    for (c, centre) in centres.chunks_exact(dim).enumerate() {
+        let d = dist2(v, centre);
+        if d < best.1 {
+            best = (c, d);
+        }
+    }
+    best.0
+}
+
+impl BalancedSampler {
+    /// Clusters the targets of `frames` and builds the sampling weights.
+    /// `None` when the scene has no feature maps (nothing to balance).
+    pub fn new(
+        scene: &Scene,
+        frames: &[usize],
+        border_margin: u32,
+        balance: &BalanceConfig,
+        seed: u64,
+    ) -> Result<Option<Self>, DatasetError> {
+        check_frames(scene, frames)?;
+        let Some(fs) = scene.features.as_ref() else {
+            return Ok(None);
+        };
+        if !(balance.power.is_finite() && balance.power >= 0.0) || balance.clusters == 0 {
+            return Err(DatasetError::invalid(
+                &scene.name,
+                format!(
+                    "feature balance needs clusters >= 1 and a finite power >= 0, got {} and {}",
+                    balance.clusters, balance.power
+                ),
+            ));
+        }
+        let dim = fs.dim();
+        // Cells of every frame, with the map pixel they read.
+        let mut cells = Vec::new();
+        let mut cell_pixel: Vec<Option<(usize, usize)>> = Vec::new();
+        for &fi in frames {
+            let frame = &scene.frames[fi];
+            let (w, h) = (frame.rgb.width, frame.rgb.height);
+            let ((x0, x1), (y0, y1)) = interior(border_margin, w, h);
+            let map = fs.maps.get(fi);
+            let (mw, mh) = map.map_or((w, h), |m| (m.width, m.height));
+            for (my, ya, yb) in spans(h, mh, y0, y1) {
+                for &(mx, xa, xb) in &spans(w, mw, x0, x1) {
+                    cells.push(Cell {
+                        frame: fi,
+                        x: (xa, xb),
+                        y: (ya, yb),
+                    });
+                    let valid = map.is_some_and(|m| fs.is_target(m.pixel(mx, my)));
+                    cell_pixel.push(valid.then_some((fi, (my * mw + mx) as usize)));
+                }
+            }
+        }
+        let vector = |(fi, p): (usize, usize)| -> Vec<f32> {
+            fs.maps[fi].data[p * dim..(p + 1) * dim]
+                .iter()
+                .map(|v| v.to_f32())
+                .collect()
+        };
+        let valid: Vec<usize> = (0..cells.len())
+            .filter(|&i| cell_pixel[i].is_some())
+            .collect();
+        let k = balance.clusters.min(valid.len()).max(1);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xba1a_9ce5);
+        let fit: Vec<Vec<f32>> = (0..FIT_SAMPLES.min(valid.len()))
+            .filter_map(|_| cell_pixel[valid[rng.random_range(0..valid.len())]])
+            .map(vector)
+            .collect();
+        let mut centres: Vec<f32> = Vec::with_capacity(k * dim);
+        for i in 0..k.min(fit.len()) {
+            centres.extend_from_slice(&fit[i * fit.len() / k.min(fit.len())]);
+        }
+        let k = centres.len() / dim.max(1);
+        for _ in 0..ITERATIONS {
+            let mut sums = vec![0f64; k * dim];
+            let mut counts = vec![0usize; k];
+            for v in &fit {
+                let c = nearest(v, &centres, dim);
+                counts[c] += 1;
+                for (s, &x) in sums[c * dim..(c + 1) * dim].iter_mut().zip(v) {
+                    *s += x as f64;
+                }
+            }
+            for c in 0..k {
+                if counts[c] > 0 {
+                    for j in 0..dim {
+                        centres[c * dim + j] = (sums[c * dim + j] / counts[c] as f64) as f32;
+                    }
+                }
+            }
+        }
+        // Cluster of every cell (k = no target) and the pixel share of each.
+        let cluster: Vec<usize> = cell_pixel
+            .iter()
+            .map(|p| p.map_or(k, |p| nearest(&vector(p), &centres, dim)))
+            .collect();
+        let area = |c: &Cell| ((c.x.1 - c.x.0) * (c.y.1 - c.y.0)) as f64;
+        let mut share = vec![0f64; k + 1];
+        for (c, &g) in cells.iter().zip(&cluster) {
+            share[g] += area(c);
+        }
+        let total: f64 = share.iter().sum::<f64>().max(1.0);
+        share.iter_mut().for_each(|s| *s /= total);
+        let mut cdf = Vec::with_capacity(cells.len());
+        let mut acc = 0.0;
+        for (c, &g) in cells.iter().zip(&cluster) {
+            acc += area(c) * share[g].max(1e-12).powf(-balance.power);
+            cdf.push(acc);
+        }
+        Ok(Some(Self {
+            frames: frames.to_vec(),
+            cells,
+            cdf,
+            cluster_fractions: share,
+        }))
+    }
+
+    /// Batch number `index` (a pure function of `config.seed` and `index`,
+    /// so training resumes exactly).
+    pub fn batch(&self, config: &SamplerConfig, scene: &Scene, index: u64) -> RayBatch {
+        let mut rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x0b5e_55ed);
+        rng.set_stream(index);
+        let total = self.cdf.last().copied().unwrap_or(0.0);
+        let picks: Vec<(usize, u32, u32)> = (0..config.rays_per_batch)
+            .map(|_| {
+                let u = rng.random_range(0.0..total.max(f64::MIN_POSITIVE));
+                let i = self.cdf.partition_point(|&c| c <= u).min(self.cells.len() - 1);
+                let c = self.cells[i];
+                (
+                    c.frame,
+                    rng.random_range(c.x.0..c.x.1),
+                    rng.random_range(c.y.0..c.y.1),
+                )
+            })
+            .collect();
+        batch_at(config, scene, &self.frames, &picks)
+    }
+}
