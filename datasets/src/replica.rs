@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use model::geometry::{Camera, Intrinsics, Pose};
 
 use crate::error::DatasetError;
-use crate::features::{FeatureSource, PcaTarget, load_features};
+use crate::features::{FeatureSource, Pca, PcaTarget, load_features, load_features_with_basis};
 use crate::poses::{backproject, box_of, checked_pose};
 use crate::scene::{Frame, Scene, SceneSource};
 use crate::{DepthImage, imageio};
@@ -28,6 +28,10 @@ pub struct ReplicaOptions {
     pub features: Option<PathBuf>,
     /// PCA compression of the feature maps.
     pub pca: Option<PcaTarget>,
+    /// A basis to compress with instead of fitting one (a run's stored
+    /// basis when its scene is rebuilt); not part of the saved options.
+    #[serde(skip)]
+    pub basis: Option<Pca>,
     /// Seed of the PCA pixel sample.
     pub seed: u64,
     /// Scene-box margin, as a fraction of the largest extent.
@@ -44,6 +48,7 @@ impl Default for ReplicaOptions {
             resolution: None,
             features: None,
             pca: None,
+            basis: None,
             seed: 0,
             box_margin: 0.05,
             box_pixel_step: 8,
@@ -233,7 +238,10 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
             let source = FeatureSource::discover(path, &names)?;
             let sizes: Vec<(u32, u32)> =
                 frames.iter().map(|f| (f.rgb.width, f.rgb.height)).collect();
-            Some(load_features(&source, &sizes, options.pca, options.seed)?)
+            Some(match &options.basis {
+                Some(basis) => load_features_with_basis(&source, &sizes, basis)?,
+                None => load_features(&source, &sizes, options.pca, options.seed)?,
+            })
         }
         None => None,
     };

@@ -101,6 +101,9 @@ pub enum SceneSource {
         seed: u64,
         /// Size preset (`ci` or `bench`).
         size: String,
+        /// Compression of the feature maps (`None`: the size preset's).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pca: Option<crate::features::PcaSetting>,
     },
     /// A dataset on disk.
     Disk {

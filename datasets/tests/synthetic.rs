@@ -62,7 +62,8 @@ fn ci_preset_shapes_and_source() {
         s.source,
         datasets::SceneSource::Synthetic {
             seed: SEED,
-            size: "ci".into()
+            size: "ci".into(),
+            pca: None,
         }
     );
     assert_eq!("bench".parse::<SceneSize>().unwrap(), SceneSize::Bench);
@@ -378,4 +379,52 @@ fn report_extractor_accuracy_and_build_times() {
                 .unwrap_or_default()
         );
     }
+}
+
+/// `--pca` reaches the synthetic scene through its source, and a rebuilt
+/// scene compresses with the basis it is given (a run's stored basis), not
+/// with a new fit: here a basis whose components are reordered and negated,
+/// which a fit would never return, gives the reordered, negated coefficients.
+#[test]
+fn pca_setting_and_stored_basis_are_honoured() {
+    use datasets::SceneSource;
+    use datasets::features::PcaSetting;
+    let source = SceneSource::Synthetic {
+        seed: SEED,
+        size: "ci".into(),
+        pca: Some(PcaSetting::Components(4)),
+    };
+    let fitted = datasets::load_scene(&source).expect("scene");
+    assert_eq!(fitted.source, source);
+    let fs = fitted.features.as_ref().expect("features");
+    let pca = fs.pca.clone().expect("compressed");
+    assert_eq!((pca.k, fs.dim()), (4, 4));
+    let mut swapped = pca.clone();
+    let d = pca.dim;
+    for (i, j) in [(0usize, 1usize), (1, 0), (2, 2), (3, 3)] {
+        for c in 0..d {
+            swapped.components[i * d + c] = -pca.components[j * d + c];
+        }
+    }
+    let reloaded = datasets::load_scene_with_basis(&source, Some(&swapped)).expect("reload");
+    let rs = reloaded.features.as_ref().expect("features");
+    assert_eq!(rs.pca.as_ref(), Some(&swapped));
+    let (a, b) = (&fs.maps[3], &rs.maps[3]);
+    for p in 0..(a.width * a.height) as usize {
+        let (x, y) = (&a.data[p * 4..p * 4 + 4], &b.data[p * 4..p * 4 + 4]);
+        for (i, j) in [(0usize, 1usize), (1, 0), (2, 2), (3, 3)] {
+            let (want, got) = (-x[j].to_f32(), y[i].to_f32());
+            assert!((want - got).abs() <= 2e-3 * (1.0 + want.abs()), "{want} vs {got}");
+        }
+    }
+    let off = SceneSource::Synthetic {
+        seed: SEED,
+        size: "ci".into(),
+        pca: Some(PcaSetting::Off),
+    };
+    let full = datasets::load_scene(&off).expect("scene");
+    assert!(full.features.as_ref().expect("features").pca.is_none());
+    assert_eq!("auto".parse::<PcaSetting>(), Ok(PcaSetting::Auto));
+    assert_eq!("12".parse::<PcaSetting>(), Ok(PcaSetting::Components(12)));
+    assert!("0".parse::<PcaSetting>().is_err() && "-3".parse::<PcaSetting>().is_err());
 }

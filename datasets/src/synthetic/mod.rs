@@ -22,7 +22,7 @@ pub use room::{Room, build_room};
 
 use crate::error::DatasetError;
 use crate::extractor::{FeatureExtractor, SimulatedExtractor};
-use crate::features::{FeatureSet, PcaTarget, compress_map};
+use crate::features::{FeatureSet, Pca, PcaTarget, compress_map};
 use crate::points::PointCloud;
 use crate::scene::{FeatureMap, Frame, Scene, SceneSource};
 
@@ -188,6 +188,18 @@ pub fn surface_points(room: &Room, seed: u64, size: SceneSize) -> PointCloud {
 /// every 10th frame and applied map by map, so all maps are never held at
 /// full dimension), the labelled point cloud and the class embeddings.
 pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
+    generate_with(seed, size, size.pca_target(), None)
+}
+
+/// [`generate`] with the feature compression chosen: `pca` is the fitting
+/// target (`None`: full dimension); a given `basis` is used instead of
+/// fitting one (a run's stored basis).
+pub fn generate_with(
+    seed: u64,
+    size: SceneSize,
+    pca: Option<PcaTarget>,
+    basis: Option<&Pca>,
+) -> Result<Scene, DatasetError> {
     let room = build_room(seed);
     let palette = classes::palette(seed);
     let cameras = trajectory(&room, size, seed)?;
@@ -206,7 +218,7 @@ pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
             labels: Some(r.labels),
         })
         .collect();
-    let features = extract_all(&extractor, &frames, size.pca_target(), seed)?;
+    let features = extract_all(&extractor, &frames, pca, basis, seed)?;
     let points = surface_points(&room, seed, size);
     let corners = (0..8).map(|c| {
         [0, 1, 2].map(|k| {
@@ -231,29 +243,47 @@ pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
         source: SceneSource::Synthetic {
             seed,
             size: size.to_string(),
+            pca: None,
         },
     })
 }
 
 /// Runs the extractor on every frame in parallel threads; with a PCA target,
-/// fits the basis on every 10th frame and compresses each map right after
-/// extraction.
+/// fits the basis on every 10th frame (or takes `basis`) and compresses each
+/// map right after extraction.
 fn extract_all(
     extractor: &SimulatedExtractor,
     frames: &[Frame],
     pca: Option<PcaTarget>,
+    basis: Option<&Pca>,
     seed: u64,
 ) -> Result<FeatureSet, DatasetError> {
     let full_dim = extractor.dim();
-    let Some(target) = pca else {
-        let maps = parallel_maps(frames, |f| extractor.extract(&f.rgb))?;
-        return FeatureSet::from_maps(maps, None, seed);
+    let basis = match (basis, pca) {
+        (Some(b), _) if b.dim != full_dim => {
+            return Err(DatasetError::invalid(
+                "<synthetic scene>",
+                format!(
+                    "the stored PCA basis expects dimension {} but the extractor gives {full_dim}",
+                    b.dim
+                ),
+            ));
+        }
+        (Some(b), _) => b.clone(),
+        (None, None) => {
+            let maps = parallel_maps(frames, |f| extractor.extract(&f.rgb))?;
+            return FeatureSet::from_maps(maps, None, seed);
+        }
+        (None, Some(target)) => {
+            let fit_frames: Vec<Frame> = frames.iter().step_by(10).cloned().collect();
+            let fit_maps = parallel_maps(&fit_frames, |f| extractor.extract(&f.rgb))?;
+            FeatureSet::from_maps(fit_maps, Some(target), seed)?
+                .pca
+                .ok_or_else(|| {
+                    DatasetError::invalid("<synthetic scene>", "PCA fit returned no basis")
+                })?
+        }
     };
-    let fit_frames: Vec<Frame> = frames.iter().step_by(10).cloned().collect();
-    let fit_maps = parallel_maps(&fit_frames, |f| extractor.extract(&f.rgb))?;
-    let basis = FeatureSet::from_maps(fit_maps, Some(target), seed)?
-        .pca
-        .ok_or_else(|| DatasetError::invalid("<synthetic scene>", "PCA fit returned no basis"))?;
     let maps = parallel_maps(frames, |f| {
         let m = extractor.extract(&f.rgb)?;
         Ok(compress_map(&m, &basis))
