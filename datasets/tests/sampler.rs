@@ -191,12 +191,11 @@ fn pixels_without_a_feature_target_are_masked() {
                 }
             }
             let pca = fs.pca.as_ref().expect("basis");
-            for c in 0..2 {
-                let want = mean[c] / n;
+            for (c, (&sum, &got)) in mean.iter().zip(&pca.mean).enumerate() {
+                let want = sum / n;
                 assert!(
-                    (pca.mean[c] as f64 - want).abs() < 1e-3 * want.abs(),
-                    "mean[{c}] {} vs {want}",
-                    pca.mean[c]
+                    (got as f64 - want).abs() < 1e-3 * want.abs(),
+                    "mean[{c}] {got} vs {want}"
                 );
             }
         }

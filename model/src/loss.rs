@@ -56,8 +56,8 @@ pub enum FeatureSpace {
     Identity,
     /// PCA coefficients of `m + U^T c`.
     Lifted {
-        /// `U m`, `[1, k]`.
-        mean_proj: Tensor<2>,
+        /// `U m`, `[1, k]` (boxed: the variant would dwarf `Identity`).
+        mean_proj: Box<Tensor<2>>,
         /// `|m|^2`.
         mean_sq: f32,
     },
@@ -85,8 +85,8 @@ pub fn open_set_cosine(
     let (dot, p2, t2) = match space {
         FeatureSpace::Identity => (dot, p2, t2),
         FeatureSpace::Lifted { mean_proj, mean_sq } => {
-            let pm = pred.mul(mean_proj.clone()).sum_dim(1);
-            let tm = target.mul(mean_proj.clone()).sum_dim(1);
+            let pm = pred.mul((**mean_proj).clone()).sum_dim(1);
+            let tm = target.mul((**mean_proj).clone()).sum_dim(1);
             (
                 dot.add(pm.clone()).add(tm.clone()).add_scalar(*mean_sq),
                 p2.add(pm.mul_scalar(2.0)).add_scalar(*mean_sq),
@@ -94,7 +94,10 @@ pub fn open_set_cosine(
             )
         }
     };
-    let valid = t2.clone().greater_elem(eps2).bool_and(mask.greater_elem(0.5));
+    let valid = t2
+        .clone()
+        .greater_elem(eps2)
+        .bool_and(mask.greater_elem(0.5));
     let count = valid.clone().float().sum().clamp_min(1.0);
     let p_norm = p2.clamp_min(eps2).sqrt();
     let t_norm = t2.clamp_min(eps2).sqrt();

@@ -155,10 +155,14 @@ fn cosine_loss_compares_lifted_features() {
         .map(|r| r.iter().zip(&m).map(|(a, b)| a * b).sum::<f64>() as f32)
         .collect();
     let msq = m.iter().map(|x| x * x).sum::<f64>() as f32;
-    let target = vec![0.8, -0.4, 0.3, 0.1, 0.9, -0.7, -1.2, 0.2, 0.5, 2.0, 1.0, 0.0];
+    let target = vec![
+        0.8, -0.4, 0.3, 0.1, 0.9, -0.7, -1.2, 0.2, 0.5, 2.0, 1.0, 0.0,
+    ];
     // Ray 0: half the target (centred cosine 1); rays 1-2: other values;
     // ray 3 is masked out.
-    let pred = vec![0.4, -0.2, 0.15, -0.3, 0.2, 0.4, 0.0, 0.0, 0.0, 9.0, 9.0, 9.0];
+    let pred = vec![
+        0.4, -0.2, 0.15, -0.3, 0.2, 0.4, 0.0, 0.0, 0.0, 9.0, 9.0, 9.0,
+    ];
     let mask = vec![1.0, 1.0, 1.0, 0.0];
     let want: f64 = (0..3)
         .map(|r| {
@@ -170,11 +174,14 @@ fn cosine_loss_compares_lifted_features() {
         .sum::<f64>()
         / 3.0;
     let half = 1.0 - cos64(&lift(&u, &m, &pred[..k]), &lift(&u, &m, &target[..k]));
-    assert!(half > 1e-3, "the half-length prediction lifts elsewhere: {half}");
+    assert!(
+        half > 1e-3,
+        "the half-length prediction lifts elsewhere: {half}"
+    );
     for (name, device) in devices(false) {
         let device: Device = device.autodiff();
         let space = FeatureSpace::Lifted {
-            mean_proj: tensor(um.clone(), [1, k], &device),
+            mean_proj: Box::new(tensor(um.clone(), [1, k], &device)),
             mean_sq: msq,
         };
         let p = tensor(pred.clone(), [4, k], &device).require_grad();

@@ -214,9 +214,7 @@ fn top_k_one_uses_the_heaviest_sample() {
             .fold((0, -1.0f32), |a, (i, &v)| if v > a.1 { (i, v) } else { a });
         // The weighted mean over one sample is that sample's feature.
         assert!(wmax > 0.0);
-        let want: Vec<f32> = (0..4)
-            .map(|k| per_sample[(r * s + imax) * 4 + k])
-            .collect();
+        let want: Vec<f32> = (0..4).map(|k| per_sample[(r * s + imax) * 4 + k]).collect();
         assert_close(
             &got[r * 4..r * 4 + 4],
             &want,
