@@ -21,7 +21,7 @@ use crate::render::{render_view, save_rgb8, save_view_pngs};
 use crate::run::{LoadedRun, load_run, read_json, write_json};
 use crate::segment::{
     EvalPoints, SegmentMode, SegmentOptions, View, sampled_features, segment_oracle,
-    segment_with_2d_features, segment_with_field, write_prediction_plys,
+    segment_with_2d_features, segment_with_field, segment_with_field_modes, write_prediction_plys,
 };
 
 /// The compute device of `--backend` and `--device`, as in `train`.
@@ -386,31 +386,34 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
     }
     if args.compare {
         let mut rows = Vec::new();
+        let others: Vec<SegmentMode> = [
+            SegmentMode::Sampled,
+            SegmentMode::Project,
+            SegmentMode::Hybrid,
+        ]
+        .into_iter()
+        .filter(|m| *m != mode)
+        .collect();
+        let mut computed = segment_with_field_modes(
+            &run.model,
+            run.meta.pca.as_ref(),
+            &points,
+            &views,
+            &run.meta.scene_box,
+            run.meta.background,
+            &opts,
+            &others,
+            &device,
+        )?;
+        computed.push((mode, pred.clone(), seen));
         for other in [
             SegmentMode::Sampled,
             SegmentMode::Project,
             SegmentMode::Hybrid,
         ] {
-            let pred = if other == mode {
-                pred.clone()
-            } else {
-                let opts = SegmentOptions {
-                    mode: other,
-                    ..opts.clone()
-                };
-                let (pred, _) = segment_with_field(
-                    &run.model,
-                    run.meta.pca.as_ref(),
-                    &points,
-                    &views,
-                    &run.meta.scene_box,
-                    run.meta.background,
-                    &opts,
-                    &device,
-                )?;
-                pred
-            };
-            rows.push(score_of(&other.to_string(), &pred));
+            if let Some((_, p, _)) = computed.iter().find(|(m, _, _)| *m == other) {
+                rows.push(score_of(&other.to_string(), p));
+            }
         }
         let maps = match (&view_frames, scene.and_then(|s| s.features.as_ref())) {
             (Some(frames), Some(set)) => frames
@@ -419,19 +422,12 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
                 .collect::<Option<Vec<_>>>(),
             _ => None,
         };
-        match maps {
-            Some(maps) => {
-                let set = scene.and_then(|s| s.features.as_ref());
-                let pred = segment_with_2d_features(
-                    &maps,
-                    set.and_then(|f| f.pca.as_ref()),
-                    &points,
-                    &views,
-                    &opts.project,
-                )?;
+        match (maps, scene.and_then(|s| s.features.as_ref())) {
+            (Some(maps), Some(set)) => {
+                let pred = segment_with_2d_features(set, &maps, &points, &views, &opts.project)?;
                 rows.push(score_of("2D-feature projection", &pred));
             }
-            None => eprintln!(
+            _ => eprintln!(
                 "note: no 2D feature maps for these cameras; the 2D-feature bound is skipped"
             ),
         }

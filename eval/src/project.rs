@@ -22,7 +22,10 @@ pub struct DepthRef<'a> {
 /// Visibility rules of a projection.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProjectOptions {
-    /// Pixels this close to the border are not used.
+    /// Pixels this close to the border are not used: the training sampler's
+    /// margin (2D feature maps are least reliable there), given for a
+    /// 360-pixel shorter side and scaled with each view's image
+    /// ([`datasets::sampler::scaled_margin`]).
     pub border_margin: u32,
     /// Maximum `|depth(u, v) - z|` in metres for a point to count as visible.
     pub occlusion_threshold: f64,
@@ -31,7 +34,7 @@ pub struct ProjectOptions {
 impl Default for ProjectOptions {
     fn default() -> Self {
         Self {
-            border_margin: 0,
+            border_margin: 10,
             occlusion_threshold: OCCLUSION_THRESHOLD,
         }
     }
@@ -65,7 +68,7 @@ pub fn visible_pixel(
 ) -> Option<Hit> {
     let proj = camera.project(p)?;
     let (w, h) = (camera.intrinsics.width, camera.intrinsics.height);
-    let m = opts.border_margin as f64;
+    let m = datasets::sampler::scaled_margin(opts.border_margin, w, h) as f64;
     let (xf, yf) = (proj.u.round(), proj.v.round());
     if !(xf >= m && yf >= m && xf < w as f64 - m && yf < h as f64 - m) {
         return None;
@@ -142,21 +145,23 @@ impl FeatureAccumulator {
     }
 
     /// Projects `points` into one view and adds the feature found there to
-    /// every visible point; `feature_at(u, v, out)` writes the view's feature
-    /// at image point `(u, v)` into `out`. Returns the number of visible points.
+    /// every visible point; `feature_at(hit, out)` writes the view's feature
+    /// at the hit into `out` and returns whether there is one (a map pixel
+    /// without a target adds nothing). Returns the number of points added.
     pub fn add_view(
         &mut self,
         points: &[Vec3],
         camera: &Camera,
         depth: Option<DepthRef<'_>>,
         opts: &ProjectOptions,
-        mut feature_at: impl FnMut(&Hit, &mut [f32]),
+        mut feature_at: impl FnMut(&Hit, &mut [f32]) -> bool,
     ) -> usize {
         let mut buf = vec![0.0f32; self.dim];
         let mut seen = 0;
         for (i, &p) in points.iter().enumerate() {
-            if let Some(hit) = visible_pixel(camera, p, depth, opts) {
-                feature_at(&hit, &mut buf);
+            if let Some(hit) = visible_pixel(camera, p, depth, opts)
+                && feature_at(&hit, &mut buf)
+            {
                 self.add(i, &buf);
                 seen += 1;
             }
@@ -208,8 +213,9 @@ mod tests {
         // The border margin removes the outer pixel ring.
         let inner = visible_pixel(&cam, [1.6, 0.0, 2.0], None, &o).unwrap();
         assert_eq!(inner.x, 7);
+        // A margin of 60 px at a 360-px side is 1 px on this 6-px side.
         let m = ProjectOptions {
-            border_margin: 1,
+            border_margin: 60,
             ..o
         };
         assert!(visible_pixel(&cam, [1.6, 0.0, 2.0], None, &m).is_none());
@@ -232,13 +238,56 @@ mod tests {
         let seen = acc.add_view(&pts, &cam, None, &o, |h, out| {
             out[0] = h.x as f32;
             out[1] = 1.0;
+            true
         });
         assert_eq!(seen, 1);
         acc.add_view(&pts, &cam, None, &o, |_, out| {
             out[0] = 0.0;
             out[1] = 3.0;
+            true
         });
+        // A view without a feature at the point adds no observation.
+        let none = acc.add_view(&pts, &cam, None, &o, |_, out| {
+            out[0] = 100.0;
+            false
+        });
+        assert_eq!(none, 0);
+        assert_eq!(acc.counts[0], 2);
         assert_eq!(acc.mean(0), Some(vec![2.0, 2.0]));
         assert_eq!(acc.mean(1), None);
+    }
+
+    /// Projection leaves out the same border as the training sampler: on a
+    /// 640x360 view the default 10-px margin, on a 320x180 view 5 px.
+    #[test]
+    fn default_projection_skips_the_training_border() {
+        let o = ProjectOptions::default();
+        for (w, h, margin) in [(640u32, 360u32, 10u32), (320, 180, 5)] {
+            let cam = Camera {
+                intrinsics: Intrinsics {
+                    width: w,
+                    height: h,
+                    fx: w as f64 / 2.0,
+                    fy: w as f64 / 2.0,
+                    cx: (w as f64 - 1.0) / 2.0,
+                    cy: (h as f64 - 1.0) / 2.0,
+                },
+                pose: Pose::identity(),
+            };
+            // A point landing on column x at z = 1.
+            let at = |x: f64| [(x - cam.intrinsics.cx) / cam.intrinsics.fx, 0.0, 1.0];
+            let m = margin as f64;
+            assert!(
+                visible_pixel(&cam, at(m - 1.0), None, &o).is_none(),
+                "{w}x{h}"
+            );
+            assert_eq!(
+                visible_pixel(&cam, at(m), None, &o).map(|h| h.x),
+                Some(margin)
+            );
+            let right = w as f64 - 1.0 - m;
+            assert!(visible_pixel(&cam, at(right + 1.0), None, &o).is_none());
+            assert!(visible_pixel(&cam, at(right), None, &o).is_some());
+        }
     }
 }

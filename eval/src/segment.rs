@@ -8,7 +8,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use burn::tensor::{Device, Tensor, TensorData};
-use datasets::features::Pca;
+use datasets::features::{FeatureSet, Pca};
 use datasets::points::{IGNORE_LABEL, PointCloud, write_ply};
 use datasets::{DepthImage, FeatureMap, Scene};
 use model::OpenNerf;
@@ -230,6 +230,7 @@ pub fn projected_features(
             |h: &Hit, out| {
                 let i = scaled_index(h.u, h.v, k.width, k.height, rw, rh);
                 out.copy_from_slice(&r.feature[i * dim..(i + 1) * dim]);
+                true
             },
         );
         progress(vi + 1, views.len());
@@ -239,8 +240,10 @@ pub fn projected_features(
 
 /// The upper bound without a field: the scene's own 2D feature maps
 /// projected onto the points (sensor depth for the occlusion test) and
-/// averaged, in the maps' (possibly PCA) space.
+/// averaged, in the maps' (possibly PCA) space. Map pixels without a target
+/// (see [`datasets::features::FeatureSet::is_target`]) are skipped.
 pub fn projected_2d_features(
+    set: &FeatureSet,
     maps: &[&FeatureMap],
     views: &[View<'_>],
     points: &[Vec3],
@@ -264,7 +267,11 @@ pub fn projected_2d_features(
         });
         acc.add_view(points, &view.camera, depth, opts, |h, out| {
             let f = m.lookup(h.u, h.v, k.width, k.height);
+            if !set.is_target(f) {
+                return false;
+            }
             out.iter_mut().zip(f).for_each(|(o, x)| *o = x.to_f32());
+            true
         });
     }
     Ok(acc)
@@ -295,12 +302,39 @@ pub fn segment_with_field(
     opts: &SegmentOptions,
     device: &Device,
 ) -> Result<(Vec<u32>, usize), EvalError> {
+    let mut all = segment_with_field_modes(
+        model,
+        pca,
+        points,
+        views,
+        scene_box,
+        background,
+        opts,
+        &[opts.mode],
+        device,
+    )?;
+    let (_, pred, seen) = all.remove(0);
+    Ok((pred, seen))
+}
+
+/// Predictions of the field in each of `modes`, sharing the work between
+/// them: the views are rendered once for `project` and `hybrid`, and points
+/// are sampled once for `sampled` and the unseen points of `hybrid`.
+/// Returns `(mode, predictions, points seen)` in the order of `modes`.
+#[allow(clippy::too_many_arguments)]
+pub fn segment_with_field_modes(
+    model: &OpenNerf,
+    pca: Option<&Pca>,
+    points: &EvalPoints,
+    views: &[View<'_>],
+    scene_box: &SceneBox,
+    background: Option<[f32; 3]>,
+    opts: &SegmentOptions,
+    modes: &[SegmentMode],
+    device: &Device,
+) -> Result<Vec<(SegmentMode, Vec<u32>, usize)>, EvalError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
     let pos = &points.positions;
-    let sampled = |idx: &[usize]| -> Vec<f32> {
-        let p: Vec<Vec3> = idx.iter().map(|&i| pos[i]).collect();
-        sampled_features(model, &p, scene_box, opts.sample_radius, opts.chunk, device)
-    };
     let check_dim = |k: usize| {
         if k != scorer.dim {
             Err(EvalError::Invalid(format!(
@@ -311,50 +345,83 @@ pub fn segment_with_field(
             Ok(())
         }
     };
-    if opts.mode == SegmentMode::Sampled {
-        let all: Vec<usize> = (0..pos.len()).collect();
-        let f = sampled(&all);
-        let k = f.len() / pos.len().max(1);
+    let sample = |idx: &[usize]| -> Result<Vec<u32>, EvalError> {
+        let p: Vec<Vec3> = idx.iter().map(|&i| pos[i]).collect();
+        let f = sampled_features(model, &p, scene_box, opts.sample_radius, opts.chunk, device);
+        let k = f.len() / idx.len().max(1);
         check_dim(k)?;
-        return Ok((predict(&scorer, f.chunks(k.max(1)).map(Some)), pos.len()));
-    }
-    let acc = projected_features(
-        model,
-        pos,
-        views,
-        scene_box,
-        background,
-        opts,
-        device,
-        |_, _| {},
-    )?;
-    check_dim(acc.dim)?;
-    let seen = acc.counts.iter().filter(|&&c| c > 0).count();
-    let means: Vec<Option<Vec<f32>>> = (0..pos.len()).map(|i| acc.mean(i)).collect();
-    let mut pred = predict(&scorer, means.iter().map(|m| m.as_deref()));
-    if opts.mode == SegmentMode::Hybrid {
-        let unseen: Vec<usize> = (0..pos.len()).filter(|&i| acc.counts[i] == 0).collect();
-        if !unseen.is_empty() {
-            let f = sampled(&unseen);
-            for (j, &i) in unseen.iter().enumerate() {
-                pred[i] = scorer.argmax(&f[j * acc.dim..(j + 1) * acc.dim]);
+        Ok(predict(&scorer, f.chunks(k.max(1)).map(Some)))
+    };
+    let sampled = if modes.contains(&SegmentMode::Sampled) {
+        Some(sample(&(0..pos.len()).collect::<Vec<_>>())?)
+    } else {
+        None
+    };
+    let needs_views = modes.iter().any(|m| *m != SegmentMode::Sampled);
+    let projected = if needs_views {
+        let acc = projected_features(
+            model,
+            pos,
+            views,
+            scene_box,
+            background,
+            opts,
+            device,
+            |_, _| {},
+        )?;
+        check_dim(acc.dim)?;
+        let means: Vec<Option<Vec<f32>>> = (0..pos.len()).map(|i| acc.mean(i)).collect();
+        let pred = predict(&scorer, means.iter().map(|m| m.as_deref()));
+        Some((pred, acc.counts))
+    } else {
+        None
+    };
+    let mut out = Vec::with_capacity(modes.len());
+    for &mode in modes {
+        let result = match (mode, &sampled, &projected) {
+            (SegmentMode::Sampled, Some(p), _) => (p.clone(), pos.len()),
+            (SegmentMode::Project, _, Some((p, counts))) => {
+                (p.clone(), counts.iter().filter(|&&c| c > 0).count())
             }
-        }
+            (SegmentMode::Hybrid, _, Some((p, counts))) => {
+                let unseen: Vec<usize> = (0..pos.len()).filter(|&i| counts[i] == 0).collect();
+                let mut pred = p.clone();
+                let fill = match &sampled {
+                    Some(all) => unseen.iter().map(|&i| all[i]).collect(),
+                    None if unseen.is_empty() => Vec::new(),
+                    None => sample(&unseen)?,
+                };
+                for (&i, c) in unseen.iter().zip(fill) {
+                    pred[i] = c;
+                }
+                (pred, counts.iter().filter(|&&c| c > 0).count())
+            }
+            _ => unreachable_mode(mode)?,
+        };
+        out.push((mode, result.0, result.1));
     }
-    Ok((pred, seen))
+    Ok(out)
+}
+
+/// Every mode's inputs are computed above; this keeps the match total
+/// without a panic.
+fn unreachable_mode<T>(mode: SegmentMode) -> Result<T, EvalError> {
+    Err(EvalError::Invalid(format!(
+        "internal: inputs of mode {mode} were not computed"
+    )))
 }
 
 /// Predictions of the 2D-feature projection bound: the scene's feature maps
 /// projected onto the points; points no view sees get [`NO_PREDICTION`].
 pub fn segment_with_2d_features(
+    set: &FeatureSet,
     maps: &[&FeatureMap],
-    pca: Option<&Pca>,
     points: &EvalPoints,
     views: &[View<'_>],
     opts: &ProjectOptions,
 ) -> Result<Vec<u32>, EvalError> {
-    let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
-    let acc = projected_2d_features(maps, views, &points.positions, opts)?;
+    let scorer = ClassScorer::new(&points.embeddings, points.dim, set.pca.as_ref())?;
+    let acc = projected_2d_features(set, maps, views, &points.positions, opts)?;
     let means: Vec<Option<Vec<f32>>> = (0..acc.len()).map(|i| acc.mean(i)).collect();
     Ok(predict(&scorer, means.iter().map(|m| m.as_deref())))
 }

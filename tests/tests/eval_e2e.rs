@@ -76,14 +76,9 @@ fn train_then_segment_in_every_mode() {
     }
     let features = scene.features.as_ref().expect("features");
     let maps: Vec<_> = run.split.train.iter().map(|&i| &features.maps[i]).collect();
-    let pred = segment_with_2d_features(
-        &maps,
-        features.pca.as_ref(),
-        &points,
-        &views,
-        &ProjectOptions::default(),
-    )
-    .expect("2D bound");
+    let pred =
+        segment_with_2d_features(features, &maps, &points, &views, &ProjectOptions::default())
+            .expect("2D bound");
     results.push((
         "2D-feature projection".into(),
         evaluate("2d", &points, &pred),
