@@ -34,30 +34,33 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     let out = train::train_new(scene, config, 4, dir.path(), &opts).unwrap();
     let s = &out.summary;
     println!("summary: {s:?}");
-    let init_psnr = s.initial_psnr.unwrap();
-    let init_cos = s.initial_feature_cosine.unwrap();
+    let init = s.initial_interior.unwrap();
+    let (init_psnr, init_cos) = (init.psnr, init.feature_cosine.unwrap());
+    let h = &s.heldout_interior;
     assert_eq!(s.iterations, 300);
     assert!(
-        s.heldout_psnr > init_psnr + 4.0,
+        h.psnr > init_psnr + 4.0,
         "held-out PSNR {} vs {init_psnr} at initialisation",
-        s.heldout_psnr
+        h.psnr
     );
-    let cos = s.heldout_feature_cosine.unwrap();
+    let cos = h.feature_cosine.unwrap();
     assert!(
         cos > init_cos + 0.1 && cos > 0.5,
         "feature cosine {cos} vs {init_cos}"
     );
-    assert!(s.heldout_depth_mae.unwrap() < 1.0);
+    assert!(h.depth_mae.unwrap() < 1.0);
     assert!(s.rays_per_second > 0.0 && s.peak_memory_bytes.unwrap() > 0);
+    // Interior and whole-view figures are reported apart, each over its own
+    // pixels: the interior ones leave the scaled border margin out.
+    let whole = s.heldout_whole.unwrap();
+    assert!(whole.pixels > h.pixels && h.pixels > 0);
+    assert!(whole.psnr.is_finite());
 
     // The run directory holds what evaluation needs.
     let run = eval::run::RunDir::new(dir.path());
     let summary = read_json(&run.summary());
     for key in [
         "iterations",
-        "heldout_psnr",
-        "heldout_depth_mae",
-        "heldout_feature_cosine",
         "wall_seconds",
         "rays_per_second",
         "peak_memory_bytes",
@@ -68,6 +71,20 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
             summary[key]
         );
     }
+    for part in ["heldout_interior", "heldout_whole"] {
+        for key in ["psnr", "depth_mae", "feature_cosine", "pixels"] {
+            assert!(
+                summary[part][key].is_number(),
+                "summary.json: {part}.{key} = {}",
+                summary[part][key]
+            );
+        }
+    }
+    let log = std::fs::read_to_string(run.metrics()).unwrap();
+    let last: serde_json::Value = serde_json::from_str(log.lines().last().unwrap()).unwrap();
+    assert_eq!(last["event"], "final");
+    assert!(last["psnr_interior"].is_number() && last["psnr_whole"].is_number());
+    assert!(last.get("psnr").is_none(), "unqualified PSNR in {last}");
     let split = read_json(&run.split());
     assert_eq!(split["heldout"], serde_json::json!([0, 4, 8, 12, 16]));
     let loaded = eval::run::load_run(dir.path(), &Device::flex()).unwrap();
@@ -142,19 +159,21 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
         .fold(0.0f32, f32::max);
     assert!(max_diff < 1e-4, "weights differ by up to {max_diff}");
     assert!(
-        (a.summary.heldout_psnr - b.summary.heldout_psnr).abs() < 0.05,
+        (a.summary.heldout_interior.psnr - b.summary.heldout_interior.psnr).abs() < 0.05,
         "{} vs {}",
-        a.summary.heldout_psnr,
-        b.summary.heldout_psnr
+        a.summary.heldout_interior.psnr,
+        b.summary.heldout_interior.psnr
     );
 
-    // Damage the newest checkpoint: resuming names it; the older one is intact.
+    // Damage every checkpoint: resuming reports the newest by name. (With an
+    // intact older one it resumes from that instead: train/tests/cli.rs.)
     let all = list_checkpoints(&parts.path().join("checkpoints")).unwrap();
     let (_, newest) = all.last().unwrap().clone();
-    let (_, older) = all[all.len() - 2].clone();
     let bytes = std::fs::read(&newest).unwrap();
     for damaged in [bytes[..bytes.len() / 2].to_vec(), vec![0x42u8; 4096]] {
-        std::fs::write(&newest, &damaged).unwrap();
+        for (_, path) in &all {
+            std::fs::write(path, &damaged).unwrap();
+        }
         let err =
             train::resume(parts.path(), Some(3 * n), &session(BackendKind::Flex)).unwrap_err();
         assert!(matches!(err, TrainError::Checkpoint { .. }), "{err}");
@@ -163,7 +182,11 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
             "{err}"
         );
     }
-    assert_eq!(Checkpoint::read(&older).unwrap().state.iteration, n);
+    // Nothing was renamed or removed by the failed attempts.
+    assert_eq!(
+        list_checkpoints(&parts.path().join("checkpoints")).unwrap(),
+        all
+    );
 }
 
 /// All weights of the run in `dir`, flattened.
@@ -208,13 +231,15 @@ fn short_run_improves(
     println!("{backend}: {s:?}");
     assert_eq!(s.iterations, iterations);
     assert_eq!(s.skipped_steps, 0);
-    let (psnr0, cos0) = (s.initial_psnr.unwrap(), s.initial_feature_cosine.unwrap());
+    let init = s.initial_interior.unwrap();
+    let (psnr0, cos0) = (init.psnr, init.feature_cosine.unwrap());
+    let h = s.heldout_interior;
     assert!(
-        s.heldout_psnr > psnr0 + min_psnr_gain,
+        h.psnr > psnr0 + min_psnr_gain,
         "{backend}: PSNR {} vs {psnr0} at initialisation",
-        s.heldout_psnr
+        h.psnr
     );
-    let cos = s.heldout_feature_cosine.unwrap();
+    let cos = h.feature_cosine.unwrap();
     assert!(
         cos > cos0 + min_cosine_gain,
         "{backend}: feature cosine {cos} vs {cos0} at initialisation"

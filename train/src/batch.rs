@@ -7,8 +7,9 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use datasets::Scene;
+use datasets::balance::{BalanceConfig, BalancedSampler};
 use datasets::sampler::{RayBatch, SamplerConfig, sample_batch_from};
-use model::Rays;
+use model::{FeatureSpace, Rays};
 
 use crate::config::SamplerSettings;
 use crate::error::TrainError;
@@ -22,8 +23,58 @@ pub struct BatchTensors {
     pub rgb: Tensor<2>,
     /// `[n, 1]` depths and weights.
     pub depth: Option<(Tensor<2>, Tensor<2>)>,
-    /// `[n, k]`.
-    pub feature: Option<Tensor<2>>,
+    /// Feature targets.
+    pub feature: Option<FeatureTargets>,
+}
+
+/// Feature targets of a batch and the space they are compared in.
+#[derive(Debug, Clone)]
+pub struct FeatureTargets {
+    /// `[n, k]` targets (zero rows where there is none).
+    pub values: Tensor<2>,
+    /// `[n, 1]`: 1 where the ray has a target, 0 where not.
+    pub mask: Tensor<2>,
+    /// Identity, or the lift of PCA coefficients.
+    pub space: FeatureSpace,
+}
+
+impl FeatureTargets {
+    /// Targets that are all valid, compared as they are (tests, benchmarks).
+    pub fn dense(values: Tensor<2>) -> Self {
+        let [n, _] = values.dims();
+        let mask = Tensor::ones([n, 1], &values.device());
+        Self {
+            values,
+            mask,
+            space: FeatureSpace::Identity,
+        }
+    }
+}
+
+/// The space the loss compares `scene`'s features in: the PCA lift when its
+/// maps are compressed, else identity.
+pub fn feature_space(scene: &Scene, device: &Device) -> FeatureSpace {
+    let Some(pca) = scene.features.as_ref().and_then(|f| f.pca.as_ref()) else {
+        return FeatureSpace::Identity;
+    };
+    let mean: Vec<f64> = pca.mean.iter().map(|&x| x as f64).collect();
+    let mean_proj: Vec<f32> = pca
+        .components
+        .chunks_exact(pca.dim.max(1))
+        .map(|row| {
+            row.iter()
+                .zip(&mean)
+                .map(|(&u, m)| u as f64 * m)
+                .sum::<f64>() as f32
+        })
+        .collect();
+    FeatureSpace::Lifted {
+        mean_proj: Box::new(Tensor::from_data(
+            TensorData::new(mean_proj, [1, pca.k]),
+            device,
+        )),
+        mean_sq: mean.iter().map(|m| m * m).sum::<f64>() as f32,
+    }
 }
 
 /// A seed for iteration `iteration` of a run seeded with `seed`
@@ -38,29 +89,62 @@ pub fn iteration_seed(seed: u64, iteration: usize) -> u64 {
     z ^ (z >> 31)
 }
 
-/// The batch of `iteration`: a frame uniformly from `frames` (scene indices
-/// of the training frames), then a pixel uniformly among those at least
-/// `border_margin` from the border (the margin shrinks for images too small
-/// to have an interior). Depth targets are 0 with weight 0 on frames without
-/// depth, feature targets zero on frames without a map.
-pub fn sample_batch(
-    scene: &Scene,
-    frames: &[usize],
-    settings: &SamplerSettings,
-    seed: u64,
-    iteration: usize,
-) -> Result<RayBatch, TrainError> {
-    let config = SamplerConfig {
-        rays_per_batch: settings.rays_per_batch,
-        border_margin: settings.border_margin,
-        seed,
-        min_near: settings.min_near,
-    };
-    Ok(sample_batch_from(&config, scene, frames, iteration as u64)?)
+/// Draws the training batches of a run: feature-balanced (see
+/// `datasets::balance`) when the scene has feature maps and
+/// `feature_balance > 0`, else a frame uniformly from the training frames
+/// and a pixel uniformly inside the (scaled) border margin. Batch `i`
+/// depends only on the seed and `i`, so a resumed run draws what an
+/// uninterrupted one would.
+#[derive(Debug, Clone)]
+pub struct TrainSampler {
+    config: SamplerConfig,
+    frames: Vec<usize>,
+    balanced: Option<BalancedSampler>,
 }
 
-/// Uploads `batch` to `device`.
-pub fn to_tensors(batch: &RayBatch, device: &Device) -> BatchTensors {
+impl TrainSampler {
+    /// Builds the sampler of `frames` of `scene` (clustering the feature
+    /// targets when balancing).
+    pub fn new(
+        scene: &Scene,
+        frames: &[usize],
+        settings: &SamplerSettings,
+        seed: u64,
+    ) -> Result<Self, TrainError> {
+        let config = SamplerConfig {
+            rays_per_batch: settings.rays_per_batch,
+            border_margin: settings.border_margin,
+            seed,
+            min_near: settings.min_near,
+        };
+        let balanced = if settings.feature_balance > 0.0 {
+            let balance = BalanceConfig {
+                clusters: settings.balance_clusters,
+                power: settings.feature_balance,
+            };
+            BalancedSampler::new(scene, frames, settings.border_margin, &balance, seed)?
+        } else {
+            None
+        };
+        Ok(Self {
+            config,
+            frames: frames.to_vec(),
+            balanced,
+        })
+    }
+
+    /// The batch of `iteration`.
+    pub fn batch(&self, scene: &Scene, iteration: usize) -> Result<RayBatch, TrainError> {
+        Ok(match &self.balanced {
+            Some(b) => b.batch(&self.config, scene, iteration as u64),
+            None => sample_batch_from(&self.config, scene, &self.frames, iteration as u64)?,
+        })
+    }
+}
+
+/// Uploads `batch` to `device`; its feature targets are compared in `space`
+/// (see [`feature_space`]).
+pub fn to_tensors(batch: &RayBatch, space: &FeatureSpace, device: &Device) -> BatchTensors {
     let n = batch.len();
     let t2 = |v: Vec<f32>, c: usize| Tensor::<2>::from_data(TensorData::new(v, [n, c]), device);
     BatchTensors {
@@ -74,6 +158,11 @@ pub fn to_tensors(batch: &RayBatch, device: &Device) -> BatchTensors {
         feature: batch
             .features
             .as_ref()
-            .map(|f| t2(f.clone(), batch.feature_dim)),
+            .zip(batch.feature_mask.as_ref())
+            .map(|(f, m)| FeatureTargets {
+                values: t2(f.clone(), batch.feature_dim),
+                mask: t2(m.clone(), 1),
+                space: space.clone(),
+            }),
     }
 }

@@ -101,6 +101,15 @@ pub struct Cli {
     /// Feature maps (`.npy` directory or stacked file) for a scene on disk [default: none].
     #[arg(long)]
     pub features: Option<PathBuf>,
+    /// Compression of the feature maps: `auto` keeps the principal
+    /// components explaining 99% of their variance, `K` keeps K components,
+    /// `off` trains on the full dimension D. The basis is fitted on a sample
+    /// streamed from the maps (never all of them at full D in memory), stored
+    /// in the run's `scene.json` and reused whenever the scene is rebuilt
+    /// [default: auto for maps on disk; the synthetic scene's size preset:
+    /// off for ci, auto for bench].
+    #[arg(long, value_name = "auto|off|K")]
+    pub pca: Option<datasets::features::PcaSetting>,
     /// Keep every Nth frame of the capture [default: the loader's].
     #[arg(long)]
     pub stride: Option<usize>,
@@ -110,7 +119,7 @@ pub struct Cli {
     /// Divide the image size by N [default: the loader's].
     #[arg(long)]
     pub downscale: Option<u32>,
-    /// Hold out every Nth frame (frames 0, N, 2N, ...) for evaluation; 0 = none.
+    /// Hold out every Nth frame (frames 0, N, 2N, ...) for evaluation (N >= 2).
     #[arg(long, default_value_t = 8)]
     pub holdout_every: usize,
 
@@ -134,20 +143,23 @@ pub struct Cli {
     #[arg(long)]
     pub depth: Option<usize>,
     /// Override: weight of the open-set feature loss.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub lambda_open: Option<f32>,
     /// Override: weight of the depth loss (0 disables it).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub lambda_depth: Option<f32>,
     /// Override: initial learning rate (the final rate keeps its ratio to it).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub lr: Option<f64>,
     /// Override: seed of the initialisation, the ray sampler and the jitter.
     #[arg(long)]
     pub seed: Option<u64>,
 
-    /// Stop cleanly after this many seconds of training, then evaluate and save.
-    #[arg(long)]
+    /// Stop cleanly after this many seconds of training, then evaluate and
+    /// save. Without `--iters`, the schedule's length is fitted to the
+    /// budget from the time of the first steps (recorded in `config.json`),
+    /// so the learning rate decays over the whole budget.
+    #[arg(long, allow_negative_numbers = true)]
     pub time_budget: Option<f64>,
     /// Stop cleanly after this iteration although the schedule is longer
     /// (e.g. to be resumed later with the same schedule).
@@ -161,6 +173,12 @@ pub struct Cli {
     /// may be given, other options are taken from the run).
     #[arg(long, conflicts_with_all = ["config", "out", "data"])]
     pub resume: Option<PathBuf>,
+    /// Skip the final full-resolution render of the held-out views (their
+    /// PNGs and the whole-view figures); the summary then holds the figures
+    /// of the interior pixel sample the periodic evaluations use. Saves
+    /// minutes on large scenes.
+    #[arg(long)]
+    pub no_final_render: bool,
     /// No progress bar (log lines only).
     #[arg(long)]
     pub quiet: bool,

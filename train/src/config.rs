@@ -15,10 +15,20 @@ use crate::schedule::ScheduleConfig;
 pub struct SamplerSettings {
     /// Rays per batch.
     pub rays_per_batch: usize,
-    /// Pixels within this distance of the image border are never drawn.
+    /// Pixels within this distance of the image border are never drawn
+    /// (feature maps are least reliable there). Given in pixels of an image
+    /// whose shorter side is 360 (the paper's 640x360 Replica frames) and
+    /// scaled with each image: 10 means 5 px at 320x180 and 2 px at 96x54.
     pub border_margin: u32,
     /// Lower bound on the ray parameter (metres), keeping samples off the lens.
     pub min_near: f64,
+    /// Feature-balanced sampling: pixels are drawn with weight `f^-power`,
+    /// `f` the share of pixels whose feature target falls in the same
+    /// cluster (0 = uniform; see `datasets::balance`). Rare features (small
+    /// objects) get more rays; scenes without feature maps sample uniformly.
+    pub feature_balance: f64,
+    /// Feature clusters the balance is computed over.
+    pub balance_clusters: usize,
 }
 
 impl Default for SamplerSettings {
@@ -27,6 +37,8 @@ impl Default for SamplerSettings {
             rays_per_batch: 256,
             border_margin: 10,
             min_near: 0.05,
+            feature_balance: 0.5,
+            balance_clusters: 32,
         }
     }
 }
@@ -309,6 +321,15 @@ impl TrainConfig {
         let bad = |m: String| Err(TrainError::Config(m));
         if self.sampler.rays_per_batch == 0 {
             return bad("sampler.rays_per_batch must be at least 1".into());
+        }
+        if !(self.sampler.feature_balance.is_finite() && self.sampler.feature_balance >= 0.0) {
+            return bad(format!(
+                "sampler.feature_balance must be finite and non-negative, got {}",
+                self.sampler.feature_balance
+            ));
+        }
+        if self.sampler.balance_clusters == 0 {
+            return bad("sampler.balance_clusters must be at least 1".into());
         }
         if self.model.num_samples == 0 {
             return bad("model.num_samples must be at least 1".into());

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use datasets::features::{Pca, PcaSetting};
 use datasets::{Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
@@ -17,6 +18,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                 SceneSizeArg::Ci => "ci".into(),
                 SceneSizeArg::Bench => "bench".into(),
             },
+            pca: cli.pca,
         });
     }
     let path: PathBuf = cli.data.clone().ok_or_else(|| {
@@ -51,6 +53,14 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             }
             if let Some(f) = &cli.features {
                 options.insert("features".into(), f.display().to_string().into());
+                let setting = cli.pca.unwrap_or(PcaSetting::Auto);
+                let target = serde_json::to_value(setting.target())
+                    .map_err(|e| TrainError::Config(format!("--pca {setting}: {e}")))?;
+                options.insert("pca".into(), target);
+            } else if cli.pca.is_some() {
+                return Err(TrainError::Config(
+                    "--pca needs --features (there are no feature maps to compress)".into(),
+                ));
             }
         }
         DatasetKind::Blender => {
@@ -66,6 +76,9 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             if cli.features.is_some() {
                 return unsupported("features");
             }
+            if cli.pca.is_some() {
+                return unsupported("pca (the scene has no feature maps)");
+            }
         }
         DatasetKind::Llff => {
             // LLFF ships pre-downsampled folders `images_N`.
@@ -76,6 +89,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                 ("stride", cli.stride.is_some()),
                 ("resolution", cli.resolution.is_some()),
                 ("features", cli.features.is_some()),
+                ("pca (the scene has no feature maps)", cli.pca.is_some()),
             ] {
                 if given {
                     return unsupported(flag);
@@ -91,9 +105,18 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
     })
 }
 
-/// Builds (generates or loads) the scene described by `source`.
+/// Builds (generates or loads) the scene described by `source`, fitting
+/// its PCA basis when it has one.
 pub fn load(source: &SceneSource) -> Result<Scene, TrainError> {
     Ok(datasets::load_scene(source)?)
+}
+
+/// Rebuilds the scene of a run from its `scene.json`, compressing its
+/// feature maps with the stored basis (not a new fit), so that the targets
+/// are the ones the field was trained on.
+pub fn reload(meta: &SceneMeta) -> Result<Scene, TrainError> {
+    let basis: Option<&Pca> = meta.pca.as_ref();
+    Ok(datasets::load_scene_with_basis(&meta.source, basis)?)
 }
 
 /// What `scene.json` records about `scene`.
@@ -112,5 +135,56 @@ pub fn run_name(source: &SceneSource) -> String {
     match source {
         SceneSource::Synthetic { .. } => "synthetic".into(),
         SceneSource::Disk { format, .. } => format.clone(),
+    }
+}
+
+#[cfg(test)]
+mod pca_flag_tests {
+    use clap::Parser;
+    use datasets::features::PcaTarget;
+
+    use super::*;
+
+    fn source(args: &[&str]) -> Result<SceneSource, TrainError> {
+        let mut all = vec!["train"];
+        all.extend_from_slice(args);
+        source_from_cli(&Cli::try_parse_from(all).expect("parses"))
+    }
+
+    /// `--pca` reaches every loader with feature maps; maps on disk are
+    /// compressed by default; scenes without maps refuse it.
+    #[test]
+    fn pca_flag_reaches_the_loaders() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let data = dir.path().display().to_string();
+        match source(&["--pca", "8"]).expect("synthetic") {
+            SceneSource::Synthetic { pca, .. } => assert_eq!(pca, Some(PcaSetting::Components(8))),
+            other => panic!("{other:?}"),
+        }
+        let replica_pca = |extra: &[&str]| {
+            let mut args = vec!["--dataset", "replica", "--data", &data, "--features", &data];
+            args.extend_from_slice(extra);
+            match source(&args).expect("replica") {
+                SceneSource::Disk { options, .. } => options["pca"].clone(),
+                other => panic!("{other:?}"),
+            }
+        };
+        let auto = serde_json::to_value(Some(PcaTarget::ExplainedVariance(0.99))).unwrap();
+        assert_eq!(replica_pca(&[]), auto);
+        assert_eq!(replica_pca(&["--pca", "off"]), serde_json::Value::Null);
+        assert_eq!(
+            replica_pca(&["--pca", "16"]),
+            serde_json::to_value(Some(PcaTarget::Components(16))).unwrap()
+        );
+        for fmt in ["blender", "llff"] {
+            let e = source(&["--dataset", fmt, "--data", &data, "--pca", "4"])
+                .expect_err("no maps to compress");
+            assert!(e.to_string().contains("--pca"), "{e}");
+        }
+        let e = source(&["--dataset", "replica", "--data", &data, "--pca", "4"])
+            .expect_err("no --features");
+        assert!(e.to_string().contains("--features"), "{e}");
+        assert!(Cli::try_parse_from(["train", "--pca", "0"]).is_err());
+        assert!(Cli::try_parse_from(["train", "--pca", "most"]).is_err());
     }
 }

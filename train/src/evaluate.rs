@@ -25,6 +25,8 @@ pub struct EvalPixels {
     pub depth: Option<Vec<f32>>,
     /// Target features, `rays.len() * dim` values, when the scene has features.
     pub feature: Option<Vec<f32>>,
+    /// Per ray, 1 where the feature target is valid.
+    pub feature_mask: Option<Vec<f32>>,
 }
 
 /// Draws `count` pixels (at least `margin` pixels from the border)
@@ -44,6 +46,7 @@ pub fn eval_pixels(
             rgb: Vec::new(),
             depth: None,
             feature: None,
+            feature_mask: None,
         });
     }
     let config = SamplerConfig {
@@ -58,6 +61,7 @@ pub fn eval_pixels(
         rgb: batch.rgb,
         depth: batch.depth,
         feature: batch.features,
+        feature_mask: batch.feature_mask,
     })
 }
 
@@ -107,8 +111,9 @@ pub fn evaluate_pixels(
         for i in 0..part.len() {
             let g = start + i;
             let d = pixels.depth.as_ref().map(|d| (depth[i], d[g]));
+            let has_target = pixels.feature_mask.as_ref().is_some_and(|m| m[g] > 0.5);
             let f = match (&feat, &target_feat) {
-                (Some(f), Some(t)) => {
+                (Some(f), Some(t)) if has_target => {
                     Some((&f[i * full..(i + 1) * full], &t[i * full..(i + 1) * full]))
                 }
                 _ => None,
@@ -125,17 +130,31 @@ pub fn evaluate_pixels(
     acc.finish()
 }
 
+/// Metrics of whole held-out views, over the interior pixels (those the
+/// training sampler draws from: the border margin left out) and over every
+/// pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewMetrics {
+    /// Pixels at least the (scaled) border margin from the image border.
+    pub interior: EvalMetrics,
+    /// All pixels, the never-supervised border included.
+    pub whole: EvalMetrics,
+}
+
 /// Renders every held-out view in full, writes its PNGs into `renders_dir`
-/// and returns the metrics over all their pixels.
+/// and returns the metrics over their interior pixels (border margin
+/// `margin`, scaled like the sampler's) and over all their pixels.
 pub fn evaluate_views(
     model: &OpenNerf,
     scene: &Scene,
     frames: &[usize],
+    margin: u32,
     chunk: usize,
     device: &Device,
     renders_dir: &Path,
-) -> Result<EvalMetrics, TrainError> {
-    let mut acc = EvalAccumulator::default();
+) -> Result<ViewMetrics, TrainError> {
+    let mut interior = EvalAccumulator::default();
+    let mut whole = EvalAccumulator::default();
     for &f in frames {
         let frame = &scene.frames[f];
         let mut view = eval::render::render_view(
@@ -154,32 +173,32 @@ pub fn evaluate_views(
         }
         eval::render::save_view_pngs(&view, renders_dir, &frame.name)?;
         let (w, h) = (view.width, view.height);
+        let ((x0, x1), (y0, y1)) = datasets::sampler::interior(margin, w, h);
         let lifted = (view.feature_dim > 0).then(|| lift_features(scene, view.feature.clone()));
         let full = scene.features.as_ref().map_or(0, |fs| fs.full_dim);
         for y in 0..h {
             for x in 0..w {
                 let p = (y * w + x) as usize;
                 let depth = frame.depth.as_ref().map(|d| (view.depth[p], d.get(x, y)));
-                let target = scene.features.as_ref().map(|fs| {
-                    let t: Vec<f32> = fs.maps[f]
-                        .lookup(x as f64, y as f64, w, h)
-                        .iter()
-                        .map(|v| v.to_f32())
-                        .collect();
-                    lift_features(scene, t)
+                let target = scene.features.as_ref().and_then(|fs| {
+                    let t = fs.target(f, x as f64, y as f64, w, h)?;
+                    Some(lift_features(scene, t.iter().map(|v| v.to_f32()).collect()))
                 });
                 let feature = match (&lifted, &target) {
                     (Some(l), Some(t)) => Some((&l[p * full..(p + 1) * full], t.as_slice())),
                     _ => None,
                 };
-                acc.add(
-                    [view.rgb[3 * p], view.rgb[3 * p + 1], view.rgb[3 * p + 2]],
-                    frame.rgb.get(x, y),
-                    depth,
-                    feature,
-                );
+                let rgb = [view.rgb[3 * p], view.rgb[3 * p + 1], view.rgb[3 * p + 2]];
+                let target_rgb = frame.rgb.get(x, y);
+                whole.add(rgb, target_rgb, depth, feature);
+                if (x0..x1).contains(&x) && (y0..y1).contains(&y) {
+                    interior.add(rgb, target_rgb, depth, feature);
+                }
             }
         }
     }
-    Ok(acc.finish())
+    Ok(ViewMetrics {
+        interior: interior.finish(),
+        whole: whole.finish(),
+    })
 }

@@ -17,9 +17,11 @@ pub mod data;
 pub mod error;
 pub mod evaluate;
 pub mod metrics;
+pub mod report;
 pub mod run;
 pub mod schedule;
 pub mod step;
+pub mod validate;
 
 pub use backend::BackendKind;
 pub use config::TrainConfig;
@@ -31,20 +33,28 @@ use std::path::PathBuf;
 /// Runs the command line: a new run, or `--resume`. Returns the outcome
 /// (the binary prints where the results are).
 pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
+    validate::cli(cli)?;
     let session = SessionOptions {
         backend: cli.backend,
         device_index: cli.device,
         time_budget: cli.time_budget,
         stop_at: cli.stop_at,
         progress: !cli.quiet,
-        final_render: true,
+        final_render: !cli.no_final_render,
+        fit_schedule_to_budget: cli.time_budget.is_some() && cli.iters.is_none(),
     };
     if let Some(dir) = &cli.resume {
         return resume(dir, cli.iters, &session);
     }
+    if let Some(path) = &cli.config {
+        validate::config_keys(path, &TrainConfig::default_run(0))?;
+    }
     let source = data::source_from_cli(cli)?;
     eprintln!("loading scene ({})", data::run_name(&source));
     let scene = data::load(&source)?;
+    if scene.features.is_none() {
+        eprintln!("{}", report::NO_FEATURES_WARNING);
+    }
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let base = TrainConfig::default_run(dim);
     let mut config = match &cli.config {

@@ -7,23 +7,29 @@ fn main() -> std::process::ExitCode {
     match train::run_cli(&cli) {
         Ok(outcome) => {
             let s = &outcome.summary;
+            let h = &s.heldout_interior;
             println!(
-                "done: {} iterations, held-out PSNR {:.2} dB{}{}, {:.0} rays/s, {:.1} s",
+                "done: {} iterations, held-out PSNR {:.2} dB on interior pixels{}{}{}, {:.0} rays/s, {:.1} s",
                 s.iterations,
-                s.heldout_psnr,
-                s.heldout_depth_mae
+                h.psnr,
+                s.heldout_whole
+                    .map(|w| format!(" ({:.2} dB on every pixel)", w.psnr))
+                    .unwrap_or_default(),
+                h.depth_mae
                     .map(|d| format!(", depth MAE {d:.3} m"))
                     .unwrap_or_default(),
-                s.heldout_feature_cosine
+                h.feature_cosine
                     .map(|c| format!(", feature cosine {c:.3}"))
                     .unwrap_or_default(),
                 s.rays_per_second,
                 s.wall_seconds
             );
             println!("results in {}", outcome.dir.display());
-            println!(
-                "  summary.json, metrics.jsonl, renders/, model.bpk (evaluate with the eval crate)"
-            );
+            println!("  summary.json, metrics.jsonl, renders/, model.bpk");
+            println!("next:");
+            for command in train::report::next_commands(&outcome.dir) {
+                println!("  {command}");
+            }
             std::process::ExitCode::SUCCESS
         }
         Err(e) => {

@@ -107,24 +107,24 @@ pub struct EvalMetrics {
 pub struct Summary {
     /// Iterations completed.
     pub iterations: usize,
-    /// Held-out PSNR (dB) over all pixels of the held-out views (or of the
-    /// training views when nothing is held out).
-    pub heldout_psnr: f64,
-    /// Held-out mean absolute depth error (metres), `null` without depth.
-    pub heldout_depth_mae: Option<f64>,
-    /// Held-out mean feature cosine similarity, `null` without features.
-    pub heldout_feature_cosine: Option<f64>,
+    /// Held-out figures over the *interior* pixels of the held-out views:
+    /// those at least the (scaled) border margin from the image border, the
+    /// only ones training ever draws (or of the training views when nothing
+    /// is held out).
+    pub heldout_interior: EvalMetrics,
+    /// Held-out figures over *every* pixel of the held-out views, the
+    /// never-supervised border included (`null` when the views were not
+    /// rendered in full).
+    pub heldout_whole: Option<EvalMetrics>,
     /// Training wall-clock seconds (all sessions of a resumed run).
     pub wall_seconds: f64,
     /// Training rays per second (rays processed / training seconds).
     pub rays_per_second: f64,
     /// Peak resident memory of the process (`VmHWM`), bytes.
     pub peak_memory_bytes: Option<u64>,
-    /// Held-out metrics of the untrained field (same pixels as the periodic
-    /// evaluations), for comparison.
-    pub initial_psnr: Option<f64>,
-    /// Feature cosine of the untrained field.
-    pub initial_feature_cosine: Option<f64>,
+    /// The untrained field on the fixed sample of interior held-out pixels
+    /// that every periodic evaluation measures, for comparison.
+    pub initial_interior: Option<EvalMetrics>,
     /// Steps skipped because of a non-finite loss or gradient.
     pub skipped_steps: usize,
     /// Backend used.

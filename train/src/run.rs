@@ -16,14 +16,14 @@ use model::OpenNerf;
 use serde_json::json;
 
 use crate::backend::{BackendKind, peak_memory_bytes, training_device};
-use crate::batch::{iteration_seed, sample_batch, to_tensors};
+use crate::batch::{TrainSampler, feature_space, iteration_seed, to_tensors};
 use crate::checkpoint::{
     Checkpoint, CheckpointState, checkpoint_path, list_checkpoints, prune_checkpoints,
 };
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels, evaluate_views};
-use crate::metrics::{EvalMetrics, MetricsLog, Summary, read_json, split_frames, write_json};
+use crate::metrics::{EvalMetrics, MetricsLog, Summary, read_json, write_json};
 use crate::step::{StepRates, train_step};
 
 /// How a session runs (as opposed to what is trained, which is the config).
@@ -41,6 +41,11 @@ pub struct SessionOptions {
     pub progress: bool,
     /// Render the held-out views to PNG and measure them in full at the end.
     pub final_render: bool,
+    /// With a time budget: time the first steps and set the schedule's
+    /// length to the iterations that fit the budget (written back to
+    /// `config.json`), so that the learning rate decays over the whole
+    /// budget instead of the run ending early or being cut mid-schedule.
+    pub fit_schedule_to_budget: bool,
 }
 
 impl Default for SessionOptions {
@@ -52,6 +57,7 @@ impl Default for SessionOptions {
             stop_at: None,
             progress: false,
             final_render: true,
+            fit_schedule_to_budget: false,
         }
     }
 }
@@ -82,16 +88,10 @@ pub fn train_new(
             scene.name
         )));
     }
+    let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
     let run = RunDir::new(out);
+    crate::validate::fresh_out_dir(&run.dir)?;
     std::fs::create_dir_all(&run.dir).map_err(|e| TrainError::io(&run.dir, e))?;
-    if !list_checkpoints(&run.checkpoints())?.is_empty() {
-        return Err(TrainError::Config(format!(
-            "{} already holds a run with checkpoints; use --resume {} or another --out",
-            run.dir.display(),
-            run.dir.display()
-        )));
-    }
-    let split = split_frames(scene.frames.len(), holdout_every);
     write_json(&run.config(), &config)?;
     write_json(&run.scene(), &crate::data::meta(scene))?;
     write_json(&run.split(), &split)?;
@@ -125,19 +125,28 @@ pub fn resume(
     let mut config: TrainConfig = read_json(&run.config())?;
     let meta: SceneMeta = read_json(&run.scene())?;
     let split: Split = read_json(&run.split())?;
-    let (_, path) =
-        list_checkpoints(&run.checkpoints())?
-            .pop()
-            .ok_or_else(|| TrainError::NoCheckpoint {
-                path: dir.to_path_buf(),
-            })?;
-    let ckpt = Checkpoint::read(&path)?;
-    if let Some(n) = iterations {
-        config.schedule.iterations = n;
-        write_json(&run.config(), &config)?;
+    if list_checkpoints(&run.checkpoints())?.is_empty() {
+        return Err(TrainError::NoCheckpoint {
+            path: dir.to_path_buf(),
+        });
     }
+    let (ckpt, path, damaged) = crate::checkpoint::newest_intact(&run.checkpoints())?;
+    for e in &damaged {
+        eprintln!(
+            "warning: {e}; resuming from the older {} (iteration {}), the damaged file is kept as *.damaged",
+            path.display(),
+            ckpt.state.iteration
+        );
+    }
+    crate::checkpoint::remove_stale_temp_files(&run.dir)?;
+    crate::checkpoint::remove_stale_temp_files(&run.checkpoints())?;
+    if let Some(n) = iterations {
+        crate::validate::resume_iterations(n, ckpt.state.iteration, dir)?;
+        config.schedule.iterations = n;
+    }
+    // config.json is rewritten only once everything it describes checks out.
     config.validate()?;
-    let scene = crate::data::load(&meta.source)?;
+    let scene = crate::data::reload(&meta)?;
     let n = scene.frames.len();
     if split.train.iter().chain(&split.heldout).any(|&i| i >= n) {
         return Err(TrainError::json(
@@ -147,6 +156,9 @@ pub fn resume(
     }
     let device = training_device(session.backend, session.device_index);
     let (model, optim) = restore(&config, &ckpt, &path, &device)?;
+    if iterations.is_some() {
+        write_json(&run.config(), &config)?;
+    }
     train_loop(
         &scene, &config, &split, &run, model, optim, ckpt.state, &device, session,
     )
@@ -215,16 +227,89 @@ fn save_checkpoint(
     Ok(path)
 }
 
-fn eval_line(kind: &str, iteration: usize, m: &EvalMetrics, wall: f64) -> serde_json::Value {
-    json!({
+/// A `metrics.jsonl` evaluation line. Every figure is suffixed with the
+/// pixels it was measured on: `_interior` (inside the border margin, what
+/// training draws from) or `_whole` (every pixel of the held-out views).
+fn eval_line(
+    kind: &str,
+    iteration: usize,
+    interior: &EvalMetrics,
+    whole: Option<&EvalMetrics>,
+    wall: f64,
+) -> serde_json::Value {
+    let mut v = json!({
         "event": kind,
         "iteration": iteration,
-        "psnr": m.psnr,
-        "depth_mae": m.depth_mae,
-        "feature_cosine": m.feature_cosine,
-        "pixels": m.pixels,
         "wall_seconds": wall,
-    })
+    });
+    let mut put = |m: &EvalMetrics, suffix: &str| {
+        v[format!("psnr_{suffix}")] = json!(m.psnr);
+        v[format!("depth_mae_{suffix}")] = json!(m.depth_mae);
+        v[format!("feature_cosine_{suffix}")] = json!(m.feature_cosine);
+        v[format!("pixels_{suffix}")] = json!(m.pixels);
+    };
+    put(interior, "interior");
+    if let Some(w) = whole {
+        put(w, "whole");
+    }
+    v
+}
+
+/// One line of held-out figures for the log.
+fn describe(label: &str, m: &EvalMetrics) -> String {
+    format!(
+        "{label} psnr {:.2} dB{}{}",
+        m.psnr,
+        m.depth_mae
+            .map(|d| format!(", depth mae {d:.3} m"))
+            .unwrap_or_default(),
+        m.feature_cosine
+            .map(|c| format!(", feature cosine {c:.3}"))
+            .unwrap_or_default()
+    )
+}
+
+/// Fits the schedule's length to a time budget from the measured time of
+/// the first steps (evaluations and checkpoints included, as they happen).
+#[derive(Debug, Clone, Copy)]
+struct BudgetFit {
+    budget: f64,
+    /// `(iteration, elapsed seconds)` when timing started.
+    start: Option<(usize, f64)>,
+}
+
+impl BudgetFit {
+    /// Steps before timing starts (the first ones pay for allocation and
+    /// warm-up) and steps timed.
+    const SKIP: usize = 3;
+    const TIMED: usize = 20;
+    /// Fraction of the remaining budget planned for, leaving room for the
+    /// periodic evaluations and checkpoints the timed steps did not include.
+    const SAFETY: f64 = 0.95;
+
+    fn new(budget: f64) -> Self {
+        Self {
+            budget,
+            start: None,
+        }
+    }
+
+    /// Called before iteration `it`; returns the fitted number of iterations
+    /// once enough steps are timed.
+    fn observe(&mut self, it: usize, elapsed: f64) -> Option<usize> {
+        match self.start {
+            None if it >= Self::SKIP => {
+                self.start = Some((it, elapsed));
+                None
+            }
+            Some((i0, t0)) if it >= i0 + Self::TIMED => {
+                let per_step = (elapsed - t0) / (it - i0) as f64;
+                let left = (self.budget - elapsed).max(0.0) * Self::SAFETY;
+                Some(it + (left / per_step.max(1e-9)).floor() as usize)
+            }
+            _ => None,
+        }
+    }
 }
 
 /// The initial evaluation recorded in `metrics.jsonl` (iteration 0).
@@ -234,10 +319,10 @@ fn initial_eval(path: &Path) -> Option<EvalMetrics> {
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
         .find(|v| v["event"] == "eval" && v["iteration"] == 0)
         .map(|v| EvalMetrics {
-            psnr: v["psnr"].as_f64().unwrap_or(f64::NAN),
-            depth_mae: v["depth_mae"].as_f64(),
-            feature_cosine: v["feature_cosine"].as_f64(),
-            pixels: v["pixels"].as_u64().unwrap_or(0),
+            psnr: v["psnr_interior"].as_f64().unwrap_or(f64::NAN),
+            depth_mae: v["depth_mae_interior"].as_f64(),
+            feature_cosine: v["feature_cosine_interior"].as_f64(),
+            pixels: v["pixels_interior"].as_u64().unwrap_or(0),
         })
 }
 
@@ -251,7 +336,10 @@ fn say(bar: &ProgressBar, message: String) {
 }
 
 fn progress_bar(session: &SessionOptions, start: usize, end: usize) -> ProgressBar {
-    if !session.progress {
+    use std::io::IsTerminal;
+    // A bar only redraws one terminal line: where the output is captured
+    // (a log file, CI), periodic plain lines are what is wanted instead.
+    if !session.progress || !std::io::stderr().is_terminal() || !std::io::stdout().is_terminal() {
         return ProgressBar::hidden();
     }
     let bar = ProgressBar::new(end as u64);
@@ -277,9 +365,15 @@ fn train_loop(
     session: &SessionOptions,
 ) -> Result<RunOutcome, TrainError> {
     let log_cfg = config.logging;
-    let end = session.stop_at.map_or(config.schedule.iterations, |s| {
-        s.min(config.schedule.iterations)
-    });
+    let mut config = config.clone();
+    let stop_at = |iterations: usize| session.stop_at.map_or(iterations, |s| s.min(iterations));
+    let mut end = stop_at(config.schedule.iterations);
+    let mut fit = match session.time_budget {
+        Some(budget) if session.fit_schedule_to_budget && state.iteration == 0 => {
+            Some(BudgetFit::new(budget))
+        }
+        _ => None,
+    };
     let heldout: Vec<usize> = if split.heldout.is_empty() {
         split.train.clone()
     } else {
@@ -309,8 +403,10 @@ fn train_loop(
     };
     if state.iteration == 0 {
         let m = evaluate(&model);
-        log.write(&eval_line("eval", 0, &m, 0.0))?;
+        log.write(&eval_line("eval", 0, &m, None, 0.0))?;
     }
+    let space = feature_space(scene, device);
+    let sampler = TrainSampler::new(scene, &split.train, &config.sampler, state.seed)?;
     let bar = progress_bar(session, state.iteration, end);
     let mut consecutive_bad = 0usize;
     let mut last_checkpoint: Option<PathBuf> =
@@ -330,6 +426,19 @@ fn train_loop(
             break;
         }
         let it = state.iteration;
+        if let Some(f) = fit.as_mut()
+            && let Some(iterations) = f.observe(it, session_start.elapsed().as_secs_f64())
+        {
+            fit = None;
+            config.schedule.iterations = iterations;
+            end = stop_at(iterations);
+            write_json(&run.config(), &config)?;
+            bar.set_length(end as u64);
+            say(
+                &bar,
+                format!("schedule fitted to the time budget: {iterations} iterations"),
+            );
+        }
         let lr = config.schedule.lr(it);
         let rates = StepRates {
             base: lr,
@@ -339,10 +448,7 @@ fn train_loop(
         // The stratified jitter draws from the device generator: seeding it
         // per iteration makes a resumed run draw what the uninterrupted one would.
         device.seed(iteration_seed(state.seed ^ 0x6a09_e667_f3bc_c909, it));
-        let batch = to_tensors(
-            &sample_batch(scene, &split.train, &config.sampler, state.seed, it)?,
-            device,
-        );
+        let batch = to_tensors(&sampler.batch(scene, it)?, &space, device);
         let (next, report) = train_step(
             model,
             &mut optim,
@@ -401,7 +507,7 @@ fn train_loop(
                 "rays_per_second": rays_per_second,
                 "wall_seconds": wall(&session_start),
             }))?;
-            bar.set_message(format!(
+            let line = format!(
                 "loss {:.4} rgb {:.5} open {:.4} depth {:.4} psnr {:.2} {:.0} rays/s",
                 report.loss,
                 report.rgb_mse,
@@ -409,23 +515,24 @@ fn train_loop(
                 report.depth,
                 report.psnr(),
                 rays_per_second
-            ));
+            );
+            // Without a visible bar (--quiet, or stderr not a terminal) the
+            // progress goes to the log as plain lines.
+            if bar.is_hidden() {
+                say(&bar, format!("iteration {i}/{end}: {line}"));
+            } else {
+                bar.set_message(line);
+            }
         }
         bar.set_position(i as u64);
         if log_cfg.eval_every > 0 && i.is_multiple_of(log_cfg.eval_every) && i < end {
             let m = evaluate(&model);
-            log.write(&eval_line("eval", i, &m, wall(&session_start)))?;
+            log.write(&eval_line("eval", i, &m, None, wall(&session_start)))?;
             say(
                 &bar,
                 format!(
-                    "iteration {i}: held-out psnr {:.2} dB{}{}",
-                    m.psnr,
-                    m.depth_mae
-                        .map(|d| format!(", depth mae {d:.3} m"))
-                        .unwrap_or_default(),
-                    m.feature_cosine
-                        .map(|c| format!(", feature cosine {c:.3}"))
-                        .unwrap_or_default()
+                    "iteration {i}: {}",
+                    describe("held-out interior pixels (sample):", &m)
                 ),
             );
         }
@@ -445,36 +552,44 @@ fn train_loop(
     save_checkpoint(run, &model, &optim, &state, log_cfg.keep_checkpoints)?;
     crate::checkpoint::write_atomic(&run.weights(), &model_bytes(&model)?)?;
     let valid = model.valid();
-    let final_metrics = if session.final_render {
-        evaluate_views(
+    let (interior, whole) = if session.final_render {
+        let m = evaluate_views(
             &valid,
             scene,
             &heldout,
+            config.sampler.border_margin,
             log_cfg.render_chunk,
             &inference,
             &run.renders(),
-        )?
+        )?;
+        (m.interior, Some(m.whole))
     } else {
-        evaluate_pixels(&valid, scene, &pixels, log_cfg.render_chunk, &inference)
+        let m = evaluate_pixels(&valid, scene, &pixels, log_cfg.render_chunk, &inference);
+        (m, None)
     };
     let wall_seconds = wall(&session_start);
     log.write(&eval_line(
         "final",
         state.iteration,
-        &final_metrics,
+        &interior,
+        whole.as_ref(),
         wall_seconds,
     ))?;
-    let initial = initial_eval(&run.metrics());
+    eprintln!(
+        "{}",
+        describe("held-out views, interior pixels:", &interior)
+    );
+    if let Some(w) = &whole {
+        eprintln!("{}", describe("held-out views, every pixel:", w));
+    }
     let summary = Summary {
         iterations: state.iteration,
-        heldout_psnr: final_metrics.psnr,
-        heldout_depth_mae: final_metrics.depth_mae,
-        heldout_feature_cosine: final_metrics.feature_cosine,
+        heldout_interior: interior,
+        heldout_whole: whole,
         wall_seconds,
         rays_per_second: state.rays_processed as f64 / state.train_seconds.max(1e-9),
         peak_memory_bytes: peak_memory_bytes(),
-        initial_psnr: initial.map(|m| m.psnr),
-        initial_feature_cosine: initial.and_then(|m| m.feature_cosine),
+        initial_interior: initial_eval(&run.metrics()),
         skipped_steps: state.skipped_steps,
         backend: session.backend.name().into(),
         heldout_frames: heldout,
@@ -484,4 +599,32 @@ fn train_loop(
         dir: run.dir.clone(),
         summary,
     })
+}
+
+#[cfg(test)]
+mod budget_tests {
+    use super::BudgetFit;
+
+    /// Steps of 0.5 s after a slow first one: the fit skips the first steps,
+    /// times 20, and plans 95% of what is left of the budget.
+    #[test]
+    fn the_schedule_is_fitted_to_the_remaining_budget() {
+        let mut fit = BudgetFit::new(100.0);
+        let elapsed = |it: usize| if it == 0 { 0.0 } else { 4.0 + 0.5 * it as f64 };
+        let mut fitted = None;
+        for it in 0..100 {
+            if let Some(n) = fit.observe(it, elapsed(it)) {
+                fitted = Some((it, n));
+                break;
+            }
+        }
+        let (at, n) = fitted.expect("fitted after the timed steps");
+        assert_eq!(at, BudgetFit::SKIP + BudgetFit::TIMED);
+        // At iteration 23, 15.5 s have passed: 0.95 * 84.5 / 0.5 = 160.55 more.
+        assert_eq!(n, 23 + 160);
+        // A budget already spent plans no further iteration.
+        let mut late = BudgetFit::new(1.0);
+        assert_eq!(late.observe(3, 2.0), None);
+        assert_eq!(late.observe(23, 12.0), Some(23));
+    }
 }

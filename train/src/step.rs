@@ -51,7 +51,12 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
     if let (Some(pred), Some(target)) = (out.fine.feature.as_ref(), batch.feature.as_ref())
         && cfg.lambda_open > 0.0
     {
-        open = model::open_set_cosine(pred.clone(), target.clone());
+        open = model::open_set_cosine(
+            pred.clone(),
+            target.values.clone(),
+            target.mask.clone(),
+            &target.space,
+        );
         total = total + open.clone().mul_scalar(cfg.lambda_open);
     }
     LossTerms {
@@ -198,6 +203,7 @@ pub fn train_step_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::batch::FeatureTargets;
     use burn::optim::AdamConfig;
     use burn::tensor::{Device, TensorData};
     use model::geometry::NormalizedRay;
@@ -233,7 +239,10 @@ mod tests {
             rays: Rays::from_normalized(&rays, device),
             rgb: t(vec![rgb; n * 3], 3),
             depth: Some((t(vec![2.0; n], 1), t(vec![1.0; n], 1))),
-            feature: Some(t((0..n * 4).map(|i| (i % 3) as f32 - 1.0).collect(), 4)),
+            feature: Some(FeatureTargets::dense(t(
+                (0..n * 4).map(|i| (i % 3) as f32 - 1.0).collect(),
+                4,
+            ))),
         }
     }
 

@@ -13,7 +13,7 @@ use clap::Parser;
 use model::geometry::NormalizedRay;
 use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays};
 use train::backend::{BackendKind, device, peak_memory_bytes};
-use train::batch::BatchTensors;
+use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
 use train::step::{StepRates, train_step_from};
 
@@ -192,7 +192,7 @@ fn main() {
                 rays: rays(n, &ad, 1),
                 rgb: target(3),
                 depth: None,
-                feature: Some(target(size.feature_dim)),
+                feature: Some(FeatureTargets::dense(target(size.feature_dim))),
             };
             let rates = StepRates {
                 base: 1e-4,

@@ -1,0 +1,303 @@
+//! Checks that run before anything is loaded, trained or written: the
+//! command line, the keys of a `--config` file, the held-out split and the
+//! output directory. Every refusal names the flag or the file and says how
+//! to proceed, so a mistyped option never trains something other than what
+//! was asked for and never overwrites a finished run.
+
+use std::path::Path;
+
+use eval::run::{RunDir, Split};
+
+use crate::checkpoint::list_checkpoints;
+use crate::cli::{Cli, DatasetKind};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use crate::metrics::split_frames;
+
+fn flag_error(message: String) -> TrainError {
+    TrainError::Config(message)
+}
+
+/// Checks the options of `cli` against each other, before any file is read.
+pub fn cli(cli: &Cli) -> Result<(), TrainError> {
+    for (flag, value) in [
+        ("iters", cli.iters),
+        ("stop-at", cli.stop_at),
+        ("rays", cli.rays),
+        ("samples", cli.samples),
+        ("width", cli.width),
+        ("depth", cli.depth),
+    ] {
+        if value == Some(0) {
+            return Err(flag_error(format!("--{flag} 0: must be at least 1")));
+        }
+    }
+    if let Some(b) = cli.time_budget
+        && !(b.is_finite() && b > 0.0)
+    {
+        return Err(flag_error(format!(
+            "--time-budget {b}: must be a positive number of seconds"
+        )));
+    }
+    if let Some(lr) = cli.lr
+        && !(lr.is_finite() && lr > 0.0)
+    {
+        return Err(flag_error(format!(
+            "--lr {lr}: must be a positive learning rate"
+        )));
+    }
+    for (flag, value) in [
+        ("lambda-open", cli.lambda_open),
+        ("lambda-depth", cli.lambda_depth),
+    ] {
+        if let Some(v) = value
+            && !(v.is_finite() && v >= 0.0)
+        {
+            return Err(flag_error(format!(
+                "--{flag} {v}: must be a finite, non-negative weight"
+            )));
+        }
+    }
+    eval::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)?;
+    if cli.resume.is_some() {
+        return resume_flags(cli);
+    }
+    match cli.holdout_every {
+        0 => {
+            return Err(flag_error(
+                "--holdout-every 0 holds out no frame, so no held-out figures could be \
+                 measured; use --holdout-every N with N >= 2 (frames 0, N, 2N, ... are held out)"
+                    .into(),
+            ));
+        }
+        1 => {
+            return Err(flag_error(
+                "--holdout-every 1 holds out every frame and leaves none to train on; \
+                 use --holdout-every N with N >= 2"
+                    .into(),
+            ));
+        }
+        _ => {}
+    }
+    if cli.dataset == DatasetKind::Synthetic {
+        if let Some(data) = &cli.data {
+            return Err(flag_error(format!(
+                "--data {} is given without --dataset (the default is the built-in synthetic \
+                 scene, which reads no files); add --dataset replica, blender or llff",
+                data.display()
+            )));
+        }
+        for (flag, given) in [
+            ("features", cli.features.is_some()),
+            ("stride", cli.stride.is_some()),
+            ("resolution", cli.resolution.is_some()),
+            ("downscale", cli.downscale.is_some()),
+        ] {
+            if given {
+                return Err(flag_error(format!(
+                    "--{flag} applies to a scene on disk, not to the synthetic scene (which \
+                     makes its own images and feature maps); add --dataset replica|blender|llff \
+                     and --data PATH, or leave --{flag} out"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// With `--resume`, the run's own configuration and scene are used: options
+/// that would change them are refused instead of being silently ignored.
+fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
+    let ignored = [
+        ("dataset", cli.dataset != DatasetKind::Synthetic),
+        ("features", cli.features.is_some()),
+        ("stride", cli.stride.is_some()),
+        ("resolution", cli.resolution.is_some()),
+        ("downscale", cli.downscale.is_some()),
+        ("rays", cli.rays.is_some()),
+        ("samples", cli.samples.is_some()),
+        ("width", cli.width.is_some()),
+        ("depth", cli.depth.is_some()),
+        ("lambda-open", cli.lambda_open.is_some()),
+        ("lambda-depth", cli.lambda_depth.is_some()),
+        ("lr", cli.lr.is_some()),
+        ("seed", cli.seed.is_some()),
+    ];
+    if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {
+        return Err(flag_error(format!(
+            "--{flag} cannot be combined with --resume: a resumed run keeps the scene and \
+             configuration in its config.json (only --iters, --time-budget and --stop-at apply)"
+        )));
+    }
+    Ok(())
+}
+
+/// Every key path of `patch` that `base` does not have (`model.mlp.widht`).
+/// Below a `null` in `base` (an unset optional section) nothing is checked:
+/// the section's own deserialisation does that.
+pub fn unknown_keys(patch: &serde_json::Value, base: &serde_json::Value) -> Vec<String> {
+    let mut found = Vec::new();
+    walk(patch, base, "", &mut found);
+    found
+}
+
+fn walk(patch: &serde_json::Value, base: &serde_json::Value, prefix: &str, out: &mut Vec<String>) {
+    let (serde_json::Value::Object(p), serde_json::Value::Object(b)) = (patch, base) else {
+        return;
+    };
+    for (key, value) in p {
+        let path = if prefix.is_empty() {
+            key.clone()
+        } else {
+            format!("{prefix}.{key}")
+        };
+        match b.get(key) {
+            Some(inner) => walk(value, inner, &path, out),
+            None => out.push(path),
+        }
+    }
+}
+
+/// Refuses a `--config` file with keys the configuration does not have (a
+/// typo would otherwise leave the default in place without a word).
+pub fn config_keys(path: &Path, base: &TrainConfig) -> Result<(), TrainError> {
+    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
+    let patch: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))?;
+    let base = serde_json::to_value(base).map_err(|e| TrainError::json(path, e))?;
+    let unknown = unknown_keys(&patch, &base);
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    let known = |v: &serde_json::Value| match v {
+        serde_json::Value::Object(m) => m.keys().cloned().collect::<Vec<_>>().join(", "),
+        _ => String::new(),
+    };
+    Err(TrainError::json(
+        path,
+        format!(
+            "unknown key{} {} (top-level keys are: {})",
+            if unknown.len() > 1 { "s" } else { "" },
+            unknown.join(", "),
+            known(&base)
+        ),
+    ))
+}
+
+/// The train / held-out split of `frames` frames holding out every
+/// `holdout_every`-th one; refused when either side would be empty, since
+/// the "held-out" figures would then be measured on training frames.
+pub fn holdout_split(frames: usize, holdout_every: usize) -> Result<Split, TrainError> {
+    let split = split_frames(frames, holdout_every);
+    if split.heldout.is_empty() {
+        let plural = if frames == 1 { "" } else { "s" };
+        return Err(flag_error(format!(
+            "--holdout-every {holdout_every}: the scene has {frames} frame{plural} and none of \
+             them would be held out (held-out figures would be measured on training frames); \
+             a run needs at least 2 frames (keep more with a smaller --stride)"
+        )));
+    }
+    if split.train.is_empty() {
+        return Err(flag_error(format!(
+            "--holdout-every {holdout_every} holds out all {frames} frames and leaves none to \
+             train on; use a larger N"
+        )));
+    }
+    Ok(split)
+}
+
+/// Refuses to start a new run in a directory that already holds one (its
+/// weights and metrics would be replaced), with or without checkpoints.
+pub fn fresh_out_dir(dir: &Path) -> Result<(), TrainError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(flag_error(format!(
+            "--out {}: exists and is not a directory",
+            dir.display()
+        )));
+    }
+    let run = RunDir::new(dir);
+    let has_checkpoints = !list_checkpoints(&run.checkpoints())?.is_empty();
+    let present: Vec<String> = [run.weights(), run.summary(), run.metrics(), run.config()]
+        .iter()
+        .filter(|p| p.exists())
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .chain(has_checkpoints.then(|| "checkpoints/".to_string()))
+        .collect();
+    if present.is_empty() {
+        return Ok(());
+    }
+    let next = if has_checkpoints {
+        format!(
+            "continue it with --resume {}, or choose another --out",
+            dir.display()
+        )
+    } else {
+        "choose another --out".to_string()
+    };
+    Err(flag_error(format!(
+        "--out {} already holds a run ({}); {next} (or delete that directory to start over)",
+        dir.display(),
+        present.join(", ")
+    )))
+}
+
+/// With `--resume --iters N`: the schedule cannot end before the iterations
+/// the run has already done.
+pub fn resume_iterations(requested: usize, done: usize, dir: &Path) -> Result<(), TrainError> {
+    if requested < done {
+        return Err(flag_error(format!(
+            "--iters {requested} is below the {done} iterations {} has already trained; \
+             give --iters {done} or more",
+            dir.display()
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[test]
+    fn unknown_keys_are_reported_with_their_path() {
+        let base =
+            serde_json::json!({"model": {"mlp": {"width": 1, "depth": 2}}, "seed": 0, "opt": null});
+        let patch = serde_json::json!({"model": {"mlp": {"widht": 3, "depth": 4}, "x": 1}, "seed": 2, "opt": {"a": 1}, "sed": 1});
+        let mut keys = unknown_keys(&patch, &base);
+        keys.sort();
+        assert_eq!(keys, ["model.mlp.widht", "model.x", "sed"]);
+    }
+
+    #[test]
+    fn split_refuses_empty_sides() {
+        assert!(holdout_split(1, 8).is_err());
+        assert!(holdout_split(5, 1).is_err());
+        assert!(holdout_split(5, 0).is_err());
+        let s = holdout_split(10, 4).unwrap();
+        assert_eq!(s.heldout, vec![0, 4, 8]);
+    }
+
+    #[test]
+    fn flag_checks() {
+        let parse = |args: &[&str]| {
+            let mut v = vec!["train"];
+            v.extend_from_slice(args);
+            cli(&Cli::try_parse_from(v).unwrap())
+        };
+        assert!(parse(&[]).is_ok());
+        for bad in [
+            &["--iters", "0"][..],
+            &["--time-budget", "0"],
+            &["--time-budget", "NaN"],
+            &["--time-budget", "-3"],
+            &["--holdout-every", "0"],
+            &["--data", "/x"],
+            &["--features", "/x"],
+            &["--device", "0"],
+        ] {
+            let err = parse(bad).unwrap_err().to_string();
+            assert!(err.contains(bad[0]), "{bad:?}: {err}");
+        }
+    }
+}

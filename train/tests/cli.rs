@@ -1,0 +1,254 @@
+//! The `train` binary on bad options and on run directories that must not
+//! lose work: every refusal names the flag or the file, nothing panics, and
+//! nothing already written is replaced. A finished run ends by printing the
+//! exact command to run next.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A small model, so that a real run of a few iterations takes seconds.
+const TINY: &str = r#"{
+  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
+            "num_samples": 4, "head": {"width": 8, "layers": 1}},
+  "sampler": {"rays_per_batch": 32, "border_margin": 2},
+  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
+}"#;
+
+fn train(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_train"))
+        .args(args)
+        .output()
+        .expect("the train binary runs")
+}
+
+fn text(out: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// Asserts a clean refusal (non-zero exit, no panic) mentioning every `words`.
+fn assert_refused(args: &[&str], words: &[&str]) -> String {
+    let out = train(args);
+    let (_, err) = text(&out);
+    assert!(!out.status.success(), "{args:?} succeeded: {err}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for w in words {
+        assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
+    }
+    err
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+fn tiny_config(dir: &Path) -> PathBuf {
+    let p = dir.join("tiny.json");
+    std::fs::write(&p, TINY).expect("write config");
+    p
+}
+
+/// A Nice-SLAM scene of `n` frames of 40x30 pixels, without feature maps.
+fn replica_dir(dir: &Path, n: usize) -> PathBuf {
+    let root = dir.join("room");
+    let results = root.join("results");
+    std::fs::create_dir_all(&results).expect("mkdir");
+    std::fs::write(
+        root.join("cam_params.json"),
+        r#"{"camera": {"w": 40, "h": 30, "fx": 30.0, "fy": 30.0, "cx": 19.5, "cy": 14.5, "scale": 1000.0}}"#,
+    )
+    .expect("write");
+    let mut traj = String::new();
+    for i in 0..n {
+        image::RgbImage::from_fn(40, 30, |x, y| {
+            image::Rgb([(x * 6) as u8, (y * 8) as u8, 90])
+        })
+        .save(results.join(format!("frame{i:06}.png")))
+        .expect("png");
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_pixel(40, 30, image::Luma([2000]))
+            .save(results.join(format!("depth{i:06}.png")))
+            .expect("png");
+        traj += &format!("1 0 0 {} 0 1 0 0 0 0 1 0 0 0 0 1\n", 0.05 * i as f64);
+    }
+    std::fs::write(root.join("traj.txt"), traj).expect("write");
+    root
+}
+
+#[test]
+fn out_of_range_numbers_are_refused_by_flag() {
+    for (args, flag) in [
+        (&["--iters", "0"][..], "--iters 0"),
+        (&["--time-budget", "0"], "--time-budget 0"),
+        (&["--time-budget", "-5"], "--time-budget -5"),
+        (&["--time-budget", "NaN"], "--time-budget NaN"),
+        (&["--holdout-every", "0"], "--holdout-every 0"),
+        (&["--holdout-every", "1"], "--holdout-every 1"),
+    ] {
+        assert_refused(args, &[flag]);
+    }
+}
+
+#[test]
+fn scene_flags_that_would_be_ignored_are_refused() {
+    assert_refused(&["--data", "/some/room"], &["--data", "--dataset replica"]);
+    assert_refused(&["--features", "/some/feats"], &["--features", "synthetic"]);
+}
+
+#[test]
+fn unknown_config_keys_are_named_with_the_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let p = tmp.path().join("typo.json");
+    std::fs::write(&p, r#"{"model": {"mlp": {"widht": 64}}, "sed": 3}"#).expect("write");
+    assert_refused(
+        &["--config", s(&p)],
+        &["typo.json", "model.mlp.widht", "sed"],
+    );
+}
+
+#[test]
+fn a_stride_that_leaves_one_frame_has_nothing_to_hold_out() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let room = replica_dir(tmp.path(), 2);
+    let out = tmp.path().join("run");
+    assert_refused(
+        &[
+            "--dataset",
+            "replica",
+            "--data",
+            s(&room),
+            "--stride",
+            "2",
+            "--out",
+            s(&out),
+        ],
+        &[
+            "--holdout-every 8",
+            "1 frame",
+            "none of them would be held out",
+        ],
+    );
+    assert!(!out.exists(), "a refused run left a directory behind");
+}
+
+#[test]
+fn a_finished_run_without_checkpoints_is_not_overwritten() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("finished");
+    std::fs::create_dir_all(&out).expect("mkdir");
+    std::fs::write(out.join("model.bpk"), b"trained weights").expect("write");
+    std::fs::write(out.join("summary.json"), b"{\"iterations\": 1000}").expect("write");
+    assert_refused(
+        &["--out", s(&out), "--iters", "2"],
+        &["finished", "already holds a run", "model.bpk"],
+    );
+    assert_eq!(
+        std::fs::read(out.join("model.bpk")).expect("read"),
+        b"trained weights"
+    );
+    assert_eq!(
+        std::fs::read(out.join("summary.json")).expect("read"),
+        b"{\"iterations\": 1000}"
+    );
+}
+
+#[test]
+fn training_without_features_warns_that_segmentation_is_impossible() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let room = replica_dir(tmp.path(), 3);
+    let config = tiny_config(tmp.path());
+    let out = tmp.path().join("run");
+    let r = train(&[
+        "--dataset",
+        "replica",
+        "--data",
+        s(&room),
+        "--holdout-every",
+        "2",
+        "--config",
+        s(&config),
+        "--iters",
+        "2",
+        "--out",
+        s(&out),
+    ]);
+    let (stdout, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(stderr.contains("without --features"), "{stderr}");
+    assert!(stderr.contains("eval segment"), "{stderr}");
+    // No segment or query suggestion for a run without features.
+    assert!(
+        stdout.contains(&format!(
+            "cargo run -p eval --release -- render --run {}",
+            out.display()
+        )),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("-- segment"), "{stdout}");
+}
+
+/// A new run, resumed with bad options (nothing rewritten), with a damaged
+/// newest checkpoint (falls back to the older one) and with the temporary
+/// file of a killed checkpoint write (removed).
+#[test]
+fn resume_checks_before_writing_and_survives_a_damaged_checkpoint() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let config = tiny_config(tmp.path());
+    let run = tmp.path().join("run");
+    let r = train(&[
+        "--config",
+        s(&config),
+        "--iters",
+        "4",
+        "--out",
+        s(&run),
+        "--quiet",
+    ]);
+    let (stdout, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    // Captured output gets plain progress lines, and the run ends with the
+    // exact next command.
+    assert!(stderr.contains("iteration 4/4:"), "{stderr}");
+    assert!(
+        stdout.contains(&format!(
+            "cargo run -p eval --release -- segment --run {}",
+            run.display()
+        )),
+        "{stdout}"
+    );
+
+    let config_json = std::fs::read(run.join("config.json")).expect("config.json");
+    assert_refused(&["--resume", s(&run), "--iters", "0"], &["--iters 0"]);
+    assert_refused(
+        &["--resume", s(&run), "--iters", "3"],
+        &["--iters 3", "4 iterations"],
+    );
+    assert_refused(
+        &["--resume", s(&run), "--width", "8"],
+        &["--width", "--resume"],
+    );
+    assert_eq!(
+        std::fs::read(run.join("config.json")).expect("config.json"),
+        config_json,
+        "a refused resume rewrote config.json"
+    );
+
+    let ckpts = run.join("checkpoints");
+    let newest = ckpts.join("ckpt-00000004.onck");
+    assert!(ckpts.join("ckpt-00000002.onck").exists() && newest.exists());
+    let bytes = std::fs::read(&newest).expect("read");
+    std::fs::write(&newest, &bytes[..bytes.len() / 2]).expect("truncate");
+    let stale = ckpts.join(".ckpt-00000006.onck.tmp-4000000000");
+    std::fs::write(&stale, b"half written").expect("write");
+
+    let r = train(&["--resume", s(&run), "--iters", "6", "--quiet"]);
+    let (stdout, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(stderr.contains("ckpt-00000004.onck"), "{stderr}");
+    assert!(stderr.contains("resuming from the older"), "{stderr}");
+    assert!(stdout.contains("done: 6 iterations"), "{stdout}");
+    assert!(!stale.exists(), "the stale temporary file is still there");
+    assert!(ckpts.join("ckpt-00000004.onck.damaged").exists());
+    assert!(ckpts.join("ckpt-00000006.onck").exists());
+}
