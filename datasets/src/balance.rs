@@ -202,7 +202,10 @@ impl BalancedSampler {
         let picks: Vec<(usize, u32, u32)> = (0..config.rays_per_batch)
             .map(|_| {
                 let u = rng.random_range(0.0..total.max(f64::MIN_POSITIVE));
-                let i = self.cdf.partition_point(|&c| c <= u).min(self.cells.len() - 1);
+                let i = self
+                    .cdf
+                    .partition_point(|&c| c <= u)
+                    .min(self.cells.len() - 1);
                 let c = self.cells[i];
                 (
                     c.frame,

@@ -80,10 +80,7 @@ fn rare_features_get_their_closed_form_share_of_rays() {
         min_near: 0.05,
     };
     for power in [0.0, 0.5, 1.0] {
-        let balance = BalanceConfig {
-            clusters: 2,
-            power,
-        };
+        let balance = BalanceConfig { clusters: 2, power };
         let sampler = BalancedSampler::new(&s, &[0], 0, &balance, 1)
             .expect("builds")
             .expect("features");
@@ -91,7 +88,11 @@ fn rare_features_get_their_closed_form_share_of_rays() {
         assert_eq!(fr.len(), 3, "two clusters and 'no target'");
         assert!(fr.iter().any(|&f| (f - 0.05).abs() < 1e-9), "{fr:?}");
         let b = sampler.batch(&config, &s, 7);
-        assert_eq!(b, sampler.batch(&config, &s, 7), "a pure function of the index");
+        assert_eq!(
+            b,
+            sampler.batch(&config, &s, 7),
+            "a pure function of the index"
+        );
         let feats = b.features.as_ref().expect("targets");
         let mut on_rare = 0usize;
         for (k, &[_, x, y]) in b.pixels.iter().enumerate() {
@@ -126,9 +127,15 @@ fn scenes_without_maps_or_bad_settings() {
         },
         BalanceConfig { power: -1.0, ..ok },
     ] {
-        assert!(BalancedSampler::new(&s, &[0], 10, &bad, 0).is_err(), "{bad:?}");
+        assert!(
+            BalancedSampler::new(&s, &[0], 10, &bad, 0).is_err(),
+            "{bad:?}"
+        );
     }
-    assert!(BalancedSampler::new(&s, &[3], 10, &ok, 0).is_err(), "frame out of range");
+    assert!(
+        BalancedSampler::new(&s, &[3], 10, &ok, 0).is_err(),
+        "frame out of range"
+    );
     s.features = None;
     assert!(
         BalancedSampler::new(&s, &[0], 10, &ok, 0)

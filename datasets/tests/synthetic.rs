@@ -414,7 +414,10 @@ fn pca_setting_and_stored_basis_are_honoured() {
         let (x, y) = (&a.data[p * 4..p * 4 + 4], &b.data[p * 4..p * 4 + 4]);
         for (i, j) in [(0usize, 1usize), (1, 0), (2, 2), (3, 3)] {
             let (want, got) = (-x[j].to_f32(), y[i].to_f32());
-            assert!((want - got).abs() <= 2e-3 * (1.0 + want.abs()), "{want} vs {got}");
+            assert!(
+                (want - got).abs() <= 2e-3 * (1.0 + want.abs()),
+                "{want} vs {got}"
+            );
         }
     }
     let off = SceneSource::Synthetic {
