@@ -2,7 +2,7 @@
 //! `train` and `eval`. Everything downstream takes a runtime [`Device`], so
 //! rendering and training run unchanged on each backend.
 
-use burn::tensor::{Device, DeviceKind};
+use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
 
 /// The compute backends this build supports.
@@ -45,11 +45,31 @@ pub fn device(kind: BackendKind, index: Option<usize>) -> Device {
         BackendKind::Flex => Device::flex(),
         #[allow(deprecated)] // ndarray is kept as a reference backend on purpose
         BackendKind::Ndarray => Device::ndarray(),
-        BackendKind::Wgpu => Device::wgpu(match index {
-            Some(i) => DeviceKind::DiscreteGpu(i),
-            None => DeviceKind::DefaultDevice,
-        }),
+        BackendKind::Wgpu => wgpu_device(index),
     }
+}
+
+/// Whether this build has the wgpu backend (the default `wgpu` feature).
+pub const WGPU_BUILT: bool = cfg!(feature = "wgpu");
+
+#[cfg(feature = "wgpu")]
+fn wgpu_device(index: Option<usize>) -> Device {
+    use burn::tensor::DeviceKind;
+    Device::wgpu(match index {
+        Some(i) => DeviceKind::DiscreteGpu(i),
+        None => DeviceKind::DefaultDevice,
+    })
+}
+
+/// A CPU-only build has no wgpu device; the command lines refuse `--backend
+/// wgpu` before this is reached ([`check_device_flag`]), so a library
+/// caller is the only one who gets here, and is told.
+#[cfg(not(feature = "wgpu"))]
+fn wgpu_device(_index: Option<usize>) -> Device {
+    eprintln!(
+        "warning: this build has no wgpu backend (built without the `wgpu` feature); using flex"
+    );
+    Device::flex()
 }
 
 /// Parses `--device`: the index of a wgpu adapter. A backend name is
@@ -69,8 +89,16 @@ pub fn parse_device_index(s: &str) -> Result<usize, String> {
     ))
 }
 
-/// Refuses `--device` without `--backend wgpu` (it would be ignored).
+/// Refuses `--device` without `--backend wgpu` (it would be ignored), and
+/// `--backend wgpu` in a build without the wgpu backend.
 pub fn check_device_flag(kind: BackendKind, index: Option<usize>) -> Result<(), String> {
+    if kind == BackendKind::Wgpu && !WGPU_BUILT {
+        return Err(
+            "--backend wgpu: this build has no wgpu backend (it was built with \
+             --no-default-features); build without that flag to use a GPU"
+                .into(),
+        );
+    }
     match (kind, index) {
         (BackendKind::Wgpu, _) | (_, None) => Ok(()),
         (k, Some(_)) => Err(format!(
@@ -90,7 +118,10 @@ mod tests {
         assert!(e.contains("--backend ndarray"), "{e}");
         assert!(parse_device_index("gpu0").is_err());
         assert!(check_device_flag(BackendKind::Flex, Some(0)).is_err());
-        assert!(check_device_flag(BackendKind::Wgpu, Some(0)).is_ok());
+        assert_eq!(
+            check_device_flag(BackendKind::Wgpu, Some(0)).is_ok(),
+            WGPU_BUILT
+        );
         assert!(check_device_flag(BackendKind::Flex, None).is_ok());
     }
 }

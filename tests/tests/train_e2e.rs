@@ -253,6 +253,10 @@ fn ndarray_backend_trains() {
 
 #[test]
 fn wgpu_backend_trains_when_a_vulkan_driver_is_present() {
+    if !eval::backend::WGPU_BUILT {
+        println!("skipped: built without the wgpu feature");
+        return;
+    }
     if !wgpu_enabled() {
         println!(
             "skipped: no Vulkan driver (install mesa-vulkan-drivers or set OPENNERF_TEST_WGPU=1)"

@@ -1,7 +1,7 @@
 //! Shared test helpers: the devices to run on and tensor readers.
 #![allow(dead_code)]
 
-use burn::tensor::{Device, DeviceKind, Tensor};
+use burn::tensor::{Device, Tensor};
 
 /// Whether a Vulkan driver is installed (or wgpu tests are forced on).
 pub fn wgpu_available() -> bool {
@@ -22,10 +22,12 @@ pub fn devices(with_wgpu: bool) -> Vec<(&'static str, Device)> {
     #[allow(deprecated)]
     let mut v = vec![("flex", Device::flex()), ("ndarray", Device::ndarray())];
     if with_wgpu {
-        if wgpu_available() {
+        if !cfg!(feature = "wgpu") {
+            eprintln!("skipping wgpu: built without the wgpu feature");
+        } else if wgpu_available() {
             // Run with CUBECL_AUTOTUNE_LEVEL=minimal: shader autotuning on a
             // CPU Vulkan driver otherwise takes minutes.
-            v.push(("wgpu", Device::wgpu(DeviceKind::Cpu)));
+            push_wgpu(&mut v);
         } else {
             eprintln!("skipping wgpu: no Vulkan driver (set OPENNERF_TEST_WGPU=1 to force)");
         }
@@ -54,3 +56,11 @@ pub fn assert_close(a: &[f32], b: &[f32], atol: f32, rtol: f32, what: &str) {
         );
     }
 }
+
+#[cfg(feature = "wgpu")]
+fn push_wgpu(v: &mut Vec<(&'static str, Device)>) {
+    v.push(("wgpu", Device::wgpu(burn::tensor::DeviceKind::Cpu)));
+}
+
+#[cfg(not(feature = "wgpu"))]
+fn push_wgpu(_: &mut Vec<(&'static str, Device)>) {}
