@@ -270,12 +270,19 @@ fn describe(label: &str, m: &EvalMetrics) -> String {
 }
 
 /// Fits the schedule's length to a time budget from the measured time of
-/// the first steps (evaluations and checkpoints included, as they happen).
+/// the steps (evaluations and checkpoints included, as they happen).
+///
+/// The first fit comes after a few timed steps; the fit is then repeated
+/// every tenth of the planned run from the step time since the last fit, so that a run that slows down (a busier machine, a longer step
+/// later in training) still reaches the end of its learning-rate decay
+/// inside the budget instead of being cut off half-way.
 #[derive(Debug, Clone, Copy)]
 struct BudgetFit {
     budget: f64,
-    /// `(iteration, elapsed seconds)` when timing started.
+    /// `(iteration, elapsed seconds)` when timing started or last fitted.
     start: Option<(usize, f64)>,
+    /// Iteration of the next fit.
+    next: usize,
 }
 
 impl BudgetFit {
@@ -286,26 +293,33 @@ impl BudgetFit {
     /// Fraction of the remaining budget planned for, leaving room for the
     /// periodic evaluations and checkpoints the timed steps did not include.
     const SAFETY: f64 = 0.95;
+    /// Refits per planned run.
+    const REFITS: usize = 10;
 
     fn new(budget: f64) -> Self {
         Self {
             budget,
             start: None,
+            next: Self::SKIP + Self::TIMED,
         }
     }
 
-    /// Called before iteration `it`; returns the fitted number of iterations
-    /// once enough steps are timed.
+    /// Called before iteration `it`; returns the (re)fitted number of
+    /// iterations when a fit is due and changes the plan.
     fn observe(&mut self, it: usize, elapsed: f64) -> Option<usize> {
         match self.start {
             None if it >= Self::SKIP => {
                 self.start = Some((it, elapsed));
                 None
             }
-            Some((i0, t0)) if it >= i0 + Self::TIMED => {
+            Some((i0, t0)) if it >= self.next && it > i0 => {
+                // The pace since the last fit: what the next steps will cost.
                 let per_step = (elapsed - t0) / (it - i0) as f64;
                 let left = (self.budget - elapsed).max(0.0) * Self::SAFETY;
-                Some(it + (left / per_step.max(1e-9)).floor() as usize)
+                let planned = it + (left / per_step.max(1e-9)).floor() as usize;
+                self.start = Some((it, elapsed));
+                self.next = it + (planned / Self::REFITS).max(Self::TIMED);
+                Some(planned)
             }
             _ => None,
         }
@@ -368,6 +382,7 @@ fn train_loop(
     let mut config = config.clone();
     let stop_at = |iterations: usize| session.stop_at.map_or(iterations, |s| s.min(iterations));
     let mut end = stop_at(config.schedule.iterations);
+    let (mut fitted_once, mut reported) = (false, 0usize);
     let mut fit = match session.time_budget {
         Some(budget) if session.fit_schedule_to_budget && state.iteration == 0 => {
             Some(BudgetFit::new(budget))
@@ -428,16 +443,26 @@ fn train_loop(
         let it = state.iteration;
         if let Some(f) = fit.as_mut()
             && let Some(iterations) = f.observe(it, session_start.elapsed().as_secs_f64())
+            && iterations != config.schedule.iterations
         {
-            fit = None;
+            let first = !fitted_once;
+            fitted_once = true;
             config.schedule.iterations = iterations;
             end = stop_at(iterations);
             write_json(&run.config(), &config)?;
             bar.set_length(end as u64);
-            say(
-                &bar,
-                format!("schedule fitted to the time budget: {iterations} iterations"),
-            );
+            // The first fit is news; later ones only when the plan moves by
+            // more than a few per cent.
+            if first || iterations.abs_diff(reported) * 20 > reported {
+                reported = iterations;
+                say(
+                    &bar,
+                    format!(
+                        "schedule {} to the time budget: {iterations} iterations",
+                        if first { "fitted" } else { "refitted" }
+                    ),
+                );
+            }
         }
         let lr = config.schedule.lr(it);
         let rates = StepRates {
@@ -626,5 +651,33 @@ mod budget_tests {
         let mut late = BudgetFit::new(1.0);
         assert_eq!(late.observe(3, 2.0), None);
         assert_eq!(late.observe(23, 12.0), Some(23));
+    }
+
+    /// Steps that become twice as slow half-way: the refits shorten the
+    /// plan so that the run ends inside the budget, near its fitted end.
+    #[test]
+    fn a_run_that_slows_down_is_refitted_to_end_inside_the_budget() {
+        let budget = 100.0;
+        let mut fit = BudgetFit::new(budget);
+        let step = |it: usize| if it < 100 { 0.25 } else { 0.5 };
+        let (mut t, mut planned, mut refits) = (0.0, usize::MAX, 0);
+        let mut it = 0;
+        while it < planned && t < budget {
+            if let Some(n) = fit.observe(it, t) {
+                planned = n;
+                refits += 1;
+            }
+            t += step(it);
+            it += 1;
+        }
+        assert!(refits >= 3, "{refits} fits");
+        // The plan was met before the budget ran out...
+        assert_eq!(it, planned, "stopped at {it} of {planned} after {t} s");
+        assert!(t <= budget);
+        // ...and little of the budget is left unused.
+        assert!(t > 0.85 * budget, "ended at {t} s");
+        // Fitted once at 0.25 s a step, the plan would have been ~380
+        // iterations, which take ~140 s at the slower pace.
+        assert!(planned < 300, "{planned}");
     }
 }
