@@ -19,6 +19,8 @@ fn assert_err<T>(r: Result<T, DatasetError>, file: &str, words: &[&str]) {
     for w in words {
         assert!(msg.contains(w), "error {msg:?} does not mention {w:?}");
     }
+    // Shown with `--nocapture`: the message a user gets for this input.
+    eprintln!("refused: {msg}");
 }
 
 /// A float16 `.npy` with the header for `shape` followed by `body` bytes and

@@ -95,6 +95,8 @@ fn assert_refused(args: &[&str], words: &[&str]) {
     for w in words {
         assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
     }
+    // Shown with `--nocapture`: the message a user gets for this input.
+    eprintln!("refused {args:?}:\n{}", err.trim_end());
 }
 
 const MISSING: &str = "/nonexistent/run";
