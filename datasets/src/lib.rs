@@ -14,7 +14,7 @@ pub mod imageio;
 pub mod llff;
 pub mod npy;
 pub mod points;
-mod poses;
+pub mod poses;
 pub mod replica;
 pub mod sampler;
 pub mod scene;

@@ -1,6 +1,7 @@
 //! Evaluation of trained OpenNeRF runs: loading run directories, rendering
 //! views, projecting points into views, zero-shot 3D semantic segmentation
-//! with its metrics, and relevancy queries.
+//! with its metrics, relevancy queries, and the uncertainty of the 2D
+//! feature maps.
 #![warn(missing_docs)]
 
 pub mod backend;
@@ -16,6 +17,7 @@ pub mod render;
 pub mod run;
 pub mod segment;
 pub mod similarity;
+pub mod uncertainty;
 pub mod visual;
 
 pub use error::EvalError;

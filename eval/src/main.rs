@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 use eval::commands::{
     QueryArgs, RenderArgs, SegmentArgs, query_command, render_command, segment_command,
 };
+use eval::uncertainty::report::{UncertaintyArgs, uncertainty_command};
 
 /// Zero-shot 3D semantic segmentation, relevancy queries and rendering of trained runs.
 #[derive(Parser)]
@@ -21,6 +22,10 @@ enum Command {
     Query(QueryArgs),
     /// Render colour, depth and feature-PCA images at cameras.
     Render(RenderArgs),
+    /// Per-point uncertainty of the training feature maps (log det of their
+    /// covariance), its correlation with the feature error, a scatter plot
+    /// and a point cloud coloured by uncertainty.
+    Uncertainty(UncertaintyArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -47,6 +52,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Render(a) => {
             for p in render_command(&a)? {
+                println!("wrote {}", p.display());
+            }
+        }
+        Command::Uncertainty(a) => {
+            for p in uncertainty_command(&a)? {
                 println!("wrote {}", p.display());
             }
         }

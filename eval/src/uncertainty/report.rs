@@ -1,0 +1,317 @@
+//! `eval uncertainty`: the uncertainty map of a run's training feature maps,
+//! its correlation with the error of the fused features, a scatter plot and
+//! a point cloud coloured by uncertainty.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use datasets::points::{PointCloud, write_ply};
+use datasets::{Scene, load_scene_with_basis};
+use model::geometry::Vec3;
+use serde::Serialize;
+
+use super::{UncertaintyMap, UncertaintyOptions, pearson, uncertainty_map, voxel_downsample};
+use crate::colormap::{to_u8, turbo};
+use crate::error::EvalError;
+use crate::project::ProjectOptions;
+use crate::run::{RunDir, Split, read_json, write_json};
+use crate::segment::EvalPoints;
+use datasets::points::IGNORE_LABEL;
+use crate::similarity::ClassScorer;
+
+/// Arguments of `uncertainty`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct UncertaintyArgs {
+    /// Run directory.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Principal directions of the feature space the covariances are kept in.
+    #[arg(long, default_value_t = 16)]
+    pub k: usize,
+    /// Added to the covariance's diagonal before its log-determinant.
+    #[arg(long, default_value_t = 1e-6, allow_negative_numbers = true)]
+    pub eps: f64,
+    /// Pseudo-observations of the pooled covariance each point's covariance
+    /// is shrunk towards (0: the plain sample covariance, which is
+    /// rank-deficient for points seen by fewer than k+1 views).
+    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
+    pub prior_weight: f64,
+    /// Uncertainty of each point's mean feature (covariance / views) instead
+    /// of a single view's.
+    #[arg(long)]
+    pub of_mean: bool,
+    /// Voxel size (metres) the point cloud is thinned to (0 keeps every point).
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    pub voxel: f64,
+    /// Novel cameras to propose at uncertain points (0: none). Needs the
+    /// run's weights, to keep cameras out of matter and their targets in view.
+    #[arg(long, default_value_t = 8)]
+    pub views: usize,
+    /// Seed of the target draw and the position noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output directory [default: `uncertainty/` in the run directory].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Compute backend (for the proposals' field checks and previews).
+    #[arg(long, value_enum, default_value_t = crate::backend::BackendKind::Flex)]
+    pub backend: crate::backend::BackendKind,
+}
+
+/// What `uncertainty.json` records.
+#[derive(Debug, Clone, Serialize)]
+pub struct UncertaintySummary {
+    /// Points of the (thinned) cloud.
+    pub points: usize,
+    /// Points seen by at least one training view.
+    pub seen: usize,
+    /// Points seen at least twice (with a covariance).
+    pub seen_twice: usize,
+    /// Subspace dimension and diagonal regulariser.
+    pub k: usize,
+    /// Diagonal regulariser.
+    pub eps: f64,
+    /// Smallest, median and largest `log det` over the points seen twice.
+    pub log_det_min: f64,
+    /// Median `log det`.
+    pub log_det_median: f64,
+    /// Largest `log det`.
+    pub log_det_max: f64,
+    /// Pearson r of `log det` and the feature error over labelled points
+    /// seen twice (`None` without labels and class embeddings).
+    pub pearson_r: Option<f64>,
+    /// Points the correlation is computed on.
+    pub correlated_points: usize,
+}
+
+/// The coarse cloud: the scene's point cloud when it has one, else the
+/// training views' depth back-projected; thinned to `voxel`. Returns the
+/// positions and, when the scene has a labelled cloud and classes, labels
+/// and the class scorer input.
+fn coarse_points(
+    scene: &Scene,
+    split: &Split,
+    voxel: f64,
+) -> Result<(Vec<Vec3>, Option<EvalPoints>), EvalError> {
+    if scene.points.is_some() {
+        let labelled = if scene.classes.is_some() {
+            Some(EvalPoints::from_scene(scene)?)
+        } else {
+            None
+        };
+        let all: Vec<Vec3> = scene
+            .points
+            .as_ref()
+            .map(|p| p.positions.clone())
+            .unwrap_or_default();
+        let keep = voxel_downsample(&all, voxel);
+        let positions = keep.iter().map(|&i| all[i]).collect();
+        let labelled = labelled.map(|mut e| {
+            e.positions = keep.iter().map(|&i| e.positions[i]).collect();
+            e.labels = keep.iter().map(|&i| e.labels[i]).collect();
+            e
+        });
+        return Ok((positions, labelled));
+    }
+    let mut all = Vec::new();
+    for &i in &split.train {
+        let f = &scene.frames[i];
+        if let Some(d) = &f.depth {
+            let step = (d.width.max(d.height) / 64).max(1);
+            all.extend(datasets::poses::backproject(&f.camera, d, step));
+        }
+    }
+    if all.is_empty() {
+        return Err(EvalError::Invalid(format!(
+            "scene {} has no point cloud and no depth to back-project",
+            scene.name
+        )));
+    }
+    let keep = voxel_downsample(&all, voxel);
+    Ok((keep.iter().map(|&i| all[i]).collect(), None))
+}
+
+/// Runs `eval uncertainty` and returns the files written.
+pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalError> {
+    if args.k == 0 {
+        return Err(EvalError::Invalid("--k must be at least 1".into()));
+    }
+    if !(args.eps.is_finite() && args.eps > 0.0) {
+        return Err(EvalError::Invalid(format!(
+            "--eps must be positive and finite, got {}",
+            args.eps
+        )));
+    }
+    if !(args.prior_weight.is_finite() && args.prior_weight >= 0.0) {
+        return Err(EvalError::Invalid(format!(
+            "--prior-weight must be a non-negative number of pseudo-observations, got {}",
+            args.prior_weight
+        )));
+    }
+    if !(args.voxel.is_finite() && args.voxel >= 0.0) {
+        return Err(EvalError::Invalid(format!(
+            "--voxel must be a size in metres (0 keeps every point), got {}",
+            args.voxel
+        )));
+    }
+    let dir = RunDir::new(&args.run);
+    let meta: datasets::SceneMeta = read_json(&dir.scene())?;
+    let split: Split = read_json(&dir.split())?;
+    let scene = load_scene_with_basis(&meta.source, meta.pca.as_ref())?;
+    let (points, labelled) = coarse_points(&scene, &split, args.voxel)?;
+    let opts = UncertaintyOptions {
+        k: args.k,
+        eps: args.eps,
+        prior_weight: args.prior_weight,
+        of_mean: args.of_mean,
+        project: ProjectOptions::default(),
+    };
+    let bar = crate::visual::progress(split.train.len(), "projecting feature maps");
+    let map = uncertainty_map(&scene, &split.train, &points, &opts, |d, _| {
+        bar.set_position(d as u64)
+    })?;
+    bar.finish_and_clear();
+    let errors = match (&labelled, scene.features.as_ref()) {
+        (Some(l), Some(set)) => Some(feature_errors(&map, l, set.pca.as_ref())?),
+        _ => None,
+    };
+    let summary = summarise(&map, errors.as_deref(), &opts);
+    let out = args.out.clone().unwrap_or_else(|| dir.dir.join("uncertainty"));
+    std::fs::create_dir_all(&out).map_err(|e| EvalError::io(&out, e))?;
+    let mut written = Vec::new();
+    let json = out.join("uncertainty.json");
+    write_json(&json, &summary)?;
+    written.push(json);
+    let csv = out.join("uncertainty.csv");
+    write_csv(&csv, &points, &map, errors.as_deref())?;
+    written.push(csv);
+    let ply = out.join("uncertainty.ply");
+    write_uncertainty_ply(&ply, &points, &map)?;
+    written.push(ply);
+    if let Some(e) = &errors {
+        let png = out.join("uncertainty_scatter.png");
+        // The numbers are in the CSV: a missing font costs the picture only.
+        match super::plot::scatter(&png, &map, e, summary.pearson_r) {
+            Ok(()) => written.push(png),
+            Err(e) => eprintln!("warning: {e}"),
+        }
+    }
+    println!(
+        "{} points, {} seen by a training view, {} seen twice; log det (k = {}) from {:.1} to {:.1}, median {:.1}",
+        summary.points,
+        summary.seen,
+        summary.seen_twice,
+        summary.k,
+        summary.log_det_min,
+        summary.log_det_max,
+        summary.log_det_median
+    );
+    if args.views > 0 {
+        written.extend(super::propose::write_proposals(
+            args, &dir, &scene, &split, &points, &map, &out,
+        )?);
+    }
+    match summary.pearson_r {
+        Some(r) => println!(
+            "Pearson r between uncertainty and feature error: {r:.3} over {} labelled points seen twice",
+            summary.correlated_points
+        ),
+        None => println!("no labelled points with class embeddings: the error correlation is skipped"),
+    }
+    Ok(written)
+}
+
+/// `1 - cos(mean feature, class embedding of the point's label)` per point;
+/// NaN where the point is unlabelled or unseen.
+pub fn feature_errors(
+    map: &UncertaintyMap,
+    points: &EvalPoints,
+    pca: Option<&datasets::features::Pca>,
+) -> Result<Vec<f64>, EvalError> {
+    let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
+    let mut cos = vec![0.0; scorer.classes];
+    Ok(map
+        .mean_features
+        .iter()
+        .zip(&points.labels)
+        .map(|(m, &l)| match m {
+            Some(f) if l != IGNORE_LABEL && (l as usize) < scorer.classes => {
+                scorer.cosines(f, &mut cos);
+                1.0 - cos[l as usize]
+            }
+            _ => f64::NAN,
+        })
+        .collect())
+}
+
+fn summarise(map: &UncertaintyMap, errors: Option<&[f64]>, opts: &UncertaintyOptions) -> UncertaintySummary {
+    let twice: Vec<usize> = (0..map.counts.len()).filter(|&i| map.counts[i] >= 2).collect();
+    let mut lds: Vec<f64> = twice.iter().map(|&i| map.log_det[i]).collect();
+    lds.sort_by(f64::total_cmp);
+    let pick = |q: f64| {
+        if lds.is_empty() {
+            f64::NAN
+        } else {
+            lds[((lds.len() - 1) as f64 * q).round() as usize]
+        }
+    };
+    let (xs, ys): (Vec<f64>, Vec<f64>) = match errors {
+        Some(e) => twice
+            .iter()
+            .filter(|&&i| e[i].is_finite())
+            .map(|&i| (map.log_det[i], e[i]))
+            .unzip(),
+        None => (Vec::new(), Vec::new()),
+    };
+    UncertaintySummary {
+        points: map.counts.len(),
+        seen: map.counts.iter().filter(|&&c| c > 0).count(),
+        seen_twice: twice.len(),
+        k: map.k,
+        eps: opts.eps,
+        log_det_min: pick(0.0),
+        log_det_median: pick(0.5),
+        log_det_max: pick(1.0),
+        pearson_r: errors.and_then(|_| pearson(&xs, &ys)),
+        correlated_points: xs.len(),
+    }
+}
+
+fn write_csv(path: &Path, points: &[Vec3], map: &UncertaintyMap, errors: Option<&[f64]>) -> Result<(), EvalError> {
+    let io = |e| EvalError::io(path, e);
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    writeln!(w, "x,y,z,views,log_det,uncertainty,feature_error").map_err(io)?;
+    for (i, p) in points.iter().enumerate() {
+        let e = errors.map_or(f64::NAN, |e| e[i]);
+        writeln!(
+            w,
+            "{:.4},{:.4},{:.4},{},{:.5},{:.5},{}",
+            p[0],
+            p[1],
+            p[2],
+            map.counts[i],
+            map.log_det[i],
+            map.normalised[i],
+            if e.is_finite() { format!("{e:.5}") } else { String::new() }
+        )
+        .map_err(io)?;
+    }
+    w.flush().map_err(io)
+}
+
+fn write_uncertainty_ply(path: &Path, points: &[Vec3], map: &UncertaintyMap) -> Result<(), EvalError> {
+    let colors = map
+        .normalised
+        .iter()
+        .map(|&u| turbo(u as f32).map(to_u8))
+        .collect();
+    let cloud = PointCloud {
+        positions: points.to_vec(),
+        colors: Some(colors),
+        labels: None,
+    };
+    let u: Vec<f32> = map.normalised.iter().map(|&u| u as f32).collect();
+    let views: Vec<f32> = map.counts.iter().map(|&c| c as f32).collect();
+    write_ply(path, &cloud, &[("uncertainty", &u), ("views", &views)])
+        .map_err(EvalError::from)
+}
