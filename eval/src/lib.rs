@@ -16,6 +16,7 @@ pub mod render;
 pub mod run;
 pub mod segment;
 pub mod similarity;
+pub mod text_query;
 pub mod visual;
 
 pub use error::EvalError;
