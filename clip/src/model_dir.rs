@@ -277,19 +277,37 @@ impl TextModel {
                     .map_err(|e| ClipError::Text(format!("{t:?}: {}", e.0)))?,
             );
         }
-        let s = rows.iter().map(Vec::len).max().unwrap_or(2);
+        // Batches of similar length (a long text does not make every short
+        // one pay for its padding), at most 64 texts each.
+        let mut order: Vec<usize> = (0..rows.len()).collect();
+        order.sort_by_key(|&i| rows[i].len());
+        let mut out = vec![Vec::new(); rows.len()];
+        for batch in order.chunks(64) {
+            let embedded = self.embed_ids(batch.iter().map(|&i| rows[i].as_slice()))?;
+            for (&i, e) in batch.iter().zip(embedded) {
+                out[i] = e;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Unit-length embeddings of token id sequences (each with its end-of-text).
+    fn embed_ids<'a>(
+        &self,
+        rows: impl ExactSizeIterator<Item = &'a [u32]> + Clone,
+    ) -> Result<Vec<Vec<f32>>, ClipError> {
+        let n = rows.len();
+        let s = rows.clone().map(<[u32]>::len).max().unwrap_or(2);
         // Padding after end-of-text changes nothing: attention is causal and
         // the end-of-text position is pooled.
         let ids: Vec<i64> = rows
-            .iter()
             .flat_map(|r| {
                 r.iter()
                     .map(|&i| i as i64)
                     .chain(std::iter::repeat_n(0, s - r.len()))
             })
             .collect();
-        let tokens =
-            Tensor::<2, Int>::from_data(TensorData::new(ids, [rows.len(), s]), &self.device);
+        let tokens = Tensor::<2, Int>::from_data(TensorData::new(ids, [n, s]), &self.device);
         let out = self
             .encoder
             .embed(tokens)

@@ -183,3 +183,93 @@ fn broken_directories_name_the_file_and_tensor() {
         "{e}"
     );
 }
+
+#[test]
+fn tokenizer_json_gives_the_ids_of_vocab_and_merges() {
+    let fixture = tokenizer_fixture();
+    let reference = clip::load_tokenizer(&fixture, 77).expect("vocab.json + merges.txt");
+    let vocab: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture.join("vocab.json")).expect("read"))
+            .expect("vocab");
+    let merges_text = std::fs::read_to_string(fixture.join("merges.txt")).expect("read");
+    let merges = clip::ClipTokenizer::parse_merges(&merges_text).expect("merges");
+    // Both spellings of the merges: "a b" strings (older) and [a, b] pairs.
+    let as_strings: Vec<String> = merges.iter().map(|(a, b)| format!("{a} {b}")).collect();
+    let as_pairs: Vec<[String; 2]> = merges.iter().map(|(a, b)| [a.clone(), b.clone()]).collect();
+    let texts = [
+        "a photo of a chair",
+        "Don’t use curly “quotes”",
+        "café naïve",
+    ];
+    for merges in [serde_json::json!(as_strings), serde_json::json!(as_pairs)] {
+        let dir = tempfile::tempdir().expect("tmp");
+        let json = serde_json::json!({
+            "model": { "type": "BPE", "vocab": vocab, "merges": merges, "end_of_word_suffix": "</w>" }
+        });
+        std::fs::write(dir.path().join("tokenizer.json"), json.to_string()).expect("write");
+        let t = clip::load_tokenizer(dir.path(), 77).expect("tokenizer.json");
+        for text in texts {
+            assert_eq!(
+                t.encode(text).expect("ids"),
+                reference.encode(text).expect("ids"),
+                "{text}"
+            );
+        }
+    }
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::write(
+        dir.path().join("tokenizer.json"),
+        r#"{"model": {"vocab": {}}}"#,
+    )
+    .expect("write");
+    let e = clip::load_tokenizer(dir.path(), 77)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("tokenizer.json") && e.contains("merges"), "{e}");
+}
+
+#[test]
+fn a_clip_model_file_with_its_vision_tower_and_nested_config_loads() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let (dir, config) = model_dir(tmp.path());
+    let device = Device::flex();
+    let plain = TextModel::load(&dir, &device).expect("load");
+    let weights = dir.join("model.safetensors");
+    let mut tensors = clip::export::hf_tensors(&plain.encoder, &weights).expect("tensors");
+    let extra = clip::tensors::HostTensor {
+        shape: vec![2, 3],
+        data: vec![0.5; 6],
+    };
+    for name in [
+        "vision_model.embeddings.patch_embedding.weight",
+        "visual_projection.weight",
+        "logit_scale",
+    ] {
+        tensors.insert(name.to_string(), extra.clone());
+    }
+    clip::tensors::write_f32(&weights, &tensors).expect("write");
+    // A CLIPModel config: the text options under text_config; GELU there
+    // must be taken (the saved model uses quick-GELU).
+    let nested = serde_json::json!({
+        "architectures": ["CLIPModel"],
+        "projection_dim": config.embed_dim,
+        "text_config": { "num_attention_heads": 2, "hidden_act": "quick_gelu", "eos_token_id": 2 },
+        "vision_config": { "num_attention_heads": 12 }
+    });
+    std::fs::write(dir.join("config.json"), nested.to_string()).expect("write");
+    let m = TextModel::load(&dir, &device).expect("CLIPModel layout");
+    let texts = vec!["wooden".to_string()];
+    assert_eq!(
+        m.embed(&texts).expect("embed"),
+        plain.embed(&texts).expect("embed")
+    );
+    let gelu =
+        serde_json::json!({ "text_config": { "num_attention_heads": 2, "hidden_act": "gelu" } });
+    std::fs::write(dir.join("config.json"), gelu.to_string()).expect("write");
+    let m = TextModel::load(&dir, &device).expect("gelu");
+    assert_eq!(m.config.activation, model::clip::ClipActivation::Gelu);
+    assert_ne!(
+        m.embed(&texts).expect("embed"),
+        plain.embed(&texts).expect("embed")
+    );
+}

@@ -337,7 +337,9 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         }
         _ => None,
     };
+    let asked = given.as_ref().map(|t| t.names.clone()).unwrap_or_default();
     let points = load_points_with(&args.data, scene, given)?;
+    crate::text_query::note_unscored(&asked, &points.names);
     let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
     let sensor = !args.rendered_depth;
     let views: Vec<View<'_>> = match (&idx, scene) {

@@ -108,6 +108,19 @@ pub fn embed(
     })
 }
 
+/// Tells (on stderr) which `--classes` name no class of the point labels:
+/// they are embedded but cannot be scored.
+pub fn note_unscored(asked: &[String], scored: &[String]) {
+    let unscored: Vec<&String> = asked.iter().filter(|n| !scored.contains(n)).collect();
+    if !unscored.is_empty() {
+        eprintln!(
+            "note: {} of --classes name no class of the point labels and are not scored: \
+             {unscored:?}",
+            unscored.len()
+        );
+    }
+}
+
 /// A file-name-safe label for a query text (at most 48 characters).
 pub fn label(text: &str) -> String {
     let s: String = text

@@ -338,4 +338,14 @@ fn free_text_query_and_classes_run_and_are_cached() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{err}");
     assert!(seg.join("segmentation.json").exists());
+    assert!(
+        err.contains("not scored: [\"something to sit on\"]"),
+        "{err}"
+    );
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(seg.join("segmentation.json")).expect("json"),
+    )
+    .expect("parse");
+    let classes = json["per_class"].as_array().expect("per-class scores");
+    assert_eq!(classes.len(), 2, "{json}");
 }
