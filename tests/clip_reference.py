@@ -16,9 +16,16 @@ Writes, under OUT (default: clip/tests/fixtures next to this script's parent):
                   expected.json: the ids open_clip's tokenizer and Hugging
                   Face's CLIPTokenizer give each string with the full vocabulary
 
+With --full-size, writes instead (about 500 MB, not checked in) a random
+Hugging Face CLIPModel with the text tower of CLIP ViT-L/14 (width 768, 12
+layers, 12 heads, 768-d) and a tiny vision tower, the full CLIP vocabulary
+as vocab.json + merges.txt, and reference.json: the texts and their
+normalised embeddings, end to end through CLIPTokenizer and the model.
+
 Needs torch, transformers, open_clip_torch and ftfy. Deterministic (seeded).
 
     python3 tests/clip_reference.py [OUT]
+    python3 tests/clip_reference.py --full-size OUT
 """
 
 import gzip
@@ -272,7 +279,62 @@ def tokenizer_fixture(out):
             print(f"the reduced vocabulary changes {case['text']!r}")
 
 
+def full_vocab(d):
+    """The real CLIP vocabulary as Hugging Face's vocab.json + merges.txt."""
+    from open_clip.tokenizer import SimpleTokenizer, default_bpe
+
+    simple = SimpleTokenizer()
+    rename = {"<start_of_text>": "<|startoftext|>", "<end_of_text>": "<|endoftext|>"}
+    save_json(os.path.join(d, "vocab.json"), {rename.get(t, t): i for t, i in simple.encoder.items()})
+    merges = gzip.open(default_bpe()).read().decode("utf-8").split("\n")[1 : 49152 - 256 - 2 + 1]
+    with open(os.path.join(d, "merges.txt"), "w", encoding="utf-8") as f:
+        f.write("#version: 0.2\n")
+        for m in merges:
+            f.write(m + "\n")
+
+
+def full_size(out):
+    import transformers
+    from transformers import CLIPConfig, CLIPModel, CLIPTokenizer
+
+    torch.manual_seed(2)
+    text = dict(
+        hidden_size=768, intermediate_size=3072, projection_dim=768, num_hidden_layers=12,
+        num_attention_heads=12, max_position_embeddings=77, vocab_size=49408,
+        hidden_act="quick_gelu", eos_token_id=2,
+    )
+    vision = dict(
+        hidden_size=32, intermediate_size=64, num_hidden_layers=1, num_attention_heads=2,
+        image_size=32, patch_size=16, projection_dim=768,
+    )
+    model = CLIPModel(CLIPConfig(text_config=text, vision_config=vision, projection_dim=768)).eval()
+    d = os.path.join(out, "hf_vit_l14")
+    os.makedirs(d, exist_ok=True)
+    model.save_pretrained(d, safe_serialization=True)
+    full_vocab(d)
+    tok = CLIPTokenizer(os.path.join(d, "vocab.json"), os.path.join(d, "merges.txt"))
+    texts = ["wooden", "soft", "something to sit on", "a photo of a chair", "something to sit on " * 25]
+    enc = tok(texts, padding="max_length", truncation=True, max_length=77, return_tensors="pt")
+    with torch.no_grad():
+        emb = model.get_text_features(input_ids=enc["input_ids"])
+        if not torch.is_tensor(emb):
+            emb = emb.pooler_output
+        emb = emb / emb.norm(dim=-1, keepdim=True)
+    save_json(
+        os.path.join(d, "reference.json"),
+        {
+            "generator": f"transformers {transformers.__version__}, torch {torch.__version__}",
+            "texts": texts,
+            "text_embeds": flat(emb),
+        },
+    )
+    print(f"wrote {os.path.abspath(d)}")
+
+
 def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--full-size":
+        full_size(sys.argv[2])
+        return
     out = out_dir()
     os.makedirs(out, exist_ok=True)
     hf_model(out)

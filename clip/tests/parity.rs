@@ -221,3 +221,64 @@ fn regenerated_references_match() {
     let tokenizer = load_tokenizer(&dir, 77).expect("regenerated tokenizer");
     check_tokenizer(&tokenizer, &read_json(&dir.join("expected.json")));
 }
+
+/// End to end at the size of the paper's query side: a random Hugging Face
+/// `CLIPModel` with the ViT-L/14 text tower and the full vocabulary, text in,
+/// normalised embeddings out, against `transformers`. Ignored by default
+/// (it writes a 500 MB model): `cargo test --release -p clip --test parity
+/// -- --ignored`. `CLIP_FULL_SIZE_DIR` reuses a directory made by
+/// `tests/clip_reference.py --full-size DIR`.
+#[test]
+#[ignore = "writes and loads a 500 MB model"]
+fn full_size_vit_l_14_matches_transformers_end_to_end() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = match std::env::var_os("CLIP_FULL_SIZE_DIR") {
+        Some(d) => PathBuf::from(d),
+        None => {
+            if !python_has("torch, transformers, open_clip, ftfy, safetensors") {
+                println!(
+                    "skipped: python3 with torch, transformers and open_clip_torch is not installed"
+                );
+                return;
+            }
+            let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/clip_reference.py");
+            let run = Command::new("python3")
+                .arg(&script)
+                .arg("--full-size")
+                .arg(tmp.path())
+                .output()
+                .expect("python3 runs");
+            assert!(
+                run.status.success(),
+                "{}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            tmp.path().to_path_buf()
+        }
+    };
+    let dir = root.join("hf_vit_l14");
+    let reference = read_json(&dir.join("reference.json"));
+    let texts: Vec<String> = reference["texts"]
+        .as_array()
+        .expect("texts")
+        .iter()
+        .map(|t| t.as_str().expect("text").to_string())
+        .collect();
+    let want = floats(&reference["text_embeds"]);
+    for (name, device) in devices() {
+        let start = std::time::Instant::now();
+        let m = clip::TextModel::load(&dir, &device).expect("load");
+        let loaded = start.elapsed();
+        assert_eq!((m.config.width, m.config.heads, m.dim()), (768, 12, 768));
+        let start = std::time::Instant::now();
+        let got: Vec<f32> = m.embed(&texts).expect("embed").concat();
+        let diff = max_abs_diff(&got, &want);
+        println!(
+            "ViT-L/14 text tower, {name}: load {:.1} s, {} texts {:.2} s, max abs difference {diff:.2e}",
+            loaded.as_secs_f64(),
+            texts.len(),
+            start.elapsed().as_secs_f64()
+        );
+        assert!(diff < 1e-4, "{name}: {diff}");
+    }
+}
