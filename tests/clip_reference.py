@@ -16,11 +16,13 @@ Writes, under OUT (default: clip/tests/fixtures next to this script's parent):
                   expected.json: the ids open_clip's tokenizer and Hugging
                   Face's CLIPTokenizer give each string with the full vocabulary
 
-With --full-size, writes instead (about 500 MB, not checked in) a random
+With --full-size, writes instead (about 750 MB, not checked in) a random
 Hugging Face CLIPModel with the text tower of CLIP ViT-L/14 (width 768, 12
 layers, 12 heads, 768-d) and a tiny vision tower, the full CLIP vocabulary
 as vocab.json + merges.txt, and reference.json: the texts and their
-normalised embeddings, end to end through CLIPTokenizer and the model.
+normalised embeddings, end to end through CLIPTokenizer and the model; and
+the same for a random OpenCLIP ViT-B-32-quickgelu text tower with
+open_clip_config.json, bpe_simple_vocab_16e6.txt.gz and open_clip's tokenizer.
 
 Needs torch, transformers, open_clip_torch and ftfy. Deterministic (seeded).
 
@@ -324,6 +326,39 @@ def full_size(out):
         os.path.join(d, "reference.json"),
         {
             "generator": f"transformers {transformers.__version__}, torch {torch.__version__}",
+            "texts": texts,
+            "text_embeds": flat(emb),
+        },
+    )
+    print(f"wrote {os.path.abspath(d)}")
+    full_size_open_clip(out)
+
+
+def full_size_open_clip(out):
+    """A random OpenCLIP ViT-B-32-quickgelu text tower (OpenAI's layout),
+    with open_clip's own vocabulary file and tokenizer."""
+    import shutil
+
+    import open_clip
+    from open_clip.tokenizer import SimpleTokenizer, default_bpe
+    from safetensors.torch import save_file
+
+    torch.manual_seed(3)
+    model = open_clip.create_model("ViT-B-32-quickgelu", pretrained=None).eval()
+    cfg = open_clip.get_model_config("ViT-B-32-quickgelu")
+    d = os.path.join(out, "open_clip_vit_b32")
+    os.makedirs(d, exist_ok=True)
+    state = {k: v.contiguous() for k, v in model.state_dict().items() if not k.startswith("visual.")}
+    save_file(state, os.path.join(d, "open_clip_model.safetensors"))
+    save_json(os.path.join(d, "open_clip_config.json"), {"model_cfg": cfg})
+    shutil.copy(default_bpe(), os.path.join(d, "bpe_simple_vocab_16e6.txt.gz"))
+    texts = ["wooden", "soft", "something to sit on", "Don’t sit on the “soft” ﬁsh", "something to sit on " * 25]
+    with torch.no_grad():
+        emb = model.encode_text(SimpleTokenizer()(texts), normalize=True)
+    save_json(
+        os.path.join(d, "reference.json"),
+        {
+            "generator": f"open_clip_torch {open_clip.__version__}, torch {torch.__version__}",
             "texts": texts,
             "text_embeds": flat(emb),
         },
