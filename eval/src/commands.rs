@@ -110,7 +110,8 @@ pub struct SegmentArgs {
     /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
     /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
     /// vocabulary) that embeds --classes. It must be the CLIP model whose image
-    /// features the field was trained on.
+    /// features the field was trained on. Embeddings are cached in the run
+    /// directory (text_embeddings_cache.json).
     #[arg(long, value_name = "DIR", requires = "classes")]
     pub text_model: Option<PathBuf>,
 }
@@ -619,7 +620,8 @@ pub struct QueryArgs {
     /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
     /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
     /// vocabulary) that embeds --text. It must be the CLIP model whose image
-    /// features the field was trained on.
+    /// features the field was trained on. Embeddings are cached in the run
+    /// directory (text_embeddings_cache.json).
     #[arg(long, value_name = "DIR", requires = "text")]
     pub text_model: Option<PathBuf>,
     /// Class embeddings to look the name up in.
