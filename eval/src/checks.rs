@@ -72,6 +72,7 @@ pub fn segment_args(a: &SegmentArgs) -> Result<(), EvalError> {
     }
     max_views(a.max_views)?;
     at_least_one("chunk", Some(a.chunk), "")?;
+    crate::text_query::check_flags(None, a.classes.as_deref(), a.text_model.as_deref())?;
     if let Some(out) = &a.out
         && out.is_file()
     {
@@ -86,6 +87,7 @@ pub fn segment_args(a: &SegmentArgs) -> Result<(), EvalError> {
 /// Checks `query`.
 pub fn query_args(a: &QueryArgs) -> Result<(), EvalError> {
     render_args(&a.render)?;
+    crate::text_query::check_flags(a.text.as_deref(), None, a.text_model.as_deref())?;
     radius(a.radius)
 }
 

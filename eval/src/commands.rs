@@ -102,6 +102,18 @@ pub struct SegmentArgs {
     /// the ground-truth-feature oracle, in one table (`segmentation_compare.json`).
     #[arg(long)]
     pub compare: bool,
+    /// Classes to segment into, in free text, comma-separated (e.g. "chair,
+    /// wooden table, something to sit on"); embedded by --text-model instead
+    /// of --embeddings/--names. Points of other classes are not scored.
+    #[arg(long, requires = "text_model", conflicts_with_all = ["embeddings", "names"])]
+    pub classes: Option<String>,
+    /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
+    /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
+    /// vocabulary) that embeds --classes. It must be the CLIP model whose image
+    /// features the field was trained on. Embeddings are cached in the run
+    /// directory (text_embeddings_cache.json).
+    #[arg(long, value_name = "DIR", requires = "classes")]
+    pub text_model: Option<PathBuf>,
 }
 
 /// The loaded evaluation data of a command: the run, its scene when needed,
@@ -128,7 +140,17 @@ impl Context {
 /// Points, labels and class embeddings from the arguments, falling back on
 /// the scene's own labelled cloud and classes.
 pub fn load_points(args: &PointArgs, scene: Option<&Scene>) -> Result<EvalPoints, EvalError> {
+    load_points_with(args, scene, None)
+}
+
+/// [`load_points`] with class embeddings given (e.g. from free text).
+pub fn load_points_with(
+    args: &PointArgs,
+    scene: Option<&Scene>,
+    given: Option<TextEmbeddings>,
+) -> Result<EvalPoints, EvalError> {
     let texts = match (&args.embeddings, &args.names) {
+        _ if given.is_some() => given,
         (Some(e), Some(n)) => Some(TextEmbeddings::load(e, n)?),
         (None, None) => None,
         _ => {
@@ -303,7 +325,22 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
     let mode: SegmentMode = args.mode.parse()?;
     let ctx = Context::load(&args.run, &device)?;
     let scene = ctx.scene.as_ref();
-    let points = load_points(&args.data, scene)?;
+    let given = match (&args.classes, &args.text_model) {
+        (Some(list), Some(dir)) => {
+            let names = crate::text_query::parse_classes(list)?;
+            Some(crate::text_query::embed(
+                dir,
+                &names,
+                &args.run,
+                &ctx.run.meta,
+                &device,
+            )?)
+        }
+        _ => None,
+    };
+    let asked = given.as_ref().map(|t| t.names.clone()).unwrap_or_default();
+    let points = load_points_with(&args.data, scene, given)?;
+    crate::text_query::note_unscored(&asked, &points.names);
     let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
     let sensor = !args.rendered_depth;
     let views: Vec<View<'_>> = match (&idx, scene) {
@@ -576,6 +613,17 @@ pub struct QueryArgs {
     /// Raw query embedding (.npy, shape [D] or [1, D]) instead of a name.
     #[arg(long)]
     pub query_npy: Option<PathBuf>,
+    /// Free-text query (e.g. "something to sit on"), embedded by --text-model
+    /// instead of --query or --query-npy.
+    #[arg(long, requires = "text_model", conflicts_with_all = ["query", "query_npy"])]
+    pub text: Option<String>,
+    /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
+    /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
+    /// vocabulary) that embeds --text. It must be the CLIP model whose image
+    /// features the field was trained on. Embeddings are cached in the run
+    /// directory (text_embeddings_cache.json).
+    #[arg(long, value_name = "DIR", requires = "text")]
+    pub text_model: Option<PathBuf>,
     /// Class embeddings to look the name up in.
     #[arg(long)]
     pub embeddings: Option<PathBuf>,
@@ -597,6 +645,14 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
     crate::checks::query_args(args)?;
     let device = device_of(r.backend, r.device);
     let ctx = Context::load(&r.run, &device)?;
+    let from_text = match (&args.text, &args.text_model) {
+        (Some(text), Some(dir)) => {
+            let texts = [text.clone()];
+            let e = crate::text_query::embed(dir, &texts, &r.run, &ctx.run.meta, &device)?;
+            Some((e.data, crate::text_query::label(text)))
+        }
+        _ => None,
+    };
     let (query, label) = match (&args.query, &args.query_npy) {
         (_, Some(p)) => (
             embedding_from_npy(p)?,
@@ -623,16 +679,18 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, EvalError> {
                 name.replace(|c: char| !c.is_ascii_alphanumeric(), "_"),
             )
         }
-        (None, None) => {
-            return Err(EvalError::Invalid(
-                "give --query NAME or --query-npy FILE".into(),
-            ));
-        }
+        (None, None) => from_text.ok_or_else(|| {
+            EvalError::Invalid(
+                "give --query NAME, --query-npy FILE or --text \"...\" with --text-model DIR"
+                    .into(),
+            )
+        })?,
     };
     let m = &ctx.run.meta;
-    let source = match &args.query_npy {
-        Some(p) => p.display().to_string(),
-        None => format!("--query {label}"),
+    let source = match (&args.query_npy, &args.text) {
+        (Some(p), _) => p.display().to_string(),
+        (None, Some(t)) => format!("--text {t:?}"),
+        (None, None) => format!("--query {label}"),
     };
     crate::checks::query_dimension(&query, m, &r.run, &source)?;
     let pca = m.pca.as_ref();

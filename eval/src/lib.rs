@@ -17,6 +17,7 @@ pub mod render;
 pub mod run;
 pub mod segment;
 pub mod similarity;
+pub mod text_query;
 pub mod uncertainty;
 pub mod visual;
 

@@ -1,9 +1,11 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
 //! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
 //! ([`render`]), the MLP with its stop-gradient open-set head ([`field`]),
-//! coarse/fine rendering ([`nerf`]) and the losses ([`loss`]). No file I/O.
+//! coarse/fine rendering ([`nerf`]), the losses ([`loss`]) and the CLIP text
+//! transformer that embeds free-text queries ([`clip`]). No file I/O.
 #![warn(missing_docs)]
 
+pub mod clip;
 pub mod field;
 pub mod geometry;
 pub mod loss;

@@ -144,6 +144,8 @@ fn train_then_segment_in_every_mode() {
         backend: eval::backend::BackendKind::Flex,
         device: None,
         compare: true,
+        classes: None,
+        text_model: None,
     };
     let scores = segment_command(&args).expect("segment command");
     assert_eq!(scores.mode, "hybrid");

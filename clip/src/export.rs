@@ -1,0 +1,116 @@
+//! Writing an encoder as a Hugging Face `CLIPTextModelWithProjection`
+//! directory (`model.safetensors` + `config.json`): the inverse of loading,
+//! for tests and for converting OpenCLIP weights.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use burn::module::Param;
+use burn::nn::{LayerNorm, Linear};
+use burn::tensor::Tensor;
+use model::clip::{ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling};
+
+use crate::error::ClipError;
+use crate::tensors::{HostTensor, transpose, write_f32};
+
+fn host<const D: usize>(t: &Param<Tensor<D>>, path: &Path) -> Result<HostTensor, ClipError> {
+    let v = t.val();
+    let shape = v.dims().to_vec();
+    let data = v
+        .try_into_vec_as::<f32>()
+        .map_err(|e| ClipError::invalid(path, format!("cannot read a tensor back: {e:?}")))?;
+    Ok(HostTensor { shape, data })
+}
+
+/// The encoder's tensors under Hugging Face names (PyTorch's `[out, in]`
+/// linear weights).
+pub fn hf_tensors(
+    enc: &ClipTextEncoder,
+    path: &Path,
+) -> Result<BTreeMap<String, HostTensor>, ClipError> {
+    let mut out = BTreeMap::new();
+    let put_linear = |out: &mut BTreeMap<String, HostTensor>, name: &str, l: &Linear| {
+        let w = host(&l.weight, path)?;
+        let (d_in, d_out) = (w.shape[0], w.shape[1]);
+        out.insert(
+            format!("{name}.weight"),
+            HostTensor {
+                shape: vec![d_out, d_in],
+                data: transpose(&w.data, d_in, d_out),
+            },
+        );
+        if let Some(b) = &l.bias {
+            out.insert(format!("{name}.bias"), host(b, path)?);
+        }
+        Ok::<(), ClipError>(())
+    };
+    let put_norm = |out: &mut BTreeMap<String, HostTensor>, name: &str, n: &LayerNorm| {
+        out.insert(format!("{name}.weight"), host(&n.gamma, path)?);
+        if let Some(b) = &n.beta {
+            out.insert(format!("{name}.bias"), host(b, path)?);
+        }
+        Ok::<(), ClipError>(())
+    };
+    out.insert(
+        "text_model.embeddings.token_embedding.weight".into(),
+        host(&enc.token_embedding.weight, path)?,
+    );
+    out.insert(
+        "text_model.embeddings.position_embedding.weight".into(),
+        host(&enc.position_embedding, path)?,
+    );
+    for (i, b) in enc.blocks.iter().enumerate() {
+        let p = format!("text_model.encoder.layers.{i}");
+        put_linear(&mut out, &format!("{p}.self_attn.q_proj"), &b.attn.q_proj)?;
+        put_linear(&mut out, &format!("{p}.self_attn.k_proj"), &b.attn.k_proj)?;
+        put_linear(&mut out, &format!("{p}.self_attn.v_proj"), &b.attn.v_proj)?;
+        put_linear(
+            &mut out,
+            &format!("{p}.self_attn.out_proj"),
+            &b.attn.out_proj,
+        )?;
+        put_linear(&mut out, &format!("{p}.mlp.fc1"), &b.mlp.fc1)?;
+        put_linear(&mut out, &format!("{p}.mlp.fc2"), &b.mlp.fc2)?;
+        put_norm(&mut out, &format!("{p}.layer_norm1"), &b.ln1)?;
+        put_norm(&mut out, &format!("{p}.layer_norm2"), &b.ln2)?;
+    }
+    put_norm(&mut out, "text_model.final_layer_norm", &enc.final_ln)?;
+    put_linear(&mut out, "text_projection", &enc.projection)?;
+    Ok(out)
+}
+
+/// Writes `dir/model.safetensors` and `dir/config.json` (creating `dir`).
+pub fn save_hf_model(
+    enc: &ClipTextEncoder,
+    config: &ClipTextConfig,
+    dir: &Path,
+) -> Result<(), ClipError> {
+    std::fs::create_dir_all(dir).map_err(|e| ClipError::io(dir, e))?;
+    let weights = dir.join("model.safetensors");
+    write_f32(&weights, &hf_tensors(enc, &weights)?)?;
+    let eos = match config.pooling {
+        EotPooling::HighestId => 2,
+        EotPooling::EosId(id) => id as u64,
+    };
+    let json = serde_json::json!({
+        "architectures": ["CLIPTextModelWithProjection"],
+        "model_type": "clip_text_model",
+        "vocab_size": config.vocab_size,
+        "max_position_embeddings": config.context_length,
+        "hidden_size": config.width,
+        "num_hidden_layers": config.layers,
+        "num_attention_heads": config.heads,
+        "intermediate_size": config.mlp_width,
+        "projection_dim": config.embed_dim,
+        "hidden_act": match config.activation {
+            ClipActivation::QuickGelu => "quick_gelu",
+            ClipActivation::Gelu => "gelu",
+        },
+        "layer_norm_eps": config.layer_norm_eps,
+        "eos_token_id": eos,
+    });
+    let path = dir.join("config.json");
+    let text = serde_json::to_string_pretty(&json)
+        .map_err(|e| ClipError::invalid(&path, e.to_string()))?;
+    std::fs::write(&path, text).map_err(|e| ClipError::io(&path, e))
+}

@@ -1,0 +1,22 @@
+//! CLIP text models from files, for free-text queries: the byte-level BPE
+//! tokenizer ([`tokenizer`], with CLIP's text clean-up in [`clean`]),
+//! safetensors weights in Hugging Face or OpenCLIP naming ([`tensors`],
+//! [`layout`]), their configuration ([`config`]), a model directory loader
+//! that embeds text ([`model_dir`]) and a per-run cache of embeddings
+//! ([`cache`]). The network itself is [`model::clip::ClipTextEncoder`].
+#![warn(missing_docs)]
+
+pub mod cache;
+pub mod clean;
+pub mod config;
+pub mod error;
+pub mod export;
+pub mod layout;
+pub mod model_dir;
+pub mod tensors;
+pub mod tokenizer;
+
+pub use cache::{Embedded, embed_texts};
+pub use error::ClipError;
+pub use model_dir::{TextModel, load_tokenizer};
+pub use tokenizer::ClipTokenizer;
