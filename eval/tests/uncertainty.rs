@@ -8,12 +8,12 @@ use std::process::Command;
 use burn::module::Module;
 use burn::tensor::Device;
 use datasets::SceneMeta;
-use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 use datasets::scene::Scene;
 use datasets::synthetic::{SceneSize, generate};
 use eval::uncertainty::report::feature_errors;
 use eval::uncertainty::{UncertaintyOptions, uncertainty_map, voxel_downsample};
 use half::f16;
+use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 
 fn ci_scene() -> Scene {
     generate(0, SceneSize::Ci).expect("CI scene")
@@ -21,7 +21,10 @@ fn ci_scene() -> Scene {
 
 fn cloud(scene: &Scene) -> Vec<[f64; 3]> {
     let all = &scene.points.as_ref().expect("points").positions;
-    voxel_downsample(all, 0.05).iter().map(|&i| all[i]).collect()
+    voxel_downsample(all, 0.05)
+        .iter()
+        .map(|&i| all[i])
+        .collect()
 }
 
 #[test]
@@ -29,13 +32,27 @@ fn the_map_is_finite_normalised_and_maximal_where_seen_less_than_twice() {
     let scene = ci_scene();
     let frames: Vec<usize> = (0..scene.frames.len()).collect();
     let pts = cloud(&scene);
-    let map = uncertainty_map(&scene, &frames, &pts, &UncertaintyOptions::default(), |_, _| {})
-        .expect("map");
+    let map = uncertainty_map(
+        &scene,
+        &frames,
+        &pts,
+        &UncertaintyOptions::default(),
+        |_, _| {},
+    )
+    .expect("map");
     let twice = map.counts.iter().filter(|&&c| c >= 2).count();
-    assert!(twice > pts.len() / 4, "{twice} of {} points seen twice", pts.len());
+    assert!(
+        twice > pts.len() / 4,
+        "{twice} of {} points seen twice",
+        pts.len()
+    );
     assert!(map.log_det.iter().all(|u| u.is_finite()));
     assert!(map.normalised.iter().all(|u| (0.0..=1.0).contains(u)));
-    let max = map.log_det.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let max = map
+        .log_det
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
     for (c, u) in map.counts.iter().zip(&map.log_det) {
         if *c < 2 {
             assert_eq!(*u, max);
@@ -99,10 +116,24 @@ fn agreeing_views_give_the_eps_floor_and_disagreeing_views_more() {
 fn run_dir(dir: &Path) {
     let scene = ci_scene();
     let features = scene.features.as_ref().expect("features");
-    let config = OpenNerfConfig::new(FeatureHeadConfig::new(features.dim()).with_width(8).with_layers(1))
-        .with_mlp(MipMlpConfig::new().with_width(16).with_depth(2).with_skip_layer(1).with_max_deg(4))
-        .with_num_samples(4);
-    let bytes = config.init(&Device::flex()).into_record().into_bytes().expect("serialise");
+    let config = OpenNerfConfig::new(
+        FeatureHeadConfig::new(features.dim())
+            .with_width(8)
+            .with_layers(1),
+    )
+    .with_mlp(
+        MipMlpConfig::new()
+            .with_width(16)
+            .with_depth(2)
+            .with_skip_layer(1)
+            .with_max_deg(4),
+    )
+    .with_num_samples(4);
+    let bytes = config
+        .init(&Device::flex())
+        .into_record()
+        .into_bytes()
+        .expect("serialise");
     std::fs::write(dir.join("model.bpk"), bytes.to_vec()).expect("weights");
     let cfg = serde_json::json!({ "model": config });
     std::fs::write(dir.join("config.json"), cfg.to_string()).expect("config");
@@ -113,8 +144,11 @@ fn run_dir(dir: &Path) {
         pca: features.pca.clone(),
         feature_dim: Some(features.full_dim),
     };
-    std::fs::write(dir.join("scene.json"), serde_json::to_string(&meta).expect("meta"))
-        .expect("write");
+    std::fs::write(
+        dir.join("scene.json"),
+        serde_json::to_string(&meta).expect("meta"),
+    )
+    .expect("write");
     let n = scene.frames.len();
     let split = serde_json::json!({ "train": (1..n).collect::<Vec<_>>(), "heldout": [0] });
     std::fs::write(dir.join("split.json"), split.to_string()).expect("write");
@@ -134,7 +168,11 @@ fn the_command_writes_its_files_and_refuses_bad_flags() {
     let run = tmp.path().to_str().expect("utf-8");
     let out = eval(&["uncertainty", "--run", run, "--views", "3"]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(stdout.contains("Pearson r"), "{stdout}");
     let dir = tmp.path().join("uncertainty");
     let views: serde_json::Value = serde_json::from_str(
@@ -158,11 +196,22 @@ fn the_command_writes_its_files_and_refuses_bad_flags() {
     let r = summary["pearson_r"].as_f64().expect("r");
     assert!((-1.0..=1.0).contains(&r));
     let csv = std::fs::read_to_string(dir.join("uncertainty.csv")).expect("csv");
-    assert_eq!(csv.lines().count(), summary["points"].as_u64().expect("n") as usize + 1);
-    for (flag, value) in [("--k", "0"), ("--eps", "NaN"), ("--eps", "-1"), ("--voxel", "-0.1")] {
+    assert_eq!(
+        csv.lines().count(),
+        summary["points"].as_u64().expect("n") as usize + 1
+    );
+    for (flag, value) in [
+        ("--k", "0"),
+        ("--eps", "NaN"),
+        ("--eps", "-1"),
+        ("--voxel", "-0.1"),
+    ] {
         let out = eval(&["uncertainty", "--run", run, flag, value]);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && !err.contains("panicked"), "{flag} {value}: {err}");
+        assert!(
+            !out.status.success() && !err.contains("panicked"),
+            "{flag} {value}: {err}"
+        );
         assert!(err.contains(flag), "{flag} {value}: {err}");
     }
 }

@@ -18,13 +18,13 @@
 //! 0.46 / 0.41.
 
 pub mod plot;
-pub mod propose;
 pub mod proposals;
+pub mod propose;
 pub mod report;
 pub mod welford;
 
-use datasets::features::{FeatureSet, Pca, PcaTarget};
 use datasets::Scene;
+use datasets::features::{FeatureSet, Pca, PcaTarget};
 use model::geometry::Vec3;
 
 use crate::error::EvalError;
@@ -200,10 +200,18 @@ pub fn uncertainty_map(
             log_det_regularised(&c, k, opts.eps)
         })
         .collect();
-    let max = raw.iter().flatten().copied().fold(f64::NEG_INFINITY, f64::max);
+    let max = raw
+        .iter()
+        .flatten()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
     let min = raw.iter().flatten().copied().fold(f64::INFINITY, f64::min);
     // With no point seen twice there is nothing to compare: all maximal.
-    let (max, min) = if max.is_finite() { (max, min) } else { (0.0, 0.0) };
+    let (max, min) = if max.is_finite() {
+        (max, min)
+    } else {
+        (0.0, 0.0)
+    };
     let log_det: Vec<f64> = raw.iter().map(|u| u.unwrap_or(max)).collect();
     let span = max - min;
     let normalised = log_det

@@ -32,32 +32,35 @@ pub fn scatter(
     let (w, h) = (800u32, 600u32);
     let mut pixels = vec![255u8; (w * h * 3) as usize];
     {
-    let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-    let caption = match r {
-        Some(r) => format!("uncertainty vs feature error (Pearson r = {r:.3}, {} points)", pts.len()),
-        None => format!("uncertainty vs feature error ({} points)", pts.len()),
-    };
-    let mut chart = ChartBuilder::on(&root)
-        .caption(caption, ("sans-serif", 20))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(|e| err(e.to_string()))?;
-    chart
-        .configure_mesh()
-        .x_desc(format!("log det(Sigma + eps I), k = {}", map.k))
-        .y_desc("1 - cos(mean feature, class embedding)")
-        .draw()
-        .map_err(|e| err(e.to_string()))?;
-    chart
-        .draw_series(
-            dots.iter()
-                .map(|&(x, y)| Circle::new((x, y), 2, BLUE.mix(0.25).filled())),
-        )
-        .map_err(|e| err(e.to_string()))?;
-    root.present().map_err(|e| err(e.to_string()))?;
+        let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let caption = match r {
+            Some(r) => format!(
+                "uncertainty vs feature error (Pearson r = {r:.3}, {} points)",
+                pts.len()
+            ),
+            None => format!("uncertainty vs feature error ({} points)", pts.len()),
+        };
+        let mut chart = ChartBuilder::on(&root)
+            .caption(caption, ("sans-serif", 20))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc(format!("log det(Sigma + eps I), k = {}", map.k))
+            .y_desc("1 - cos(mean feature, class embedding)")
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .draw_series(
+                dots.iter()
+                    .map(|&(x, y)| Circle::new((x, y), 2, BLUE.mix(0.25).filled())),
+            )
+            .map_err(|e| err(e.to_string()))?;
+        root.present().map_err(|e| err(e.to_string()))?;
     }
     image::RgbImage::from_raw(w, h, pixels)
         .ok_or_else(|| err("the image buffer has the wrong size".into()))?
@@ -99,7 +102,9 @@ pub fn ensure_font() -> Result<(), String> {
 fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
     if !lo.is_finite() {
         return (0.0, 1.0);
     }

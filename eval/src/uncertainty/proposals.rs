@@ -80,11 +80,14 @@ pub fn select_targets(
 /// centre of the cameras that saw it, else towards `fallback` (e.g. the
 /// mean of all cameras). `None` when both coincide with the target.
 pub fn free_side(target: Vec3, seen_from: Option<Vec3>, fallback: Vec3) -> Option<Vec3> {
-    [seen_from, Some(fallback)].into_iter().flatten().find_map(|c| {
-        let d = sub(c, target);
-        let n = norm(d);
-        (n > 1e-9).then(|| d.map(|v| v / n))
-    })
+    [seen_from, Some(fallback)]
+        .into_iter()
+        .flatten()
+        .find_map(|c| {
+            let d = sub(c, target);
+            let n = norm(d);
+            (n > 1e-9).then(|| d.map(|v| v / n))
+        })
 }
 
 /// Density (per metre) and transmittance towards a target, from the field.
@@ -111,7 +114,9 @@ impl FieldProbe<'_> {
         let t = Tensor::<2>::from_data(TensorData::new(flat, [points.len(), 3]), self.device);
         let d = self.model.query_density(t, 1e-3 * scale as f32);
         crate::render::tensor_to_vec(d)
-            .into_iter().map(|x| x as f64 * scale).collect()
+            .into_iter()
+            .map(|x| x as f64 * scale)
+            .collect()
     }
 
     /// Transmittance from `from` to just before `to` (the last 10% of the
@@ -124,7 +129,11 @@ impl FieldProbe<'_> {
         let pts: Vec<Vec3> = (0..n)
             .map(|i| add_scaled(from, 0.9 * (i as f64 + 0.5) / n as f64, d))
             .collect();
-        let optical: f64 = self.density(&pts).iter().map(|s| s.max(0.0) * len / n as f64).sum();
+        let optical: f64 = self
+            .density(&pts)
+            .iter()
+            .map(|s| s.max(0.0) * len / n as f64)
+            .sum();
         (-optical).exp()
     }
 }
@@ -246,7 +255,17 @@ mod tests {
         let opts = ProposalOptions::default();
         // The second target's free side is blocked everywhere.
         let accept = |p: Vec3, _t: Vec3| (p[0] < 1.5).then_some(0.9);
-        let got = propose_cameras(&map, &positions, &[0, 1], k, [0.0, 1.0, 0.0], [0.0; 3], accept, &opts, &mut rng);
+        let got = propose_cameras(
+            &map,
+            &positions,
+            &[0, 1],
+            k,
+            [0.0, 1.0, 0.0],
+            [0.0; 3],
+            accept,
+            &opts,
+            &mut rng,
+        );
         assert_eq!(got.len(), 1);
         let p = &got[0];
         assert_eq!(p.target, 0);

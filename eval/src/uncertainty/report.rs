@@ -16,8 +16,8 @@ use crate::error::EvalError;
 use crate::project::ProjectOptions;
 use crate::run::{RunDir, Split, read_json, write_json};
 use crate::segment::EvalPoints;
-use datasets::points::IGNORE_LABEL;
 use crate::similarity::ClassScorer;
+use datasets::points::IGNORE_LABEL;
 
 /// Arguments of `uncertainty`.
 #[derive(Debug, Clone, clap::Args)]
@@ -176,7 +176,10 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
         _ => None,
     };
     let summary = summarise(&map, errors.as_deref(), &opts);
-    let out = args.out.clone().unwrap_or_else(|| dir.dir.join("uncertainty"));
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| dir.dir.join("uncertainty"));
     std::fs::create_dir_all(&out).map_err(|e| EvalError::io(&out, e))?;
     let mut written = Vec::new();
     let json = out.join("uncertainty.json");
@@ -216,7 +219,9 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
             "Pearson r between uncertainty and feature error: {r:.3} over {} labelled points seen twice",
             summary.correlated_points
         ),
-        None => println!("no labelled points with class embeddings: the error correlation is skipped"),
+        None => {
+            println!("no labelled points with class embeddings: the error correlation is skipped")
+        }
     }
     Ok(written)
 }
@@ -244,8 +249,14 @@ pub fn feature_errors(
         .collect())
 }
 
-fn summarise(map: &UncertaintyMap, errors: Option<&[f64]>, opts: &UncertaintyOptions) -> UncertaintySummary {
-    let twice: Vec<usize> = (0..map.counts.len()).filter(|&i| map.counts[i] >= 2).collect();
+fn summarise(
+    map: &UncertaintyMap,
+    errors: Option<&[f64]>,
+    opts: &UncertaintyOptions,
+) -> UncertaintySummary {
+    let twice: Vec<usize> = (0..map.counts.len())
+        .filter(|&i| map.counts[i] >= 2)
+        .collect();
     let mut lds: Vec<f64> = twice.iter().map(|&i| map.log_det[i]).collect();
     lds.sort_by(f64::total_cmp);
     let pick = |q: f64| {
@@ -277,7 +288,12 @@ fn summarise(map: &UncertaintyMap, errors: Option<&[f64]>, opts: &UncertaintyOpt
     }
 }
 
-fn write_csv(path: &Path, points: &[Vec3], map: &UncertaintyMap, errors: Option<&[f64]>) -> Result<(), EvalError> {
+fn write_csv(
+    path: &Path,
+    points: &[Vec3],
+    map: &UncertaintyMap,
+    errors: Option<&[f64]>,
+) -> Result<(), EvalError> {
     let io = |e| EvalError::io(path, e);
     let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
     writeln!(w, "x,y,z,views,log_det,uncertainty,feature_error").map_err(io)?;
@@ -292,14 +308,22 @@ fn write_csv(path: &Path, points: &[Vec3], map: &UncertaintyMap, errors: Option<
             map.counts[i],
             map.log_det[i],
             map.normalised[i],
-            if e.is_finite() { format!("{e:.5}") } else { String::new() }
+            if e.is_finite() {
+                format!("{e:.5}")
+            } else {
+                String::new()
+            }
         )
         .map_err(io)?;
     }
     w.flush().map_err(io)
 }
 
-fn write_uncertainty_ply(path: &Path, points: &[Vec3], map: &UncertaintyMap) -> Result<(), EvalError> {
+fn write_uncertainty_ply(
+    path: &Path,
+    points: &[Vec3],
+    map: &UncertaintyMap,
+) -> Result<(), EvalError> {
     let colors = map
         .normalised
         .iter()
@@ -312,6 +336,5 @@ fn write_uncertainty_ply(path: &Path, points: &[Vec3], map: &UncertaintyMap) -> 
     };
     let u: Vec<f32> = map.normalised.iter().map(|&u| u as f32).collect();
     let views: Vec<f32> = map.counts.iter().map(|&c| c as f32).collect();
-    write_ply(path, &cloud, &[("uncertainty", &u), ("views", &views)])
-        .map_err(EvalError::from)
+    write_ply(path, &cloud, &[("uncertainty", &u), ("views", &views)]).map_err(EvalError::from)
 }

@@ -44,7 +44,11 @@ impl Welford {
         debug_assert_eq!(x.len(), k);
         self.count += 1;
         let n = self.count as f64;
-        let delta: Vec<f64> = x.iter().zip(&self.mean).map(|(&v, m)| v as f64 - m).collect();
+        let delta: Vec<f64> = x
+            .iter()
+            .zip(&self.mean)
+            .map(|(&v, m)| v as f64 - m)
+            .collect();
         for (m, d) in self.mean.iter_mut().zip(&delta) {
             *m += d / n;
         }
@@ -158,7 +162,11 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         for k in [1, 3, 16] {
             let xs: Vec<Vec<f32>> = (0..200)
-                .map(|_| (0..k).map(|j| rng.random_range(-1.0..1.0) * (j + 1) as f32 + 5.0).collect())
+                .map(|_| {
+                    (0..k)
+                        .map(|j| rng.random_range(-1.0..1.0) * (j + 1) as f32 + 5.0)
+                        .collect()
+                })
                 .collect();
             let mut w = Welford::new(k);
             xs.iter().for_each(|x| w.push(x));
@@ -180,18 +188,35 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let mut w = Welford::new(2);
         let xs: Vec<[f32; 2]> = (0..1_000_000)
-            .map(|_| [1000.0 + rng.random_range(-1.0f32..1.0), rng.random_range(-2.0f32..2.0)])
+            .map(|_| {
+                [
+                    1000.0 + rng.random_range(-1.0f32..1.0),
+                    rng.random_range(-2.0f32..2.0),
+                ]
+            })
             .collect();
         xs.iter().for_each(|x| w.push(x));
         let n = xs.len() as f64;
-        let mean: Vec<f64> = (0..2).map(|j| xs.iter().map(|x| x[j] as f64).sum::<f64>() / n).collect();
+        let mean: Vec<f64> = (0..2)
+            .map(|j| xs.iter().map(|x| x[j] as f64).sum::<f64>() / n)
+            .collect();
         let var: Vec<f64> = (0..2)
-            .map(|j| xs.iter().map(|x| (x[j] as f64 - mean[j]).powi(2)).sum::<f64>() / (n - 1.0))
+            .map(|j| {
+                xs.iter()
+                    .map(|x| (x[j] as f64 - mean[j]).powi(2))
+                    .sum::<f64>()
+                    / (n - 1.0)
+            })
             .collect();
         let cov = w.covariance().expect("samples");
         for j in 0..2 {
             assert!(((w.mean[j] - mean[j]) / mean[j].abs().max(1.0)).abs() < 1e-6);
-            assert!(((cov[j * 2 + j] - var[j]) / var[j]).abs() < 1e-6, "{} vs {}", cov[j * 2 + j], var[j]);
+            assert!(
+                ((cov[j * 2 + j] - var[j]) / var[j]).abs() < 1e-6,
+                "{} vs {}",
+                cov[j * 2 + j],
+                var[j]
+            );
         }
     }
 
@@ -221,12 +246,19 @@ mod tests {
         let ld = log_det_regularised(&cov, 3, 1e-6).expect("rank 1 + eps is definite");
         assert!(ld.is_finite());
         // Exactly: eigenvalues (6 var(t) + eps, eps, eps).
-        let var_t = (0..20).map(|t| (t as f64 * 0.1 - 0.95).powi(2)).sum::<f64>() / 19.0;
+        let var_t = (0..20)
+            .map(|t| (t as f64 * 0.1 - 0.95).powi(2))
+            .sum::<f64>()
+            / 19.0;
         let expected = (6.0 * var_t + 1e-6).ln() + 2.0 * 1e-6f64.ln();
         assert!((ld - expected).abs() < 1e-3, "{ld} vs {expected}");
         // Slightly indefinite by rounding still factorises once eps is added.
         let near = [1.0, 1.0, 1.0, 1.0 - 1e-13];
-        assert!(log_det_regularised(&near, 2, 1e-8).expect("finite").is_finite());
+        assert!(
+            log_det_regularised(&near, 2, 1e-8)
+                .expect("finite")
+                .is_finite()
+        );
         assert!(log_det_regularised(&[f64::NAN], 1, 1e-6).is_none());
     }
 
@@ -253,7 +285,9 @@ mod tests {
         assert!(own.iter().zip(&none).all(|(a, b)| (a - b).abs() < 1e-15));
         let heavy = w.shrunk_covariance(&pooled, 1e9).expect("cov");
         assert!(heavy.iter().zip(&pooled).all(|(a, b)| (a - b).abs() < 1e-6));
-        let half = w.shrunk_covariance(&pooled, (w.count - 1) as f64).expect("cov");
+        let half = w
+            .shrunk_covariance(&pooled, (w.count - 1) as f64)
+            .expect("cov");
         for i in 0..4 {
             assert!((half[i] - 0.5 * (own[i] + pooled[i])).abs() < 1e-12);
         }
