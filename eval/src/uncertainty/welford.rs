@@ -172,8 +172,8 @@ mod tests {
             xs.iter().for_each(|x| w.push(x));
             let (mean, cov) = two_pass(&xs);
             let got = w.covariance().expect("two or more samples");
-            for j in 0..k {
-                assert!((w.mean[j] - mean[j]).abs() < 1e-12, "mean {j}");
+            for (j, (a, b)) in w.mean.iter().zip(&mean).enumerate() {
+                assert!((a - b).abs() < 1e-12, "mean {j}");
             }
             for (a, b) in got.iter().zip(&cov) {
                 assert!((a - b).abs() < 1e-10 * (1.0 + b.abs()), "{a} vs {b}");
