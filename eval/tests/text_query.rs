@@ -6,60 +6,22 @@
 //! encoder saved in Hugging Face layout, with the tokenizer fixture of the
 //! `clip` crate (a part of the real CLIP vocabulary).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-use burn::module::Module;
 use burn::tensor::Device;
 use datasets::SceneMeta;
-use datasets::synthetic::{SceneSize, generate};
 use model::clip::ClipTextConfig;
-use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 
 /// An untrained tiny field on the synthetic CI scene (as in `cli.rs`).
 fn run_dir() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = tempfile::tempdir().expect("temp dir");
-        let scene = generate(0, SceneSize::Ci).expect("CI scene");
-        let features = scene.features.as_ref().expect("features");
-        let config = OpenNerfConfig::new(
-            FeatureHeadConfig::new(features.dim())
-                .with_width(8)
-                .with_layers(1),
-        )
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1)
-                .with_max_deg(4),
-        )
-        .with_num_samples(4);
-        let bytes = config
-            .init(&Device::flex())
-            .into_record()
-            .into_bytes()
-            .expect("serialise");
-        std::fs::write(dir.path().join("model.bpk"), bytes.to_vec()).expect("weights");
-        let json = |name: &str, v: serde_json::Value| {
-            std::fs::write(dir.path().join(name), v.to_string()).expect("write json");
-        };
-        json("config.json", serde_json::json!({ "model": config }));
-        let meta = SceneMeta {
-            source: scene.source.clone(),
-            scene_box: scene.scene_box,
-            background: scene.background,
-            pca: features.pca.clone(),
-            feature_dim: Some(features.full_dim),
-        };
-        json("scene.json", serde_json::to_value(&meta).expect("meta"));
-        let n = scene.frames.len();
-        json(
-            "split.json",
-            serde_json::json!({ "train": (1..n).collect::<Vec<_>>(), "heldout": [0] }),
-        );
+        common::write_tiny_run(dir.path());
         dir
     })
     .path()

@@ -2,18 +2,15 @@
 //! floor where every view agrees, more uncertainty where views disagree, and
 //! `eval uncertainty` end to end (files written, bad flags refused).
 
-use std::path::Path;
+mod common;
+
 use std::process::Command;
 
-use burn::module::Module;
-use burn::tensor::Device;
-use datasets::SceneMeta;
 use datasets::scene::Scene;
 use datasets::synthetic::{SceneSize, generate};
 use eval::uncertainty::report::feature_errors;
 use eval::uncertainty::{UncertaintyOptions, uncertainty_map, voxel_downsample};
 use half::f16;
-use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 
 fn ci_scene() -> Scene {
     generate(0, SceneSize::Ci).expect("CI scene")
@@ -112,48 +109,6 @@ fn agreeing_views_give_the_eps_floor_and_disagreeing_views_more() {
     }
 }
 
-/// A run directory with an untrained tiny field on the CI scene.
-fn run_dir(dir: &Path) {
-    let scene = ci_scene();
-    let features = scene.features.as_ref().expect("features");
-    let config = OpenNerfConfig::new(
-        FeatureHeadConfig::new(features.dim())
-            .with_width(8)
-            .with_layers(1),
-    )
-    .with_mlp(
-        MipMlpConfig::new()
-            .with_width(16)
-            .with_depth(2)
-            .with_skip_layer(1)
-            .with_max_deg(4),
-    )
-    .with_num_samples(4);
-    let bytes = config
-        .init(&Device::flex())
-        .into_record()
-        .into_bytes()
-        .expect("serialise");
-    std::fs::write(dir.join("model.bpk"), bytes.to_vec()).expect("weights");
-    let cfg = serde_json::json!({ "model": config });
-    std::fs::write(dir.join("config.json"), cfg.to_string()).expect("config");
-    let meta = SceneMeta {
-        source: scene.source.clone(),
-        scene_box: scene.scene_box,
-        background: scene.background,
-        pca: features.pca.clone(),
-        feature_dim: Some(features.full_dim),
-    };
-    std::fs::write(
-        dir.join("scene.json"),
-        serde_json::to_string(&meta).expect("meta"),
-    )
-    .expect("write");
-    let n = scene.frames.len();
-    let split = serde_json::json!({ "train": (1..n).collect::<Vec<_>>(), "heldout": [0] });
-    std::fs::write(dir.join("split.json"), split.to_string()).expect("write");
-}
-
 fn eval(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_eval"))
         .args(args)
@@ -164,7 +119,7 @@ fn eval(args: &[&str]) -> std::process::Output {
 #[test]
 fn the_command_writes_its_files_and_refuses_bad_flags() {
     let tmp = tempfile::tempdir().expect("tmp");
-    run_dir(tmp.path());
+    common::write_tiny_run(tmp.path());
     let run = tmp.path().to_str().expect("utf-8");
     let out = eval(&["uncertainty", "--run", run, "--views", "3"]);
     let stdout = String::from_utf8_lossy(&out.stdout);

@@ -1,0 +1,54 @@
+//! The run directory the eval integration tests share: an untrained tiny
+//! field on the synthetic CI scene (seed 0), which loads, renders and
+//! segments like a trained one.
+
+use std::path::Path;
+
+use burn::module::Module;
+use burn::tensor::Device;
+use datasets::SceneMeta;
+use datasets::synthetic::{SceneSize, generate};
+use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+
+/// Writes `model.bpk`, `config.json`, `scene.json` and `split.json` (frame 0
+/// held out) of the tiny run into `dir`.
+pub fn write_tiny_run(dir: &Path) {
+    let scene = generate(0, SceneSize::Ci).expect("CI scene");
+    let features = scene.features.as_ref().expect("features");
+    let config = OpenNerfConfig::new(
+        FeatureHeadConfig::new(features.dim())
+            .with_width(8)
+            .with_layers(1),
+    )
+    .with_mlp(
+        MipMlpConfig::new()
+            .with_width(16)
+            .with_depth(2)
+            .with_skip_layer(1)
+            .with_max_deg(4),
+    )
+    .with_num_samples(4);
+    let bytes = config
+        .init(&Device::flex())
+        .into_record()
+        .into_bytes()
+        .expect("serialise");
+    std::fs::write(dir.join("model.bpk"), bytes.to_vec()).expect("weights");
+    let json = |name: &str, v: serde_json::Value| {
+        std::fs::write(dir.join(name), v.to_string()).expect("write json");
+    };
+    json("config.json", serde_json::json!({ "model": config }));
+    let meta = SceneMeta {
+        source: scene.source.clone(),
+        scene_box: scene.scene_box,
+        background: scene.background,
+        pca: features.pca.clone(),
+        feature_dim: Some(features.full_dim),
+    };
+    json("scene.json", serde_json::to_value(&meta).expect("meta"));
+    let n = scene.frames.len();
+    json(
+        "split.json",
+        serde_json::json!({ "train": (1..n).collect::<Vec<_>>(), "heldout": [0] }),
+    );
+}
