@@ -12,6 +12,7 @@ pub mod extractor;
 pub mod features;
 pub mod imageio;
 pub mod llff;
+pub mod novel;
 pub mod npy;
 pub mod points;
 pub mod poses;

@@ -118,6 +118,7 @@ pub enum SceneSource {
 
 /// A loaded scene: posed frames, optional feature maps (one per frame, in the
 /// same order), the scene box and, when known, a labelled point cloud.
+#[derive(Clone)]
 pub struct Scene {
     /// Human-readable name.
     pub name: String,

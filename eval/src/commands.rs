@@ -4,9 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
+use datasets::Scene;
 use datasets::points::{ClassMap, IGNORE_LABEL, read_labels_txt, read_ply, write_ply};
 use datasets::text::TextEmbeddings;
-use datasets::{Scene, load_scene_with_basis};
 
 use crate::backend::{BackendKind, parse_device_index};
 use crate::cameras::{NamedCamera, camera_path, load_traj, load_transforms_json, resized};
@@ -128,8 +128,8 @@ pub struct Context {
 impl Context {
     /// Loads the run and rebuilds its scene.
     pub fn load(dir: &Path, device: &Device) -> Result<Self, EvalError> {
-        let run = load_run(dir, device)?;
-        let scene = load_scene_with_basis(&run.meta.source, run.meta.pca.as_ref())?;
+        let mut run = load_run(dir, device)?;
+        let scene = crate::run::load_run_scene(&run.dir, &run.meta, &mut run.split)?;
         Ok(Self {
             run,
             scene: Some(scene),

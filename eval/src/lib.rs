@@ -11,6 +11,7 @@ pub mod colormap;
 pub mod commands;
 pub mod error;
 pub mod metrics;
+pub mod novel;
 pub mod project;
 pub mod query;
 pub mod render;

@@ -67,6 +67,12 @@ impl RunDir {
         self.dir.join("checkpoints")
     }
 
+    /// `novel/`: novel views rendered by the field and added as training
+    /// frames (see [`datasets::novel`]).
+    pub fn novel(&self) -> PathBuf {
+        self.dir.join("novel")
+    }
+
     /// `segmentation.json`: the default output of the `segment` command.
     pub fn segmentation(&self) -> PathBuf {
         self.dir.join("segmentation.json")
@@ -165,6 +171,21 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
         split,
         dir: run,
     })
+}
+
+/// Rebuilds the scene a run was trained on: the scene of `scene.json`
+/// (compressed with the stored basis) with the run's recorded novel views
+/// appended, whose indices are added to `split.train`.
+pub fn load_run_scene(
+    dir: &RunDir,
+    meta: &SceneMeta,
+    split: &mut Split,
+) -> Result<datasets::Scene, EvalError> {
+    let mut scene = datasets::load_scene_with_basis(&meta.source, meta.pca.as_ref())?;
+    if let Some((_, added)) = datasets::novel::append_recorded(&mut scene, &dir.novel())? {
+        split.train.extend(added);
+    }
+    Ok(scene)
 }
 
 #[cfg(test)]

@@ -165,6 +165,31 @@ pub struct Cli {
     /// (e.g. to be resumed later with the same schedule).
     #[arg(long)]
     pub stop_at: Option<usize>,
+    /// Novel views (SPEC 5): render this many views with the field part-way
+    /// through training, run the scene's 2D feature extractor on them and
+    /// add them as training frames (0: none). Counted in the iteration and
+    /// time budget.
+    #[arg(long)]
+    pub novel_views: Option<usize>,
+    /// Iteration the novel views are added at [default: half the schedule].
+    #[arg(long)]
+    pub novel_after: Option<usize>,
+    /// How novel cameras are chosen: `guided` aims them at the points whose
+    /// training features disagree most, `trajectory` interpolates between
+    /// consecutive training cameras, `random` places them uniformly in the
+    /// scene box, `none` adds nothing (the ablation's baseline).
+    #[arg(long, value_enum)]
+    pub novel_views_mode: Option<eval::novel::NovelMode>,
+    /// Weight of the novel views' rendered depth in the depth loss, in
+    /// [0, 1] (sensor depth weighs 1) [default: 0.1].
+    #[arg(long, allow_negative_numbers = true)]
+    pub novel_depth_weight: Option<f32>,
+    /// For scenes on disk: the 2D feature extractor run on the rendered
+    /// views, as `PROGRAM [ARGS...]` (split at spaces); it is called as
+    /// `PROGRAM ARGS... IN_DIR OUT_DIR`, reads `IN_DIR/<name>.png` and must
+    /// write `OUT_DIR/<name>.npy` (H x W x D). Synthetic scenes use their own.
+    #[arg(long)]
+    pub extractor_command: Option<String>,
     /// Run directory [default: runs/<dataset>-<unix time>].
     #[arg(long)]
     pub out: Option<PathBuf>,

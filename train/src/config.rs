@@ -6,6 +6,8 @@ use std::path::Path;
 use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 use serde::{Deserialize, Serialize};
 
+pub use eval::novel::{NovelMode, NovelViewConfig};
+
 use crate::error::TrainError;
 use crate::schedule::ScheduleConfig;
 
@@ -155,6 +157,9 @@ pub struct TrainConfig {
     /// Seed of the initialisation, the ray sampler and the stratified jitter.
     #[serde(default)]
     pub seed: u64,
+    /// Novel views rendered by the field and added as training frames.
+    #[serde(default)]
+    pub novel: NovelViewConfig,
 }
 
 /// Command-line overrides applied on top of a configuration.
@@ -215,6 +220,7 @@ impl TrainConfig {
                 ..Default::default()
             },
             seed: 0,
+            novel: NovelViewConfig::default(),
         }
     }
 
@@ -255,6 +261,7 @@ impl TrainConfig {
             },
             logging: LoggingConfig::default(),
             seed: 0,
+            novel: NovelViewConfig::default(),
         }
     }
 
@@ -355,6 +362,7 @@ impl TrainConfig {
         if self.logging.render_chunk == 0 {
             return bad("logging.render_chunk must be at least 1".into());
         }
+        self.novel.validate().map_err(TrainError::Config)?;
         self.schedule.validate().map_err(TrainError::Config)
     }
 }

@@ -17,6 +17,7 @@ pub mod data;
 pub mod error;
 pub mod evaluate;
 pub mod metrics;
+pub mod novel;
 pub mod report;
 pub mod run;
 pub mod schedule;
@@ -72,6 +73,7 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         lr: cli.lr,
         seed: cli.seed,
     });
+    apply_novel_flags(cli, &mut config);
     let out = cli.out.clone().unwrap_or_else(|| {
         let secs = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -91,4 +93,24 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         out.display()
     );
     train_new(&scene, config, cli.holdout_every, &out, &session)
+}
+
+/// Lays the novel-view flags over the configuration.
+fn apply_novel_flags(cli: &cli::Cli, config: &mut TrainConfig) {
+    let novel = &mut config.novel;
+    if let Some(n) = cli.novel_views {
+        novel.views = n;
+    }
+    if let Some(a) = cli.novel_after {
+        novel.after = Some(a);
+    }
+    if let Some(m) = cli.novel_views_mode {
+        novel.mode = m;
+    }
+    if let Some(w) = cli.novel_depth_weight {
+        novel.depth_weight = w;
+    }
+    if let Some(c) = &cli.extractor_command {
+        novel.extractor = Some(c.split_whitespace().map(str::to_string).collect());
+    }
 }

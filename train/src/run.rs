@@ -2,6 +2,7 @@
 //! evaluation and checkpoints, the time budget, and the final renders and
 //! `summary.json`.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -24,6 +25,7 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels, evaluate_views};
 use crate::metrics::{EvalMetrics, MetricsLog, Summary, read_json, write_json};
+use crate::novel::AddedViews;
 use crate::step::{StepRates, train_step};
 
 /// How a session runs (as opposed to what is trained, which is the config).
@@ -88,6 +90,15 @@ pub fn train_new(
             scene.name
         )));
     }
+    if let Some(due) = crate::novel::due_at(&config) {
+        if !session.fit_schedule_to_budget && due >= config.schedule.iterations {
+            return Err(TrainError::Config(format!(
+                "novel views are due at iteration {due}, but the schedule ends at {}: give --novel-after below it",
+                config.schedule.iterations
+            )));
+        }
+        eval::novel::scene_extractor(scene, &config.novel)?;
+    }
     let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
     let run = RunDir::new(out);
     crate::validate::fresh_out_dir(&run.dir)?;
@@ -109,7 +120,7 @@ pub fn train_new(
         rays_processed: 0,
     };
     train_loop(
-        scene, &config, &split, &run, model, optim, state, &device, session,
+        scene, None, &config, &split, &run, model, optim, state, &device, session,
     )
 }
 
@@ -146,7 +157,8 @@ pub fn resume(
     }
     // config.json is rewritten only once everything it describes checks out.
     config.validate()?;
-    let scene = crate::data::reload(&meta)?;
+    let mut scene = crate::data::reload(&meta)?;
+    let added = crate::novel::reload_recorded(&mut scene, &run)?;
     let n = scene.frames.len();
     if split.train.iter().chain(&split.heldout).any(|&i| i >= n) {
         return Err(TrainError::json(
@@ -160,7 +172,7 @@ pub fn resume(
         write_json(&run.config(), &config)?;
     }
     train_loop(
-        &scene, &config, &split, &run, model, optim, ckpt.state, &device, session,
+        &scene, added, &config, &split, &run, model, optim, ckpt.state, &device, session,
     )
 }
 
@@ -369,6 +381,7 @@ fn progress_bar(session: &SessionOptions, start: usize, end: usize) -> ProgressB
 #[allow(clippy::too_many_arguments)]
 fn train_loop(
     scene: &Scene,
+    mut added: Option<AddedViews>,
     config: &TrainConfig,
     split: &Split,
     run: &RunDir,
@@ -407,7 +420,7 @@ fn train_loop(
     let session_start = Instant::now();
     let wall_before = state.wall_seconds;
     let wall = |start: &Instant| wall_before + start.elapsed().as_secs_f64();
-    let evaluate = |model: &OpenNerf| {
+    let evaluate = |model: &OpenNerf, scene: &Scene| {
         evaluate_pixels(
             &model.valid(),
             scene,
@@ -417,11 +430,26 @@ fn train_loop(
         )
     };
     if state.iteration == 0 {
-        let m = evaluate(&model);
+        let m = evaluate(&model, scene);
         log.write(&eval_line("eval", 0, &m, None, 0.0))?;
     }
     let space = feature_space(scene, device);
-    let sampler = TrainSampler::new(scene, &split.train, &config.sampler, state.seed)?;
+    // Novel views are appended to a copy of the scene when they are made.
+    let mut scene: Cow<'_, Scene> = Cow::Borrowed(scene);
+    let training_frames = |added: Option<&AddedViews>, it: usize| -> Vec<usize> {
+        let mut frames = split.train.clone();
+        if let Some(a) = added.filter(|a| it >= a.at) {
+            frames.extend(&a.frames);
+        }
+        frames
+    };
+    let mut sampler_has_novel = added.as_ref().is_some_and(|a| state.iteration >= a.at);
+    let mut sampler = TrainSampler::new(
+        &scene,
+        &training_frames(added.as_ref(), state.iteration),
+        &config.sampler,
+        state.seed,
+    )?;
     let bar = progress_bar(session, state.iteration, end);
     let mut consecutive_bad = 0usize;
     let mut last_checkpoint: Option<PathBuf> =
@@ -464,6 +492,57 @@ fn train_loop(
                 );
             }
         }
+        if added.is_none()
+            && let Some(due) = crate::novel::due_at(&config)
+            && it >= due
+        {
+            say(
+                &bar,
+                format!(
+                    "iteration {it}: adding {} novel views ({})",
+                    config.novel.views, config.novel.mode
+                ),
+            );
+            let report = crate::novel::add_views(
+                &model.valid(),
+                scene.to_mut(),
+                &split.train,
+                &config,
+                run,
+                it,
+                &inference,
+                |_, _| {},
+            )?;
+            log.write(&json!({
+                "event": "novel_views",
+                "iteration": it,
+                "mode": report.added.mode,
+                "requested": report.requested,
+                "added": report.added.frames.len(),
+                "seconds": report.seconds,
+                "wall_seconds": wall(&session_start),
+            }))?;
+            say(
+                &bar,
+                format!(
+                    "iteration {it}: {} of {} novel views added in {:.1} s (recorded in {})",
+                    report.added.frames.len(),
+                    report.requested,
+                    report.seconds,
+                    run.novel().display()
+                ),
+            );
+            added = Some(report.added);
+        }
+        if !sampler_has_novel && let Some(a) = added.as_ref().filter(|a| it >= a.at) {
+            sampler = TrainSampler::new(
+                &scene,
+                &training_frames(Some(a), it),
+                &config.sampler,
+                state.seed,
+            )?;
+            sampler_has_novel = true;
+        }
         let lr = config.schedule.lr(it);
         let rates = StepRates {
             base: lr,
@@ -473,7 +552,7 @@ fn train_loop(
         // The stratified jitter draws from the device generator: seeding it
         // per iteration makes a resumed run draw what the uninterrupted one would.
         device.seed(iteration_seed(state.seed ^ 0x6a09_e667_f3bc_c909, it));
-        let batch = to_tensors(&sampler.batch(scene, it)?, &space, device);
+        let batch = to_tensors(&sampler.batch(&scene, it)?, &space, device);
         let (next, report) = train_step(
             model,
             &mut optim,
@@ -551,7 +630,7 @@ fn train_loop(
         }
         bar.set_position(i as u64);
         if log_cfg.eval_every > 0 && i.is_multiple_of(log_cfg.eval_every) && i < end {
-            let m = evaluate(&model);
+            let m = evaluate(&model, &scene);
             log.write(&eval_line("eval", i, &m, None, wall(&session_start)))?;
             say(
                 &bar,
@@ -580,7 +659,7 @@ fn train_loop(
     let (interior, whole) = if session.final_render {
         let m = evaluate_views(
             &valid,
-            scene,
+            &scene,
             &heldout,
             config.sampler.border_margin,
             log_cfg.render_chunk,
@@ -589,7 +668,7 @@ fn train_loop(
         )?;
         (m.interior, Some(m.whole))
     } else {
-        let m = evaluate_pixels(&valid, scene, &pixels, log_cfg.render_chunk, &inference);
+        let m = evaluate_pixels(&valid, &scene, &pixels, log_cfg.render_chunk, &inference);
         (m, None)
     };
     let wall_seconds = wall(&session_start);

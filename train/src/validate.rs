@@ -59,6 +59,37 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
         }
     }
     eval::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)?;
+    if let Some(w) = cli.novel_depth_weight
+        && !(w.is_finite() && (0.0..=1.0).contains(&w))
+    {
+        return Err(flag_error(format!(
+            "--novel-depth-weight {w}: must be a weight in [0, 1] (sensor depth weighs 1)"
+        )));
+    }
+    if cli.novel_after == Some(0) {
+        return Err(flag_error(
+            "--novel-after 0: the field must be trained before it can render views; give an iteration >= 1"
+                .into(),
+        ));
+    }
+    if cli
+        .extractor_command
+        .as_deref()
+        .is_some_and(|c| c.trim().is_empty())
+    {
+        return Err(flag_error(
+            "--extractor-command is empty: give the program (and its leading arguments)".into(),
+        ));
+    }
+    let novel_given = cli.novel_after.is_some()
+        || cli.novel_views_mode.is_some()
+        || cli.novel_depth_weight.is_some()
+        || cli.extractor_command.is_some();
+    if novel_given && cli.novel_views.is_none() && cli.resume.is_none() {
+        return Err(flag_error(
+            "novel-view options are given without --novel-views N (how many views to add)".into(),
+        ));
+    }
     if cli.resume.is_some() {
         return resume_flags(cli);
     }
@@ -122,6 +153,11 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("lambda-depth", cli.lambda_depth.is_some()),
         ("lr", cli.lr.is_some()),
         ("seed", cli.seed.is_some()),
+        ("novel-views", cli.novel_views.is_some()),
+        ("novel-after", cli.novel_after.is_some()),
+        ("novel-views-mode", cli.novel_views_mode.is_some()),
+        ("novel-depth-weight", cli.novel_depth_weight.is_some()),
+        ("extractor-command", cli.extractor_command.is_some()),
     ];
     if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {
         return Err(flag_error(format!(

@@ -10,6 +10,11 @@ use rand::Rng;
 
 use super::UncertaintyMap;
 
+/// Targets drawn per view wanted: a partly trained field rejects many
+/// positions (fog in free space hides the target), so spare targets are
+/// drawn and the first `max_views` that pass are kept.
+pub const SPARE_TARGETS: usize = 4;
+
 /// Settings of the camera proposals.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProposalOptions {
@@ -183,6 +188,9 @@ pub fn propose_cameras(
 ) -> Vec<Proposal> {
     let mut out = Vec::new();
     for &t in targets {
+        if out.len() >= opts.max_views {
+            break;
+        }
         let target = positions[t];
         let Some(n) = free_side(target, map.mean_view_centres[t], fallback_centre) else {
             continue;

@@ -80,7 +80,8 @@ pub fn write_proposals(
     let targets = select_targets(
         &map.normalised,
         points,
-        opts.max_views,
+        opts.max_views
+            .saturating_mul(super::proposals::SPARE_TARGETS),
         opts.min_separation,
         &mut rng,
     );
@@ -109,7 +110,7 @@ pub fn write_proposals(
         &mut rng,
     );
     println!(
-        "proposed {} novel cameras for {} targets drawn by uncertainty",
+        "proposed {} novel cameras from {} candidate targets drawn by uncertainty",
         proposals.len(),
         targets.len()
     );

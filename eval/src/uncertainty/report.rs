@@ -5,8 +5,8 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use datasets::Scene;
 use datasets::points::{PointCloud, write_ply};
-use datasets::{Scene, load_scene_with_basis};
 use model::geometry::Vec3;
 use serde::Serialize;
 
@@ -88,7 +88,7 @@ pub struct UncertaintySummary {
 /// training views' depth back-projected; thinned to `voxel`. Returns the
 /// positions and, when the scene has a labelled cloud and classes, labels
 /// and the class scorer input.
-fn coarse_points(
+pub(crate) fn coarse_points(
     scene: &Scene,
     split: &Split,
     voxel: f64,
@@ -156,8 +156,8 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
     }
     let dir = RunDir::new(&args.run);
     let meta: datasets::SceneMeta = read_json(&dir.scene())?;
-    let split: Split = read_json(&dir.split())?;
-    let scene = load_scene_with_basis(&meta.source, meta.pca.as_ref())?;
+    let mut split: Split = read_json(&dir.split())?;
+    let scene = crate::run::load_run_scene(&dir, &meta, &mut split)?;
     let (points, labelled) = coarse_points(&scene, &split, args.voxel)?;
     let opts = UncertaintyOptions {
         k: args.k,

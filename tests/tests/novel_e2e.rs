@@ -1,0 +1,172 @@
+//! End-to-end novel views on the CI scene: views rendered part-way through
+//! training are recorded in the run directory, a run stopped before or after
+//! they were added resumes to the same weights, and evaluation rebuilds the
+//! augmented scene.
+
+use std::path::Path;
+
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Tensor};
+use eval::novel::{NovelMode, NovelViewConfig};
+use eval::run::{RunDir, Split, load_run_scene};
+use tests::{ci_scene, scratch_dir, serial, tiny_config};
+use train::{BackendKind, SessionOptions, TrainConfig};
+
+fn session(stop_at: Option<usize>) -> SessionOptions {
+    SessionOptions {
+        backend: BackendKind::Flex,
+        final_render: false,
+        stop_at,
+        ..Default::default()
+    }
+}
+
+/// All weights of the run in `dir`, flattened.
+fn weights(dir: &Path) -> Vec<f32> {
+    struct Collect(Vec<f32>);
+    impl ModuleVisitor for Collect {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            self.0
+                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
+        }
+    }
+    let run = eval::run::load_run(dir, &Device::flex()).unwrap();
+    let mut c = Collect(Vec::new());
+    run.model.visit(&mut c);
+    c.0
+}
+
+fn config(mode: NovelMode) -> TrainConfig {
+    let scene = ci_scene();
+    let mut c = tiny_config(scene, 90);
+    c.logging.eval_every = 0;
+    c.logging.checkpoint_every = 30;
+    c.novel = NovelViewConfig {
+        views: 3,
+        after: Some(45),
+        mode,
+        voxel: 0.2,
+        ..NovelViewConfig::default()
+    };
+    c
+}
+
+#[test]
+fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
+    let _guard = serial();
+    let scene = ci_scene();
+    let n = scene.frames.len();
+    let whole = scratch_dir();
+    let cfg = config(NovelMode::Guided);
+    let a = train::train_new(scene, cfg.clone(), 4, whole.path(), &session(None)).unwrap();
+    assert_eq!(a.summary.iterations, 90);
+
+    // The record: three views at iteration 45, each with colour, masked
+    // depth at the configured weight and compressed features.
+    let run = RunDir::new(whole.path());
+    let record = datasets::novel::read_record(&run.novel())
+        .unwrap()
+        .expect("views.json");
+    assert_eq!((record.mode.as_str(), record.added_at), ("guided", 45));
+    assert_eq!(record.views.len(), 3, "{record:?}");
+    let dim = scene.features.as_ref().unwrap().dim();
+    let views = datasets::novel::load_views(&run.novel(), &record, dim).unwrap();
+    for (frame, map) in &views {
+        assert_eq!(frame.depth_weight, cfg.novel.depth_weight);
+        let depth = frame.depth.as_ref().unwrap();
+        assert!(depth.data.iter().all(|d| d.is_finite() && *d >= 0.0));
+        assert!(depth.data.iter().any(|d| *d > 0.0), "{}", frame.name);
+        assert_eq!(map.dim, dim);
+        let e = record.views.iter().find(|e| e.name == frame.name).unwrap();
+        let t = e.target.expect("guided views have targets");
+        let p = frame.camera.project(t).expect("the target is in front");
+        assert!((p.u - frame.camera.intrinsics.cx).abs() < 1e-6);
+    }
+    let metrics = std::fs::read_to_string(run.metrics()).unwrap();
+    assert!(
+        metrics.contains("\"event\":\"novel_views\""),
+        "the addition is logged"
+    );
+
+    // Stopped after the views were added (checkpoint 60), or before them
+    // (checkpoint 30, the views are then made by the resumed session):
+    // both resume to the weights of the uninterrupted run.
+    for stop in [60, 30] {
+        let parts = scratch_dir();
+        train::train_new(scene, cfg.clone(), 4, parts.path(), &session(Some(stop))).unwrap();
+        assert_eq!(
+            RunDir::new(parts.path())
+                .novel()
+                .join("views.json")
+                .exists(),
+            stop > 45
+        );
+        let b = train::resume(parts.path(), None, &session(None)).unwrap();
+        assert_eq!(b.summary.iterations, 90);
+        assert!(
+            weights(whole.path()) == weights(parts.path()),
+            "stopped at {stop}: the resumed weights differ"
+        );
+        let again = datasets::novel::read_record(&RunDir::new(parts.path()).novel())
+            .unwrap()
+            .unwrap();
+        assert_eq!(again, record, "stopped at {stop}");
+    }
+
+    // Evaluation rebuilds the augmented scene: the views are training frames.
+    let meta: datasets::SceneMeta =
+        serde_json::from_str(&std::fs::read_to_string(run.scene()).unwrap()).unwrap();
+    let mut split: Split =
+        serde_json::from_str(&std::fs::read_to_string(run.split()).unwrap()).unwrap();
+    let base_train = split.train.len();
+    let rebuilt = load_run_scene(&run, &meta, &mut split).unwrap();
+    assert_eq!(rebuilt.frames.len(), n + 3);
+    assert_eq!(split.train.len(), base_train + 3);
+    assert_eq!(&split.train[base_train..], &[n, n + 1, n + 2]);
+    let ctx = eval::commands::Context::load(whole.path(), &Device::flex()).unwrap();
+    assert_eq!(ctx.scene.as_ref().unwrap().frames.len(), n + 3);
+    assert!(ctx.run.split.train.contains(&(n + 2)));
+    drop(ctx);
+    #[derive(clap::Parser)]
+    struct Segment {
+        #[command(flatten)]
+        args: eval::commands::SegmentArgs,
+    }
+    let seg = scratch_dir();
+    let out = seg.path().join("segmentation.json");
+    let args = <Segment as clap::Parser>::try_parse_from([
+        "segment".as_ref(),
+        "--run".as_ref(),
+        whole.path().as_os_str(),
+        "--max-views".as_ref(),
+        "2".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ])
+    .unwrap()
+    .args;
+    let scores = eval::commands::segment_command(&args).unwrap();
+    assert!(scores.all.miou.is_some_and(f64::is_finite), "{scores:?}");
+    assert!(out.exists());
+}
+
+#[test]
+fn a_run_without_novel_views_writes_no_record_and_bad_settings_are_refused() {
+    let _guard = serial();
+    let scene = ci_scene();
+    let dir = scratch_dir();
+    let mut cfg = config(NovelMode::None);
+    cfg.schedule.iterations = 20;
+    cfg.novel.after = Some(10);
+    train::train_new(scene, cfg.clone(), 4, dir.path(), &session(None)).unwrap();
+    assert!(!RunDir::new(dir.path()).novel().exists());
+
+    // Due after the schedule's end: refused before anything is written.
+    let late = scratch_dir();
+    let mut bad = cfg.clone();
+    bad.novel.mode = NovelMode::Trajectory;
+    bad.novel.after = Some(20);
+    let e = train::train_new(scene, bad, 4, late.path(), &session(None)).unwrap_err();
+    assert!(e.to_string().contains("--novel-after"), "{e}");
+    assert!(!late.path().join("config.json").exists());
+}

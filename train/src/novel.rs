@@ -1,0 +1,109 @@
+//! Novel views during training: when they are due, render them with the
+//! current field, extract and compress their features, record them in the
+//! run directory and append them to the scene; on resume, find them there.
+//!
+//! Views join the training frames at the iteration recorded with them, also
+//! when a resumed run read them back before reaching it, so that the ray
+//! stream of an interrupted run is that of an uninterrupted one.
+
+use std::time::Instant;
+
+use burn::tensor::Device;
+use datasets::Scene;
+use eval::run::RunDir;
+use model::OpenNerf;
+
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+
+/// Novel views known to a run: the iteration they join training at and
+/// their frame indices.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AddedViews {
+    /// First iteration whose batch may draw them.
+    pub at: usize,
+    /// Their indices in the scene.
+    pub frames: Vec<usize>,
+    /// The mode that chose them.
+    pub mode: String,
+}
+
+/// The iteration novel views are due at: the configured one, else half the
+/// schedule. `None` when no views are configured.
+pub fn due_at(config: &TrainConfig) -> Option<usize> {
+    config
+        .novel
+        .enabled()
+        .then(|| config.novel.after.unwrap_or(config.schedule.iterations / 2))
+}
+
+/// Appends the views recorded in `run` (if any) to `scene`.
+pub fn reload_recorded(scene: &mut Scene, run: &RunDir) -> Result<Option<AddedViews>, TrainError> {
+    let found = datasets::novel::append_recorded(scene, &run.novel())?;
+    Ok(found.map(|(record, frames)| AddedViews {
+        at: record.added_at,
+        frames,
+        mode: record.mode,
+    }))
+}
+
+/// What adding the views cost and gave.
+#[derive(Debug, Clone)]
+pub struct AddReport {
+    /// The views.
+    pub added: AddedViews,
+    /// Cameras asked for.
+    pub requested: usize,
+    /// Seconds spent choosing, rendering and extracting.
+    pub seconds: f64,
+}
+
+/// Chooses, renders, extracts and records the novel views of iteration
+/// `iteration`, then appends them to `scene` as read back from the record
+/// (so that a resumed run sees the very same bytes).
+pub fn add_views(
+    model: &OpenNerf,
+    scene: &mut Scene,
+    train: &[usize],
+    config: &TrainConfig,
+    run: &RunDir,
+    iteration: usize,
+    device: &Device,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<AddReport, TrainError> {
+    let start = Instant::now();
+    let novel = &config.novel;
+    let extractor = eval::novel::scene_extractor(scene, novel)?;
+    let cameras = eval::novel::choose_cameras(
+        novel.mode,
+        novel.views,
+        model,
+        scene,
+        train,
+        novel,
+        config.seed ^ 0x9e37_79b9_7f4a_7c15 ^ iteration as u64,
+        device,
+    )?;
+    let views = eval::novel::render_views(
+        model,
+        &cameras,
+        scene,
+        extractor.as_ref(),
+        novel,
+        config.logging.render_chunk,
+        device,
+        &mut progress,
+    )?;
+    datasets::novel::write_record(&run.novel(), novel.mode.name(), iteration, &views)?;
+    let added = reload_recorded(scene, run)?.ok_or_else(|| {
+        TrainError::Config(format!(
+            "{}: the novel views just written cannot be read back",
+            run.novel().display()
+        ))
+    })?;
+    Ok(AddReport {
+        added,
+        requested: novel.views,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
