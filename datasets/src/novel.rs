@@ -262,3 +262,84 @@ pub fn append_recorded(
     let indices = append(scene, views)?;
     Ok(Some((record, indices)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::geometry::{Intrinsics, look_at};
+
+    fn view(i: usize, w: u32, h: u32, dim: usize) -> NovelView {
+        let n = (w * h) as usize;
+        NovelView {
+            name: format!("novel_{i:03}"),
+            camera: Camera {
+                intrinsics: Intrinsics::from_fov_x(w, h, 1.1),
+                pose: look_at([0.1 * i as f64, 1.0, 0.3], [0.0; 3], [0.0, 0.0, 1.0]).expect("pose"),
+            },
+            rgb: RgbImage {
+                width: w,
+                height: h,
+                data: (0..3 * n).map(|k| (k % 256) as f32 / 255.0).collect(),
+            },
+            depth: DepthImage {
+                width: w,
+                height: h,
+                data: (0..n)
+                    .map(|k| if k % 5 == 0 { 0.0 } else { 0.37 * k as f32 })
+                    .collect(),
+            },
+            features: FeatureMap {
+                width: w / 2,
+                height: h / 2,
+                dim,
+                data: (0..(w / 2 * (h / 2)) as usize * dim)
+                    .map(|k| {
+                        if k == 3 {
+                            f16::NAN
+                        } else {
+                            f16::from_f32(k as f32 * 0.01)
+                        }
+                    })
+                    .collect(),
+            },
+            depth_weight: 0.25,
+            target: Some([0.0; 3]),
+            uncertainty: Some(0.8),
+        }
+    }
+
+    /// What is read back is what was written: 8-bit colour, exact depth,
+    /// f16 features (NaN kept), camera, weight.
+    #[test]
+    fn a_record_reads_back_as_written() {
+        let dir = tempfile::tempdir().expect("tmp");
+        assert_eq!(read_record(dir.path()).expect("none"), None);
+        let views = [view(0, 8, 6, 3), view(1, 8, 6, 3)];
+        let record = write_record(dir.path(), "guided", 40, &views).expect("write");
+        assert_eq!(read_record(dir.path()).expect("read"), Some(record.clone()));
+        let back = load_views(dir.path(), &record, 3).expect("load");
+        for ((frame, map), v) in back.iter().zip(&views) {
+            assert_eq!(frame.name, v.name);
+            assert_eq!(frame.camera, v.camera);
+            assert_eq!(frame.depth.as_ref().expect("depth"), &v.depth);
+            assert_eq!(frame.depth_weight, 0.25);
+            for (a, b) in frame.rgb.data.iter().zip(&v.rgb.data) {
+                assert!((a - b).abs() <= 0.5 / 255.0 + 1e-6, "{a} vs {b}");
+            }
+            assert_eq!((map.width, map.height, map.dim), (4, 3, 3));
+            for (a, b) in map.data.iter().zip(&v.features.data) {
+                assert!(a.to_bits() == b.to_bits());
+            }
+        }
+        // The wrong channel count, or a depth map of the wrong size, is
+        // named by file.
+        let e = load_views(dir.path(), &record, 5).expect_err("dim");
+        assert!(e.to_string().contains("novel_000_features.npy"), "{e}");
+        write_npy_f32(&dir.path().join("novel_001_depth.npy"), &[2, 2], &[1.0; 4]).expect("w");
+        let e = load_views(dir.path(), &record, 3).expect_err("depth");
+        assert!(e.to_string().contains("novel_001_depth.npy"), "{e}");
+        std::fs::write(dir.path().join(INDEX), "{\"mode\": 3").expect("w");
+        let e = read_record(dir.path()).expect_err("json");
+        assert!(e.to_string().contains(INDEX), "{e}");
+    }
+}

@@ -62,7 +62,10 @@ pub struct SegmentArgs {
     /// Points and classes.
     #[command(flatten)]
     pub data: PointArgs,
-    /// Cameras to project into: train, heldout, all, or a transforms.json / traj.txt.
+    /// Cameras to project into: train (the training frames, novel views
+    /// included), captured (the captured training frames only: the same
+    /// cameras whether or not a run added novel views), heldout, all, or a
+    /// transforms.json / traj.txt.
     #[arg(long, default_value = "train")]
     pub cameras: String,
     /// cam_params.json for a traj.txt (default: next to it or its parent).
@@ -243,7 +246,8 @@ fn reembed(p: &mut EvalPoints, texts: &TextEmbeddings) -> Result<(), EvalError> 
     Ok(())
 }
 
-/// Cameras by name (`train`, `heldout`, `all`: frames of the run's scene) or
+/// Cameras by name (`train`, `captured`, `heldout`, `all`: frames of the
+/// run's scene; `captured` leaves out the novel views of `train`) or
 /// from a `transforms.json` / `traj.txt`. Scene frames come with their index.
 pub fn select_cameras(
     spec: &str,
@@ -283,6 +287,16 @@ pub fn select_cameras(
         };
     match spec {
         "train" => from_scene(run.split.train.clone()),
+        "captured" => {
+            // The training frames of split.json: without the novel views the
+            // field rendered for itself.
+            let split: crate::run::Split = if run.dir.split().exists() {
+                crate::run::read_json(&run.dir.split())?
+            } else {
+                run.split.clone()
+            };
+            from_scene(split.train)
+        }
         "heldout" => from_scene(run.split.heldout.clone()),
         "all" => from_scene(Vec::new()),
         path => {

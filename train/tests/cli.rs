@@ -254,3 +254,182 @@ fn resume_checks_before_writing_and_survives_a_damaged_checkpoint() {
     assert!(ckpts.join("ckpt-00000004.onck.damaged").exists());
     assert!(ckpts.join("ckpt-00000006.onck").exists());
 }
+
+#[test]
+fn novel_view_flags_are_checked_by_flag() {
+    for (args, words) in [
+        (
+            &["--novel-views", "2", "--novel-depth-weight", "NaN"][..],
+            &["--novel-depth-weight NaN"][..],
+        ),
+        (
+            &["--novel-views", "2", "--novel-depth-weight", "-1"],
+            &["--novel-depth-weight -1"],
+        ),
+        (
+            &["--novel-views", "2", "--novel-depth-weight", "1.5"],
+            &["--novel-depth-weight 1.5", "[0, 1]"],
+        ),
+        (
+            &["--novel-views", "2", "--novel-after", "0"],
+            &["--novel-after 0"],
+        ),
+        (&["--novel-views", "2", "--novel-after", "-3"], &["-3"]),
+        (&["--novel-views", "-2"], &["-2"]),
+        (
+            &["--novel-views", "2", "--extractor-command", " "],
+            &["--extractor-command"],
+        ),
+        (&["--novel-after", "5"], &["--novel-views N"]),
+        (&["--novel-views-mode", "sideways"], &["sideways", "guided"]),
+        (&["--novel-views", "2000"], &["novel.views", "1000"]),
+        (
+            &["--novel-views", "2", "--novel-after", "50", "--iters", "50"],
+            &["iteration 50", "--novel-after"],
+        ),
+    ] {
+        assert_refused(args, words);
+    }
+}
+
+#[test]
+fn novel_views_need_feature_maps_and_an_extractor_and_resume_keeps_them() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let room = replica_dir(tmp.path(), 3);
+    let out = tmp.path().join("run");
+    // A scene without feature maps has nothing to re-extract.
+    assert_refused(
+        &[
+            "--dataset",
+            "replica",
+            "--data",
+            s(&room),
+            "--holdout-every",
+            "2",
+            "--novel-views",
+            "2",
+            "--out",
+            s(&out),
+        ],
+        &["no feature maps", "novel views"],
+    );
+    assert!(!out.join("config.json").exists());
+    // Resuming keeps the run's own novel-view settings.
+    let config = tiny_config(tmp.path());
+    let run = tmp.path().join("synthetic");
+    let r = train(&[
+        "--config",
+        s(&config),
+        "--iters",
+        "4",
+        "--stop-at",
+        "2",
+        "--out",
+        s(&run),
+        "--quiet",
+    ]);
+    assert!(r.status.success(), "{}", text(&r).1);
+    assert_refused(
+        &["--resume", s(&run), "--novel-views", "3"],
+        &["--novel-views", "--resume"],
+    );
+}
+
+/// A scene on disk with feature maps: the novel views go through the
+/// command extractor, are recorded, and a damaged record is reported by
+/// file on resume.
+#[test]
+fn a_scene_on_disk_adds_views_through_the_command_extractor() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let room = replica_dir(tmp.path(), 4);
+    // Feature maps of 10x8 pixels, 4 channels, for each frame.
+    let feats = tmp.path().join("features");
+    std::fs::create_dir_all(&feats).expect("mkdir");
+    let script = tmp.path().join("extract.py");
+    std::fs::write(
+        &script,
+        r#"import sys, os, struct
+def write(path, h, w, d):
+    hdr = "{'descr': '<f4', 'fortran_order': False, 'shape': (%d, %d, %d), }" % (h, w, d)
+    hdr += " " * (63 - (10 + len(hdr)) % 64) + "\n"
+    with open(path, "wb") as f:
+        f.write(b"\x93NUMPY\x01\x00" + struct.pack("<H", len(hdr)) + hdr.encode())
+        for i in range(h * w):
+            f.write(struct.pack("<4f", 1.0, 0.5 * (i % 3), 0.25, 0.0))
+if sys.argv[1] == "--maps":
+    for i in range(int(sys.argv[3])):
+        write(os.path.join(sys.argv[2], "frame%06d.npy" % i), 8, 10, 4)
+else:
+    for name in os.listdir(sys.argv[1]):
+        write(os.path.join(sys.argv[2], name[:-4] + ".npy"), 8, 10, 4)
+"#,
+    )
+    .expect("write script");
+    let python = ["python3", "python"]
+        .into_iter()
+        .find(|p| Command::new(p).arg("--version").output().is_ok());
+    let Some(python) = python else {
+        eprintln!("skipped: no python to play the external extractor");
+        return;
+    };
+    let made = Command::new(python)
+        .arg(&script)
+        .args(["--maps", s(&feats), "4"])
+        .status()
+        .expect("python runs");
+    assert!(made.success());
+    let config = tiny_config(tmp.path());
+    let out = tmp.path().join("run");
+    let base = [
+        "--dataset",
+        "replica",
+        "--data",
+        s(&room),
+        "--features",
+        s(&feats),
+        "--pca",
+        "off",
+        "--holdout-every",
+        "2",
+        "--config",
+        s(&config),
+        "--iters",
+        "6",
+        "--novel-views",
+        "2",
+        "--novel-after",
+        "3",
+        "--novel-views-mode",
+        "trajectory",
+        "--out",
+        s(&out),
+        "--quiet",
+    ];
+    // Without the extractor that made the maps there is nothing to run.
+    assert_refused(&base, &["--extractor-command"]);
+    let command = format!("{python} {}", s(&script));
+    let mut args = base.to_vec();
+    args.extend(["--extractor-command", &command, "--stop-at", "4"]);
+    let r = train(&args);
+    let (_, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(stderr.contains("novel views added"), "{stderr}");
+    let novel = out.join("novel");
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(novel.join("views.json")).expect("index"))
+            .expect("json");
+    assert_eq!(record["mode"], "trajectory");
+    assert_eq!(record["added_at"], 3);
+    let views = record["views"].as_array().expect("views");
+    // Two training frames (0 and 2 are held out): one segment between them.
+    assert_eq!(views.len(), 1, "{record}");
+    // A truncated feature map is named on resume, and nothing is trained.
+    let f = novel.join(views[0]["features"].as_str().expect("name"));
+    let bytes = std::fs::read(&f).expect("read");
+    std::fs::write(&f, &bytes[..bytes.len() / 2]).expect("truncate");
+    assert_refused(&["--resume", s(&out)], &["novel_000_features.npy"]);
+    std::fs::write(&f, &bytes).expect("restore");
+    let r = train(&["--resume", s(&out), "--quiet"]);
+    assert!(r.status.success(), "{}", text(&r).1);
+    assert!(text(&r).0.contains("done: 6 iterations"));
+}
