@@ -170,3 +170,28 @@ fn a_run_without_novel_views_writes_no_record_and_bad_settings_are_refused() {
     assert!(e.to_string().contains("--novel-after"), "{e}");
     assert!(!late.path().join("config.json").exists());
 }
+
+#[test]
+fn trajectory_views_sit_half_way_between_consecutive_training_cameras() {
+    use model::geometry::{add_scaled, dot, norm, sub};
+    let scene = ci_scene();
+    let train: Vec<usize> = (0..scene.frames.len()).filter(|i| i % 4 != 0).collect();
+    let up = eval::uncertainty::propose::scene_up(scene, &train);
+    let cams = eval::novel::trajectory_cameras(scene, &train, 5, up);
+    assert_eq!(cams.len(), 5);
+    for c in &cams {
+        let p = c.pose.center();
+        let between = train.windows(2).any(|w| {
+            let (a, b) = (&scene.frames[w[0]].camera, &scene.frames[w[1]].camera);
+            let mid = add_scaled(a.pose.center(), 0.5, sub(b.pose.center(), a.pose.center()));
+            let f = add_scaled(a.pose.forward(), 1.0, b.pose.forward());
+            norm(sub(p, mid)) < 1e-9 && dot(c.pose.forward(), f) / norm(f) > 1.0 - 1e-9
+        });
+        assert!(between, "{p:?} is not half-way along the path");
+        assert!(c.pose.orthonormality_error() < 1e-9);
+    }
+    // No more views than segments of the path.
+    let all = eval::novel::trajectory_cameras(scene, &train, 1000, up);
+    assert_eq!(all.len(), train.len() - 1);
+    assert!(eval::novel::trajectory_cameras(scene, &train[..1], 3, up).is_empty());
+}

@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""Tables of the novel-view ablation written by scripts/novel-ablation.sh.
+
+    python3 scripts/novel-ablation-table.py runs/novel-ablation [--method hybrid]
+
+Reads <dir>/seed-*/<mode>/seg/segmentation_compare.json and prints, per seed
+and as the mean over seeds, mIoU / mAcc (percent) for all / head / common /
+tail classes of one field mode per ablation mode, then the tail classes'
+IoU per mode, and the views each run added (from its novel/views.json).
+"""
+import json
+import pathlib
+import sys
+
+MODES = ["none", "trajectory", "random", "guided"]
+GROUPS = ["all", "head", "common", "tail"]
+
+
+def pct(v):
+    return "-" if v is None else f"{100 * v:.1f}"
+
+
+def load(run, method):
+    path = run / "seg" / "segmentation_compare.json"
+    if not path.exists():
+        return None
+    rows = json.loads(path.read_text())
+    return next((r for r in rows if r["mode"] == method), None)
+
+
+def cell(row, group):
+    g = row.get(group)
+    return (None, None) if g is None else (g["miou"], g["macc"])
+
+
+def table(title, rows):
+    out = [f"{title}", "", "| views | " + " | ".join(GROUPS) + " |", "|---" * 5 + "|"]
+    for mode, cells in rows:
+        out.append(
+            f"| {mode} | "
+            + " | ".join(f"{pct(i)} / {pct(a)}" for i, a in cells)
+            + " |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def main():
+    args = sys.argv[1:]
+    method = "hybrid"
+    if "--method" in args:
+        k = args.index("--method")
+        method = args[k + 1]
+        del args[k : k + 2]
+    if len(args) != 1:
+        sys.exit(__doc__)
+    root = pathlib.Path(args[0])
+    seeds = sorted(p for p in root.glob("seed-*") if p.is_dir())
+    sums = {m: [[0.0, 0.0, 0] for _ in GROUPS] for m in MODES}
+    print(f"Field mode `{method}`, mIoU / mAcc in percent.\n")
+    for seed in seeds:
+        rows = []
+        for mode in MODES:
+            row = load(seed / mode, method)
+            if row is None:
+                continue
+            cells = [cell(row, g) for g in GROUPS]
+            for s, (i, a) in zip(sums[mode], cells):
+                if i is not None:
+                    s[0] += i
+                    s[1] += a
+                    s[2] += 1
+            record = seed / mode / "novel" / "views.json"
+            added = len(json.loads(record.read_text())["views"]) if record.exists() else 0
+            rows.append((f"{mode} (+{added})", cells))
+        print(table(f"{seed.name}", rows))
+    mean = [
+        (m, [(s[0] / s[2], s[1] / s[2]) if s[2] else (None, None) for s in sums[m]])
+        for m in MODES
+        if sums[m][0][2]
+    ]
+    print(table(f"mean over {len(seeds)} seeds", mean))
+    # Tail classes per mode: where the views help or hurt.
+    for seed in seeds:
+        base = load(seed / "none", method)
+        if base is None:
+            continue
+        names = [
+            c["name"]
+            for c in base["per_class"]
+            if c["iou"] is not None
+        ]
+        per = {m: load(seed / m, method) for m in MODES}
+        print(f"{seed.name}: IoU per class (percent)\n")
+        print("| class | points | " + " | ".join(MODES) + " |")
+        print("|---" * (2 + len(MODES)) + "|")
+        for n in names:
+            pts = next(c["points"] for c in base["per_class"] if c["name"] == n)
+            vals = []
+            for m in MODES:
+                r = per[m]
+                c = None if r is None else next(c for c in r["per_class"] if c["name"] == n)
+                vals.append(pct(None if c is None else c["iou"]))
+            print(f"| {n} | {pts} | " + " | ".join(vals) + " |")
+        print()
+
+
+if __name__ == "__main__":
+    main()

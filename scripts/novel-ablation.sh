@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# Novel-view ablation on benchmark-sized synthetic scenes: none, trajectory,
+# random and guided views, the same iteration budget for all four (the views
+# are counted in it), then 3D segmentation of each run.
+#
+#   scripts/novel-ablation.sh [--iters T] [--after A] [--views N] [--out DIR] SEED...
+#
+# Per seed, one run trains to iteration A and stops; each mode continues a
+# copy of it from that checkpoint with its own novel-view settings to T.
+# Training is deterministic given the seed, so the four runs are exactly
+# what four separate runs with `--novel-after A` would be, at less than half
+# the cost. Steps already done (summary.json / segmentation_compare.json
+# present) are skipped, so a killed ablation resumes where it stopped.
+# Segmentation projects into the same captured cameras for every mode, so
+# that only the field differs. The table is written by
+# scripts/novel-ablation-table.py. The programs are copied into
+# <out>/bin on the first call and reused by later calls.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+iters=2400
+after=1200
+views=24
+out=runs/novel-ablation
+seeds=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --iters) iters="$2"; shift 2 ;;
+    --after) after="$2"; shift 2 ;;
+    --views) views="$2"; shift 2 ;;
+    --out) out="$2"; shift 2 ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    -*) echo "error: unknown option $1" >&2; exit 2 ;;
+    *) seeds+=("$1"); shift ;;
+  esac
+done
+[ ${#seeds[@]} -gt 0 ] || seeds=(21 22 23)
+if ! [ "$after" -ge 1 ] 2>/dev/null || ! [ "$iters" -gt "$after" ] 2>/dev/null; then
+  echo "error: need 1 <= --after ($after) < --iters ($iters)" >&2
+  exit 2
+fi
+
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/opennerf-target}"
+# The binaries are copied into the output directory once, so that an
+# ablation resumed after the code changed still runs the same program.
+bin="$out/bin"
+if [ ! -x "$bin/train" ] || [ ! -x "$bin/eval" ]; then
+  cargo build --release -q -p train -p eval
+  mkdir -p "$bin"
+  cp "$CARGO_TARGET_DIR/release/train" "$CARGO_TARGET_DIR/release/eval" "$bin/"
+fi
+
+for seed in "${seeds[@]}"; do
+  dir="$out/seed-$seed"
+  base="$dir/base"
+  if [ ! -f "$base/summary.json" ]; then
+    rm -rf "$base"
+    echo "== seed $seed: training to iteration $after"
+    "$bin/train" --scene-size bench --scene-seed "$seed" --iters "$iters" \
+      --stop-at "$after" --no-final-render --quiet --out "$base"
+  fi
+  for mode in none trajectory random guided; do
+    run="$dir/$mode"
+    if [ ! -f "$run/done" ]; then
+      echo "== seed $seed, $mode: iterations $after -> $iters"
+      rm -rf "$run"
+      cp -r "$base" "$run"
+      if [ "$mode" != none ]; then
+        jq --arg m "$mode" --argjson n "$views" --argjson a "$after" \
+          '.novel.mode = $m | .novel.views = $n | .novel.after = $a' \
+          "$run/config.json" > "$run/config.json.new"
+        mv "$run/config.json.new" "$run/config.json"
+      fi
+      "$bin/train" --resume "$run" --no-final-render --quiet
+      touch "$run/done"
+    fi
+    if [ ! -f "$run/seg/segmentation_compare.json" ]; then
+      echo "== seed $seed, $mode: segmentation"
+      "$bin/eval" segment --run "$run" --compare --cameras captured \
+        --max-views 20 --render-scale 0.5 --out "$run/seg"
+    fi
+  done
+done
+python3 scripts/novel-ablation-table.py "$out" | tee "$out/ablation.md"
