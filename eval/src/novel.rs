@@ -18,7 +18,7 @@ use crate::error::EvalError;
 use crate::project::ProjectOptions;
 use crate::render::render_view;
 use crate::uncertainty::proposals::{
-    FieldProbe, ProposalOptions, SPARE_TARGETS, propose_cameras, select_targets,
+    FieldProbe, ProposalOptions, SPARE_TARGETS, propose_cameras, select_targets, target_chances,
 };
 use crate::uncertainty::propose::scene_up;
 use crate::uncertainty::report::coarse_points;
@@ -256,7 +256,7 @@ pub fn choose_cameras(
                 |_, _| {},
             )?;
             let targets = select_targets(
-                &map.normalised,
+                &target_chances(&map),
                 &points,
                 count.saturating_mul(SPARE_TARGETS),
                 opts.min_separation,

@@ -48,6 +48,22 @@ impl Default for ProposalOptions {
     }
 }
 
+/// The chance of each point to become a target: its normalised
+/// uncertainty where a training view saw it, 0 where none did.
+///
+/// Points no view saw carry the largest uncertainty, but the field was never
+/// shown them either: a camera aimed there renders unsupervised fog (on the
+/// synthetic rooms, the ceiling no capture looks at), and the features the
+/// extractor reads off that render would teach the field noise. The views
+/// go where the field can render what it saw and the features disagree.
+pub fn target_chances(map: &UncertaintyMap) -> Vec<f64> {
+    map.normalised
+        .iter()
+        .zip(&map.counts)
+        .map(|(&u, &n)| if n == 0 { 0.0 } else { u })
+        .collect()
+}
+
 /// Targets drawn as SPEC'd: point `i` is a candidate when `x < u_i` for
 /// `x ~ U[0, 1]`; candidates are visited in random order and kept when no
 /// kept target is within `min_separation`. Returns at most `max` indices.
@@ -252,6 +268,28 @@ mod tests {
         // A certain cloud yields nothing; the cap holds.
         assert!(select_targets(&[0.0; 100], &pos, 10, 0.0, &mut rng).is_empty());
         assert_eq!(select_targets(&[1.0; 100], &pos, 3, 0.0, &mut rng).len(), 3);
+    }
+
+    #[test]
+    fn points_no_view_saw_are_never_targets() {
+        let map = UncertaintyMap {
+            counts: vec![0, 1, 5, 0],
+            log_det: vec![2.0, 2.0, 1.0, 2.0],
+            normalised: vec![1.0, 1.0, 0.25, 1.0],
+            mean_features: vec![None; 4],
+            mean_view_centres: vec![None; 4],
+            k: 1,
+        };
+        assert_eq!(target_chances(&map), vec![0.0, 1.0, 0.25, 0.0]);
+        let pos: Vec<Vec3> = (0..4).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..50 {
+            let t = select_targets(&target_chances(&map), &pos, 4, 0.0, &mut rng);
+            assert!(
+                t.contains(&1) && !t.contains(&0) && !t.contains(&3),
+                "{t:?}"
+            );
+        }
     }
 
     #[test]

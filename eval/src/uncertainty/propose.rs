@@ -9,7 +9,9 @@ use rand::SeedableRng;
 use serde_json::json;
 
 use super::UncertaintyMap;
-use super::proposals::{FieldProbe, ProposalOptions, propose_cameras, select_targets};
+use super::proposals::{
+    FieldProbe, ProposalOptions, propose_cameras, select_targets, target_chances,
+};
 use super::report::UncertaintyArgs;
 use crate::error::EvalError;
 use crate::render::{render_view, save_view_pngs};
@@ -78,7 +80,7 @@ pub fn write_proposals(
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
     let targets = select_targets(
-        &map.normalised,
+        &target_chances(map),
         points,
         opts.max_views
             .saturating_mul(super::proposals::SPARE_TARGETS),
