@@ -21,7 +21,7 @@ use crate::render::{render_view, save_rgb8, save_view_pngs};
 use crate::run::{LoadedRun, load_run, read_json, write_json};
 use crate::segment::{
     EvalPoints, SegmentMode, SegmentOptions, View, sampled_features, segment_oracle,
-    segment_with_2d_features, segment_with_field, segment_with_field_modes, write_prediction_plys,
+    segment_with_2d_features, segment_with_field_modes, write_prediction_plys,
 };
 
 /// The compute device of `--backend` and `--device`, as in `train`.
@@ -392,7 +392,14 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         points.positions.len(),
         views.len()
     ));
-    let (pred, seen) = segment_with_field(
+    // With --compare every field mode comes from one pass: the views are
+    // rendered once for project and hybrid, the points sampled once.
+    let all_modes = [
+        SegmentMode::Sampled,
+        SegmentMode::Project,
+        SegmentMode::Hybrid,
+    ];
+    let computed = segment_with_field_modes(
         &run.model,
         run.meta.pca.as_ref(),
         &points,
@@ -400,8 +407,18 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
         &run.meta.scene_box,
         run.meta.background,
         &opts,
+        if args.compare {
+            &all_modes
+        } else {
+            std::slice::from_ref(&mode)
+        },
         &device,
     )?;
+    let (pred, seen) = computed
+        .iter()
+        .find(|(m, _, _)| *m == mode)
+        .map(|(_, p, s)| (p.clone(), *s))
+        .ok_or_else(|| EvalError::Invalid(format!("mode {mode} was not computed")))?;
     busy.finish_and_clear();
     let split = match &args.split {
         Some(p) => Some(read_json::<ClassSplit>(p)?),
@@ -437,34 +454,8 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, EvalErr
     }
     if args.compare {
         let mut rows = Vec::new();
-        let others: Vec<SegmentMode> = [
-            SegmentMode::Sampled,
-            SegmentMode::Project,
-            SegmentMode::Hybrid,
-        ]
-        .into_iter()
-        .filter(|m| *m != mode)
-        .collect();
-        let mut computed = segment_with_field_modes(
-            &run.model,
-            run.meta.pca.as_ref(),
-            &points,
-            &views,
-            &run.meta.scene_box,
-            run.meta.background,
-            &opts,
-            &others,
-            &device,
-        )?;
-        computed.push((mode, pred.clone(), seen));
-        for other in [
-            SegmentMode::Sampled,
-            SegmentMode::Project,
-            SegmentMode::Hybrid,
-        ] {
-            if let Some((_, p, _)) = computed.iter().find(|(m, _, _)| *m == other) {
-                rows.push(score_of(&other.to_string(), p));
-            }
+        for (m, p, _) in &computed {
+            rows.push(score_of(&m.to_string(), p));
         }
         let maps = match (&view_frames, scene.and_then(|s| s.features.as_ref())) {
             (Some(frames), Some(set)) => frames
