@@ -184,6 +184,10 @@ pub struct Cli {
     /// [0, 1] (sensor depth weighs 1) [default: 0.1].
     #[arg(long, allow_negative_numbers = true)]
     pub novel_depth_weight: Option<f32>,
+    /// Novel views are rendered at this fraction of the capture resolution,
+    /// in (0, 1]; rendering time goes with its square [default: 0.5].
+    #[arg(long, allow_negative_numbers = true)]
+    pub novel_scale: Option<f64>,
     /// For scenes on disk: the 2D feature extractor run on the rendered
     /// views, as `PROGRAM [ARGS...]` (split at spaces); it is called as
     /// `PROGRAM ARGS... IN_DIR OUT_DIR`, reads `IN_DIR/<name>.png` and must

@@ -110,6 +110,9 @@ fn apply_novel_flags(cli: &cli::Cli, config: &mut TrainConfig) {
     if let Some(w) = cli.novel_depth_weight {
         novel.depth_weight = w;
     }
+    if let Some(s) = cli.novel_scale {
+        novel.scale = s;
+    }
     if let Some(c) = &cli.extractor_command {
         novel.extractor = Some(c.split_whitespace().map(str::to_string).collect());
     }
