@@ -66,6 +66,13 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             "--novel-depth-weight {w}: must be a weight in [0, 1] (sensor depth weighs 1)"
         )));
     }
+    if let Some(v) = cli.novel_scale
+        && !(v.is_finite() && v > 0.0 && v <= 1.0)
+    {
+        return Err(flag_error(format!(
+            "--novel-scale {v}: must be in (0, 1] (a fraction of the capture resolution)"
+        )));
+    }
     if cli.novel_after == Some(0) {
         return Err(flag_error(
             "--novel-after 0: the field must be trained before it can render views; give an iteration >= 1"
@@ -157,6 +164,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("novel-after", cli.novel_after.is_some()),
         ("novel-views-mode", cli.novel_views_mode.is_some()),
         ("novel-depth-weight", cli.novel_depth_weight.is_some()),
+        ("novel-scale", cli.novel_scale.is_some()),
         ("extractor-command", cli.extractor_command.is_some()),
     ];
     if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {

@@ -275,6 +275,22 @@ fn novel_view_flags_are_checked_by_flag() {
             &["--novel-after 0"],
         ),
         (&["--novel-views", "2", "--novel-after", "-3"], &["-3"]),
+        (
+            &["--novel-views", "2", "--novel-scale", "0"],
+            &["--novel-scale 0", "(0, 1]"],
+        ),
+        (
+            &["--novel-views", "2", "--novel-scale", "NaN"],
+            &["--novel-scale NaN"],
+        ),
+        (
+            &["--novel-views", "2", "--novel-scale", "-0.5"],
+            &["--novel-scale -0.5"],
+        ),
+        (
+            &["--novel-views", "2", "--novel-scale", "1.5"],
+            &["--novel-scale 1.5"],
+        ),
         (&["--novel-views", "-2"], &["-2"]),
         (
             &["--novel-views", "2", "--extractor-command", " "],
