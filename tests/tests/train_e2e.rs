@@ -80,7 +80,14 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
             );
         }
     }
+    // The training curve is drawn from the same log (the numbers it shows
+    // are parsed back by train::curve, tested there).
+    let curve = image::open(dir.path().join("training_curve.png")).expect("training_curve.png");
+    assert_eq!((curve.width(), curve.height()), (900, 800));
     let log = std::fs::read_to_string(run.metrics()).unwrap();
+    let curves = train::curve::parse(&log);
+    assert_eq!(curves.heldout_psnr.last().map(|p| p.1), Some(h.psnr));
+    assert!(curves.batch_psnr.len() >= 2);
     let last: serde_json::Value = serde_json::from_str(log.lines().last().unwrap()).unwrap();
     assert_eq!(last["event"], "final");
     assert!(last["psnr_interior"].is_number() && last["psnr_whole"].is_number());

@@ -13,6 +13,7 @@ pub mod batch;
 pub mod checkpoint;
 pub mod cli;
 pub mod config;
+pub mod curve;
 pub mod data;
 pub mod error;
 pub mod evaluate;

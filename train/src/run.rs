@@ -699,6 +699,13 @@ fn train_loop(
         heldout_frames: heldout,
     };
     write_json(&run.summary(), &summary)?;
+    // The numbers are in metrics.jsonl: a missing font costs the picture only.
+    let curve = run.dir.join("training_curve.png");
+    let log =
+        std::fs::read_to_string(run.metrics()).map_err(|e| TrainError::io(run.metrics(), e))?;
+    if let Err(e) = crate::curve::draw(&crate::curve::parse(&log), &curve) {
+        eprintln!("warning: {e}");
+    }
     Ok(RunOutcome {
         dir: run.dir.clone(),
         summary,
