@@ -10,6 +10,7 @@ IoU per mode, and the views each run added (from its novel/views.json).
 """
 import json
 import pathlib
+import struct
 import sys
 
 MODES = ["none", "trajectory", "random", "guided"]
@@ -44,6 +45,38 @@ def table(title, rows):
     return "\n".join(out) + "\n"
 
 
+def gt_points(seg_dir):
+    """Positions and ground-truth labels from segment's *_error.ply."""
+    path = next(iter(sorted(seg_dir.glob("segmentation_*_error.ply"))), None)
+    if path is None:
+        return []
+    data = path.read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode()
+    n = int(next(l.split()[2] for l in header.splitlines() if l.startswith("element vertex")))
+    rec = struct.Struct("<fffBBBi")
+    return [rec.unpack_from(data, end + i * rec.size) for i in range(n)]
+
+
+def target_classes(seed, method):
+    """Class of the labelled point nearest to each guided target."""
+    record = seed / "guided" / "novel" / "views.json"
+    base = load(seed / "none", method)
+    pts = gt_points(seed / "none" / "seg")
+    if not record.exists() or base is None or not pts:
+        return None
+    names = [c["name"] for c in base["per_class"]]
+    counts = {}
+    for v in json.loads(record.read_text())["views"]:
+        t = v.get("target")
+        if t is None:
+            continue
+        p = min(pts, key=lambda q: (q[0] - t[0]) ** 2 + (q[1] - t[1]) ** 2 + (q[2] - t[2]) ** 2)
+        name = names[p[6]] if 0 <= p[6] < len(names) else "unlabelled"
+        counts[name] = counts.get(name, 0) + 1
+    return sorted(counts.items(), key=lambda kv: -kv[1])
+
+
 def main():
     args = sys.argv[1:]
     method = "hybrid"
@@ -74,12 +107,20 @@ def main():
             rows.append((f"{mode} (+{added})", cells))
         print(table(f"{seed.name}", rows))
     mean = [
-        (m, [(s[0] / s[2], s[1] / s[2]) if s[2] else (None, None) for s in sums[m]])
+        (
+            f"{m} ({sums[m][0][2]} seeds)",
+            [(s[0] / s[2], s[1] / s[2]) if s[2] else (None, None) for s in sums[m]],
+        )
         for m in MODES
         if sums[m][0][2]
     ]
-    print(table(f"mean over {len(seeds)} seeds", mean))
-    # Tail classes per mode: where the views help or hurt.
+    print(table("mean over seeds", mean))
+    for seed in seeds:
+        tc = target_classes(seed, method)
+        if tc:
+            print(f"{seed.name}: guided targets by the class of the nearest labelled point: "
+                  + ", ".join(f"{n} {c}" for n, c in tc) + "\n")
+    # Every class per mode: where the views help or hurt.
     for seed in seeds:
         base = load(seed / "none", method)
         if base is None:
