@@ -25,8 +25,11 @@ fn main() -> std::process::ExitCode {
                 s.wall_seconds
             );
             println!("results in {}", outcome.dir.display());
-            println!("  summary.json, metrics.jsonl, renders/, model.bpk");
+            println!("  {}", train::report::result_files(&outcome.dir).join(", "));
             println!("next:");
+            if let Some(command) = train::report::resume_command(&outcome.dir, s.iterations) {
+                println!("  {command}");
+            }
             for command in train::report::next_commands(&outcome.dir) {
                 println!("  {command}");
             }

@@ -60,7 +60,9 @@ pub struct AddReport {
 
 /// Chooses, renders, extracts and records the novel views of iteration
 /// `iteration`, then appends them to `scene` as read back from the record
-/// (so that a resumed run sees the very same bytes).
+/// (so that a resumed run sees the very same bytes). `progress(done, total)`
+/// is called after each rendered view.
+#[allow(clippy::too_many_arguments)]
 pub fn add_views(
     model: &OpenNerf,
     scene: &mut Scene,

@@ -55,9 +55,68 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
     out
 }
 
+/// The run's result files that exist in `dir`, in the order a reader wants
+/// them (the novel views with their count).
+pub fn result_files(dir: &Path) -> Vec<String> {
+    let run = RunDir::new(dir);
+    let mut out: Vec<String> = [
+        (run.summary(), "summary.json"),
+        (run.metrics(), "metrics.jsonl"),
+        (dir.join("training_curve.png"), "training_curve.png"),
+        (run.renders(), "renders/"),
+        (run.weights(), "model.bpk"),
+    ]
+    .into_iter()
+    .filter(|(p, _)| p.exists())
+    .map(|(_, name)| name.to_string())
+    .collect();
+    if let Ok(Some(record)) = datasets::novel::read_record(&run.novel()) {
+        out.push(format!(
+            "novel/ ({} {} views added at iteration {})",
+            record.views.len(),
+            record.mode,
+            record.added_at
+        ));
+    }
+    out
+}
+
+/// The command that continues the run in `dir` when it stopped before the
+/// end of its schedule (`--stop-at`, a time budget), else `None`.
+pub fn resume_command(dir: &Path, iterations: usize) -> Option<String> {
+    let text = std::fs::read_to_string(RunDir::new(dir).config()).ok()?;
+    let config: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let planned = config["schedule"]["iterations"].as_u64()? as usize;
+    (iterations < planned).then(|| {
+        format!(
+            "cargo run -p train --release -- --resume {}   # iteration {iterations} of {planned}",
+            shell_word(dir)
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_files_listed_are_those_written_and_a_short_run_gets_a_resume_command() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        assert!(result_files(d).is_empty());
+        std::fs::write(d.join("summary.json"), "{}").unwrap();
+        std::fs::write(d.join("model.bpk"), "").unwrap();
+        assert_eq!(result_files(d), ["summary.json", "model.bpk"]);
+        assert_eq!(resume_command(d, 5), None, "no config.json");
+        std::fs::write(d.join("config.json"), r#"{"schedule":{"iterations":100}}"#).unwrap();
+        assert_eq!(resume_command(d, 100), None);
+        let cmd = resume_command(d, 40).unwrap();
+        assert!(
+            cmd.contains(&format!("--resume {}", shell_word(d))),
+            "{cmd}"
+        );
+        assert!(cmd.contains("iteration 40 of 100"), "{cmd}");
+    }
 
     #[test]
     fn paths_are_quoted_only_when_needed() {

@@ -511,7 +511,7 @@ fn train_loop(
                 run,
                 it,
                 &inference,
-                |_, _| {},
+                |done, total| bar.set_message(format!("novel view {done}/{total} rendered")),
             )?;
             log.write(&json!({
                 "event": "novel_views",
