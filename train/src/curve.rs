@@ -189,10 +189,7 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             .map_err(|e| err(e.to_string()))?;
         root.present().map_err(|e| err(e.to_string()))?;
     }
-    image::RgbImage::from_raw(w, h, pixels)
-        .ok_or_else(|| err("the image buffer has the wrong size".into()))?
-        .save(path)
-        .map_err(|e| err(e.to_string()))
+    eval::uncertainty::plot::save_png(path, w, h, pixels).map_err(err)
 }
 
 /// `[min, max]` of finite values with 5% padding (`[lo, hi]` without any).

@@ -62,10 +62,15 @@ pub fn scatter(
             .map_err(|e| err(e.to_string()))?;
         root.present().map_err(|e| err(e.to_string()))?;
     }
+    save_png(path, w, h, pixels).map_err(err)
+}
+
+/// Saves a `w x h` RGB buffer drawn by plotters' bitmap backend as a PNG.
+pub fn save_png(path: &Path, w: u32, h: u32, pixels: Vec<u8>) -> Result<(), String> {
     image::RgbImage::from_raw(w, h, pixels)
-        .ok_or_else(|| err("the image buffer has the wrong size".into()))?
+        .ok_or_else(|| "the image buffer has the wrong size".to_string())?
         .save(path)
-        .map_err(|e| err(e.to_string()))
+        .map_err(|e| e.to_string())
 }
 
 /// TrueType fonts looked for, in order, for the plots' text (plots are
