@@ -90,33 +90,90 @@ pub fn render_view(
         FeatureMode::None
     };
     let rays = camera_rays(camera, scene_box);
-    let n = rays.len();
-    let chunk = chunk.max(1);
-    let mut rgb = Vec::with_capacity(3 * n);
-    let mut depth = Vec::with_capacity(n);
-    let mut acc = Vec::with_capacity(n);
-    let mut feature = Vec::new();
-    let mut feature_dim = 0;
-    for part in rays.chunks(chunk) {
-        let batch = Rays::from_normalized(part, device);
-        let out = model.render_inference(&batch, chunk, background, mode).fine;
-        rgb.extend(tensor_to_vec(out.rgb));
-        depth.extend(tensor_to_vec(out.depth));
-        acc.extend(tensor_to_vec(out.acc));
-        if let Some(f) = out.feature {
-            feature_dim = f.dims()[1];
-            feature.extend(tensor_to_vec(f));
-        }
-    }
+    let r = render_rays(model, &rays, background, chunk, mode, device);
     RenderedView {
         width: camera.intrinsics.width,
         height: camera.intrinsics.height,
-        rgb,
-        depth,
-        acc,
-        feature,
-        feature_dim,
+        rgb: r.rgb,
+        depth: r.depth,
+        acc: r.acc,
+        feature: r.feature,
+        feature_dim: r.feature_dim,
     }
+}
+
+/// Fine-level outputs of a list of rays, on the host.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RenderedRays {
+    /// `3 n` colours.
+    pub rgb: Vec<f32>,
+    /// `n` expected depths along the ray (metres of `t`).
+    pub depth: Vec<f32>,
+    /// `n` accumulated opacities.
+    pub acc: Vec<f32>,
+    /// `n * feature_dim` features (empty when not rendered).
+    pub feature: Vec<f32>,
+    /// Channels per ray of `feature`.
+    pub feature_dim: usize,
+}
+
+/// Renders `rays` with the fine level of `model`, `chunk` rays at a time.
+/// With an occupancy grid on the model, each ray is first clipped to its
+/// occupied cells and rays that cross none are not evaluated: they get the
+/// background (black without one), zero opacity, depth and feature — what
+/// the field renders for a ray that meets no density.
+pub fn render_rays(
+    model: &OpenNerf,
+    rays: &[NormalizedRay],
+    background: Option<[f32; 3]>,
+    chunk: usize,
+    mode: FeatureMode,
+    device: &Device,
+) -> RenderedRays {
+    let clipped = model.occupancy().map(|g| g.clip(rays));
+    let to_render: &[NormalizedRay] = clipped.as_ref().map_or(rays, |c| &c.rays);
+    let chunk = chunk.max(1);
+    let mut out = RenderedRays::default();
+    for part in to_render.chunks(chunk) {
+        let batch = Rays::from_normalized(part, device);
+        let fine = model.render_inference(&batch, chunk, background, mode).fine;
+        out.rgb.extend(tensor_to_vec(fine.rgb));
+        out.depth.extend(tensor_to_vec(fine.depth));
+        out.acc.extend(tensor_to_vec(fine.acc));
+        if let Some(f) = fine.feature {
+            out.feature_dim = f.dims()[1];
+            out.feature.extend(tensor_to_vec(f));
+        }
+    }
+    let Some(clipped) = clipped else {
+        return out;
+    };
+    if clipped.kept.len() == rays.len() {
+        return out;
+    }
+    let dim = match mode {
+        FeatureMode::None => 0,
+        _ => model.head.output.weight.dims()[1],
+    };
+    let n = rays.len();
+    let bg = background.unwrap_or([0.0; 3]);
+    let mut full = RenderedRays {
+        rgb: bg.repeat(n),
+        depth: vec![0.0; n],
+        acc: vec![0.0; n],
+        feature: vec![0.0; n * dim],
+        feature_dim: dim,
+    };
+    for (j, &i) in clipped.kept.iter().enumerate() {
+        full.rgb[3 * i..3 * i + 3].copy_from_slice(&out.rgb[3 * j..3 * j + 3]);
+        full.depth[i] = out.depth[j];
+        full.acc[i] = out.acc[j];
+        if dim > 0 {
+            full.feature[i * dim..(i + 1) * dim]
+                .copy_from_slice(&out.feature[j * dim..(j + 1) * dim]);
+        }
+    }
+    full
 }
 
 /// Writes `{name}_rgb.png`, `{name}_depth.png` (Turbo over the depth range of

@@ -67,6 +67,12 @@ impl RunDir {
         self.dir.join("checkpoints")
     }
 
+    /// `occupancy.bin`: the occupancy grid of a run trained with
+    /// empty-space skipping (rendering uses it).
+    pub fn occupancy(&self) -> PathBuf {
+        self.dir.join("occupancy.bin")
+    }
+
     /// `novel/`: novel views rendered by the field and added as training
     /// frames (see [`datasets::novel`]).
     pub fn novel(&self) -> PathBuf {
@@ -164,6 +170,20 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
             path: weights.clone(),
             message: e.to_string(),
         })?;
+    let grid_path = run.occupancy();
+    let grid = if grid_path.exists() {
+        let bytes = std::fs::read(&grid_path).map_err(|e| EvalError::io(&grid_path, e))?;
+        let grid = model::OccupancyGrid::from_bytes(&bytes).map_err(|m| {
+            EvalError::Invalid(format!(
+                "{}: damaged occupancy grid: {m} (delete it to render without empty-space skipping)",
+                grid_path.display()
+            ))
+        })?;
+        Some(grid)
+    } else {
+        None
+    };
+    let model = model.with_occupancy(grid);
     Ok(LoadedRun {
         model,
         config,

@@ -1,7 +1,7 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
 //! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
 //! ([`render`]), the MLP with its stop-gradient open-set head ([`field`]),
-//! coarse/fine rendering ([`nerf`]), the losses ([`loss`]) and the CLIP text
+//! coarse/fine rendering ([`nerf`]), empty-space skipping ([`occupancy`]), the losses ([`loss`]) and the CLIP text
 //! transformer that embeds free-text queries ([`clip`]). No file I/O.
 #![warn(missing_docs)]
 
@@ -11,10 +11,12 @@ pub mod geometry;
 pub mod loss;
 pub mod mip;
 pub mod nerf;
+pub mod occupancy;
 pub mod render;
 pub mod sampling;
 
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse};
 pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, Rays, RenderOutputs};
+pub use occupancy::{ClippedRays, OccupancyConfig, OccupancyGrid};
 pub use render::Composite;

@@ -1,6 +1,7 @@
 //! Coarse/fine rendering with one shared MLP and the open-set feature head.
 
 use std::ops::Range;
+use std::sync::Arc;
 
 use burn::config::Config;
 use burn::module::Module;
@@ -9,6 +10,7 @@ use burn::tensor::{Device, Int, Tensor, TensorData};
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
 use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
+use crate::occupancy::OccupancyGrid;
 use crate::render::{composite, composite_features_mean};
 use crate::sampling::{resample_t_vals, stratified_t_vals};
 
@@ -48,6 +50,7 @@ impl OpenNerfConfig {
             resample_padding: self.resample_padding as f64,
             head_top_k: self.head_top_k.unwrap_or(0),
             coarse_features: self.coarse_features,
+            occupancy: None,
         }
     }
 }
@@ -67,6 +70,11 @@ pub struct OpenNerf {
     pub head_top_k: usize,
     /// Whether coarse features are composited.
     pub coarse_features: bool,
+    /// Occupancy grid of the field's density, when empty-space skipping is
+    /// on: callers that build rays on the host clip them with it (see
+    /// [`OccupancyGrid::clip`]). Not part of the weights.
+    #[module(skip)]
+    pub occupancy: Option<Arc<OccupancyGrid>>,
 }
 
 /// A batch of rays in the normalised frame (metric `t`).
@@ -202,6 +210,17 @@ pub enum FeatureMode {
 }
 
 impl OpenNerf {
+    /// The field with `grid` as its occupancy grid (`None`: no skipping).
+    pub fn with_occupancy(mut self, grid: Option<OccupancyGrid>) -> Self {
+        self.occupancy = grid.map(Arc::new);
+        self
+    }
+
+    /// The occupancy grid, when empty-space skipping is on.
+    pub fn occupancy(&self) -> Option<&OccupancyGrid> {
+        self.occupancy.as_deref()
+    }
+
     /// Renders `rays` at the coarse and fine level with the shared MLP; the
     /// feature is composited at the fine level (and the coarse one when so
     /// configured), with detached weights.

@@ -42,6 +42,9 @@ pub struct CheckpointState {
     pub train_seconds: f64,
     /// Rays processed before this checkpoint.
     pub rays_processed: u64,
+    /// The occupancy grid (hex of its bytes), when empty-space skipping is on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occupancy: Option<String>,
 }
 
 /// A decoded checkpoint: position plus the two serialised records.
@@ -304,6 +307,7 @@ mod tests {
                 wall_seconds: 2.5,
                 train_seconds: 2.0,
                 rays_processed: 1 << 20,
+                occupancy: Some("00ff".into()),
             },
             model: (0..=255u8).cycle().take(1000).collect(),
             optimizer: vec![9; 77],

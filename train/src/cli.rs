@@ -194,6 +194,18 @@ pub struct Cli {
     /// write `OUT_DIR/<name>.npy` (H x W x D). Synthetic scenes use their own.
     #[arg(long)]
     pub extractor_command: Option<String>,
+    /// Empty-space skipping: keep an occupancy grid of the field's density
+    /// over the scene box (a complete grid for the first 256 iterations,
+    /// then refreshed every 16 with decay) and sample each ray only between
+    /// its first and last occupied cell; rays that cross no occupied cell
+    /// are not rendered (they see the background). The grid is saved with
+    /// the checkpoints and as `occupancy.bin`, and `eval` renders with it.
+    #[arg(long)]
+    pub occupancy_grid: bool,
+    /// Cells per axis of the occupancy grid, in 2..=256; a refresh costs one
+    /// density query per cell [default: 32].
+    #[arg(long)]
+    pub grid_resolution: Option<usize>,
     /// Run directory [default: runs/<dataset>-<unix time>].
     #[arg(long)]
     pub out: Option<PathBuf>,

@@ -160,6 +160,9 @@ pub struct TrainConfig {
     /// Novel views rendered by the field and added as training frames.
     #[serde(default)]
     pub novel: NovelViewConfig,
+    /// Empty-space skipping with an occupancy grid (off by default).
+    #[serde(default)]
+    pub occupancy: model::OccupancyConfig,
 }
 
 /// Command-line overrides applied on top of a configuration.
@@ -221,6 +224,7 @@ impl TrainConfig {
             },
             seed: 0,
             novel: NovelViewConfig::default(),
+            occupancy: model::OccupancyConfig::default(),
         }
     }
 
@@ -262,6 +266,7 @@ impl TrainConfig {
             logging: LoggingConfig::default(),
             seed: 0,
             novel: NovelViewConfig::default(),
+            occupancy: model::OccupancyConfig::default(),
         }
     }
 
@@ -344,6 +349,7 @@ impl TrainConfig {
         if self.model.num_samples == 0 {
             return bad("model.num_samples must be at least 1".into());
         }
+        crate::occupancy::validate(&self.occupancy).map_err(TrainError::Config)?;
         if self.model.mlp.width == 0 || self.model.mlp.depth == 0 {
             return bad("model.mlp.width and model.mlp.depth must be at least 1".into());
         }

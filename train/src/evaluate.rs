@@ -88,19 +88,15 @@ pub fn evaluate_pixels(
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut start = 0;
     for part in pixels.rays.chunks(chunk.max(1)) {
-        let rays = model::Rays::from_normalized(part, device);
         let mode = if dim > 0 {
             model::FeatureMode::Composited
         } else {
             model::FeatureMode::None
         };
-        let out = model
-            .render_inference(&rays, chunk, scene.background, mode)
-            .fine;
-        let rgb = eval::render::tensor_to_vec(out.rgb);
-        let depth = eval::render::tensor_to_vec(out.depth);
-        let feat = match (out.feature, pixels.feature.as_ref()) {
-            (Some(f), Some(_)) => Some(lift_features(scene, eval::render::tensor_to_vec(f))),
+        let out = eval::render::render_rays(model, part, scene.background, chunk, mode, device);
+        let (rgb, depth) = (out.rgb, out.depth);
+        let feat = match (out.feature_dim > 0, pixels.feature.as_ref()) {
+            (true, Some(_)) => Some(lift_features(scene, out.feature)),
             _ => None,
         };
         let target_feat = pixels

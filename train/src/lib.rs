@@ -19,6 +19,7 @@ pub mod error;
 pub mod evaluate;
 pub mod metrics;
 pub mod novel;
+pub mod occupancy;
 pub mod report;
 pub mod run;
 pub mod schedule;
@@ -74,7 +75,7 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         lr: cli.lr,
         seed: cli.seed,
     });
-    apply_novel_flags(cli, &mut config);
+    apply_novel_and_grid_flags(cli, &mut config);
     let out = cli.out.clone().unwrap_or_else(|| {
         let secs = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -96,8 +97,14 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     train_new(&scene, config, cli.holdout_every, &out, &session)
 }
 
-/// Lays the novel-view flags over the configuration.
-fn apply_novel_flags(cli: &cli::Cli, config: &mut TrainConfig) {
+/// Lays the novel-view and occupancy-grid flags over the configuration.
+fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
+    if cli.occupancy_grid {
+        config.occupancy.enabled = true;
+    }
+    if let Some(r) = cli.grid_resolution {
+        config.occupancy.resolution = r;
+    }
     let novel = &mut config.novel;
     if let Some(n) = cli.novel_views {
         novel.views = n;

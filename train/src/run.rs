@@ -109,7 +109,10 @@ pub fn train_new(
     let _ = std::fs::remove_file(run.metrics());
     let device = training_device(session.backend, session.device_index);
     device.seed(config.seed);
-    let model = config.model.init(&device);
+    let model = config
+        .model
+        .init(&device)
+        .with_occupancy(crate::occupancy::initial_grid(&config.occupancy));
     let optim = adam(&config);
     let state = CheckpointState {
         iteration: 0,
@@ -118,6 +121,7 @@ pub fn train_new(
         wall_seconds: 0.0,
         train_seconds: 0.0,
         rays_processed: 0,
+        occupancy: None,
     };
     train_loop(
         scene, None, &config, &split, &run, model, optim, state, &device, session,
@@ -204,7 +208,11 @@ pub fn restore(
     let optim = adam(config)
         .from_bytes(Bytes::from_bytes_vec(ckpt.optimizer.clone()))
         .map_err(|e| TrainError::checkpoint(path, format!("optimiser record: {e}")))?;
-    Ok((model, optim))
+    let grid = match &ckpt.state.occupancy {
+        Some(hex) => Some(crate::occupancy::decode(hex, path)?),
+        None => crate::occupancy::initial_grid(&config.occupancy),
+    };
+    Ok((model.with_occupancy(grid), optim))
 }
 
 /// Serialised model weights (burnpack).
@@ -228,13 +236,18 @@ fn save_checkpoint(
         .into_bytes()
         .map_err(|e| TrainError::Device(format!("cannot serialise the optimiser: {e}")))?
         .to_vec();
+    let mut state = state.clone();
+    state.occupancy = model.occupancy().map(crate::occupancy::encode);
     let ckpt = Checkpoint {
-        state: state.clone(),
+        state,
         model: model_bytes(model)?,
         optimizer,
     };
-    let path = checkpoint_path(&run.checkpoints(), state.iteration);
+    let path = checkpoint_path(&run.checkpoints(), ckpt.state.iteration);
     ckpt.write(&path)?;
+    if let Some(grid) = model.occupancy() {
+        crate::checkpoint::write_atomic(&run.occupancy(), &grid.to_bytes())?;
+    }
     prune_checkpoints(&run.checkpoints(), keep)?;
     Ok(path)
 }
@@ -455,6 +468,7 @@ fn train_loop(
     let mut last_checkpoint: Option<PathBuf> =
         list_checkpoints(&run.checkpoints())?.pop().map(|c| c.1);
     let mut window = (Instant::now(), 0u64);
+    let mut skipping = crate::occupancy::ClipStats::default();
     while state.iteration < end {
         if let Some(budget) = session.time_budget
             && session_start.elapsed().as_secs_f64() >= budget
@@ -552,7 +566,27 @@ fn train_loop(
         // The stratified jitter draws from the device generator: seeding it
         // per iteration makes a resumed run draw what the uninterrupted one would.
         device.seed(iteration_seed(state.seed ^ 0x6a09_e667_f3bc_c909, it));
-        let batch = to_tensors(&sampler.batch(&scene, it)?, &space, device);
+        if config.occupancy.update_due(it)
+            && let Some(grid) = model.occupancy()
+        {
+            let mut grid = grid.clone();
+            let seed = crate::occupancy::update_seed(state.seed, it);
+            crate::occupancy::update_grid(&mut grid, &model.valid(), seed, &inference);
+            model = model.with_occupancy(Some(grid));
+        }
+        let drawn = sampler.batch(&scene, it)?;
+        let drawn_rays = drawn.len() as u64;
+        let drawn = match model.occupancy() {
+            Some(grid) => {
+                let (clipped, stats) = crate::occupancy::clip_batch(grid, drawn);
+                skipping.drawn += stats.drawn;
+                skipping.kept += stats.kept;
+                skipping.span_sum += stats.span_sum;
+                clipped
+            }
+            None => drawn,
+        };
+        let batch = to_tensors(&drawn, &space, device);
         let (next, report) = train_step(
             model,
             &mut optim,
@@ -566,8 +600,8 @@ fn train_loop(
         state.iteration += 1;
         if report.applied {
             consecutive_bad = 0;
-            state.rays_processed += batch.rays.len() as u64;
-            window.1 += batch.rays.len() as u64;
+            state.rays_processed += drawn_rays;
+            window.1 += drawn_rays;
         } else {
             consecutive_bad += 1;
             state.skipped_steps += 1;
@@ -599,7 +633,7 @@ fn train_loop(
             let secs = window.0.elapsed().as_secs_f64().max(1e-9);
             let rays_per_second = window.1 as f64 / secs;
             window = (Instant::now(), 0);
-            log.write(&json!({
+            let mut entry = json!({
                 "event": "train",
                 "iteration": i,
                 "loss": report.loss,
@@ -610,7 +644,15 @@ fn train_loop(
                 "lr": lr,
                 "rays_per_second": rays_per_second,
                 "wall_seconds": wall(&session_start),
-            }))?;
+            });
+            if let Some(grid) = model.occupancy() {
+                let drawn = skipping.drawn.max(1) as f64;
+                entry["occupied_cells"] = json!(grid.occupied_fraction());
+                entry["rays_rendered"] = json!(skipping.kept as f64 / drawn);
+                entry["ray_length_sampled"] = json!(skipping.span_sum / drawn);
+                skipping = crate::occupancy::ClipStats::default();
+            }
+            log.write(&entry)?;
             let line = format!(
                 "loss {:.4} rgb {:.5} open {:.4} depth {:.4} psnr {:.2} {:.0} rays/s",
                 report.loss,

@@ -73,6 +73,18 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             "--novel-scale {v}: must be in (0, 1] (a fraction of the capture resolution)"
         )));
     }
+    if let Some(r) = cli.grid_resolution {
+        if !(2..=256).contains(&r) {
+            return Err(flag_error(format!(
+                "--grid-resolution {r}: must be in 2..=256 cells per axis"
+            )));
+        }
+        if !cli.occupancy_grid && cli.resume.is_none() {
+            return Err(flag_error(format!(
+                "--grid-resolution {r} has no effect without --occupancy-grid"
+            )));
+        }
+    }
     if cli.novel_after == Some(0) {
         return Err(flag_error(
             "--novel-after 0: the field must be trained before it can render views; give an iteration >= 1"
@@ -166,6 +178,8 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("novel-depth-weight", cli.novel_depth_weight.is_some()),
         ("novel-scale", cli.novel_scale.is_some()),
         ("extractor-command", cli.extractor_command.is_some()),
+        ("occupancy-grid", cli.occupancy_grid),
+        ("grid-resolution", cli.grid_resolution.is_some()),
     ];
     if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {
         return Err(flag_error(format!(

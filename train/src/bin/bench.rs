@@ -1,7 +1,10 @@
 //! Training-step benchmark: rays/s, peak memory and achieved GFLOP/s of the
 //! MLP on flex and ndarray side by side, against a plain matrix-product
 //! ceiling measured in the same run, for the composited-hidden feature path
-//! with top-k head evaluation and for the plain per-sample path.
+//! with top-k head evaluation, for the plain per-sample path, and for the
+//! composited path behind an occupancy grid (the host-side clipping of the
+//! batch included in the step time; an object in the middle of the box, so
+//! a share of the rays is skipped and the rest sampled over a shorter span).
 //!
 //! `cargo run -p train --release --bin bench -- [--quick] [--steps N]`
 
@@ -11,7 +14,10 @@ use burn::optim::AdamConfig;
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
 use clap::Parser;
 use model::geometry::NormalizedRay;
-use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays};
+use model::{
+    FeatureHeadConfig, FeatureMode, MipMlpConfig, OccupancyConfig, OccupancyGrid, OpenNerfConfig,
+    Rays,
+};
 use train::backend::{BackendKind, device, peak_memory_bytes};
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
@@ -77,7 +83,7 @@ impl Size {
     }
 }
 
-fn rays(n: usize, device: &Device, seed: u64) -> Rays {
+fn rays(n: usize, seed: u64) -> Vec<NormalizedRay> {
     let mut state = seed
         .wrapping_mul(6364136223846793005)
         .wrapping_add(1442695040888963407);
@@ -96,7 +102,23 @@ fn rays(n: usize, device: &Device, seed: u64) -> Rays {
             far: 4.5,
         })
         .collect();
-    Rays::from_normalized(&v, device)
+    v
+}
+
+/// A grid holding a ball of radius 1.2 at the centre of the box (an object
+/// in empty space, as in the Blender scenes).
+fn object_grid() -> OccupancyGrid {
+    let mut grid = OccupancyGrid::new(&OccupancyConfig::new());
+    let density: Vec<f32> = grid
+        .sample_points(0)
+        .iter()
+        .map(|p| {
+            let r2: f32 = p.iter().map(|v| v * v).sum();
+            if r2 < 1.44 { 100.0 } else { 0.0 }
+        })
+        .collect();
+    grid.update(&density);
+    grid
 }
 
 /// Resets the peak-RSS counter (Linux `clear_refs` 5); ignored elsewhere.
@@ -170,9 +192,21 @@ fn main() {
         let plain = device(backend, None);
         let ceiling = matmul_ceiling(&plain, size.width);
         let ad = plain.clone().autodiff();
-        for (label, path, top_k) in [
-            ("composited + top-k", FeatureMode::Composited, args.top_k),
-            ("per-sample (plain)", FeatureMode::PerSample, 0),
+        let grid = object_grid();
+        for (label, path, top_k, with_grid) in [
+            (
+                "composited + top-k",
+                FeatureMode::Composited,
+                args.top_k,
+                false,
+            ),
+            ("per-sample (plain)", FeatureMode::PerSample, 0, false),
+            (
+                "composited + grid",
+                FeatureMode::Composited,
+                args.top_k,
+                true,
+            ),
         ] {
             reset_peak();
             ad.seed(0);
@@ -185,15 +219,20 @@ fn main() {
             let mut model = config.init(&ad);
             let mut optim = AdamConfig::new().init();
             let n = size.rays;
-            let target = |c: usize| {
-                Tensor::<2>::from_data(TensorData::new(vec![0.5f32; n * c], [n, c]), &ad)
+            let host_rays = rays(n, 1);
+            let batch_of = |r: &[NormalizedRay]| {
+                let m = r.len();
+                let target = |c: usize| {
+                    Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), &ad)
+                };
+                BatchTensors {
+                    rays: Rays::from_normalized(r, &ad),
+                    rgb: target(3),
+                    depth: None,
+                    feature: Some(FeatureTargets::dense(target(size.feature_dim))),
+                }
             };
-            let batch = BatchTensors {
-                rays: rays(n, &ad, 1),
-                rgb: target(3),
-                depth: None,
-                feature: Some(FeatureTargets::dense(target(size.feature_dim))),
-            };
+            let mut rendered = n;
             let rates = StepRates {
                 base: 1e-4,
                 head: 1e-4,
@@ -201,6 +240,14 @@ fn main() {
             let mut times = Vec::new();
             for step in 0..=args.steps {
                 let start = Instant::now();
+                // The grid path clips the host rays every step, as training does.
+                let batch = if with_grid {
+                    let clipped = grid.clip(&host_rays);
+                    rendered = clipped.kept.len();
+                    batch_of(&clipped.rays)
+                } else {
+                    batch_of(&host_rays)
+                };
                 let out = model.render_with(&batch.rays, true, None, path);
                 let (next, report) = train_step_from(
                     model,
@@ -218,7 +265,11 @@ fn main() {
                 }
             }
             let secs = times.iter().sum::<f64>() / times.len().max(1) as f64;
-            let flops = size.step_flops(&mlp, path, top_k);
+            let flops = Size {
+                rays: rendered,
+                ..size
+            }
+            .step_flops(&mlp, path, top_k);
             println!(
                 "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
                 backend.name(),
@@ -239,5 +290,16 @@ fn main() {
     println!(
         "matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device",
         w = size.width
+    );
+    let grid = object_grid();
+    let clipped = grid.clip(&rays(size.rays, 1));
+    println!(
+        "grid: a ball in a {r}^3 grid ({:.1} % of cells occupied); {} of {} rays rendered, \
+         sampled over {:.0} % of their length on average (rays/s counts every ray drawn)",
+        100.0 * grid.occupied_fraction(),
+        clipped.kept.len(),
+        size.rays,
+        100.0 * clipped.span_fraction_sum / size.rays as f64,
+        r = grid.resolution()
     );
 }

@@ -1,0 +1,141 @@
+//! End-to-end empty-space skipping: a run with the occupancy grid resumes
+//! to the same weights and grid as an uninterrupted one, logs what it
+//! skipped, and evaluation renders with the saved grid.
+
+use std::path::Path;
+
+use burn::tensor::Device;
+use model::{OccupancyConfig, OccupancyGrid};
+use tests::{ci_scene, scratch_dir, serial, tiny_config};
+use train::{BackendKind, SessionOptions};
+
+fn session(stop_at: Option<usize>) -> SessionOptions {
+    SessionOptions {
+        backend: BackendKind::Flex,
+        final_render: false,
+        stop_at,
+        ..Default::default()
+    }
+}
+
+fn grid_of(dir: &Path) -> OccupancyGrid {
+    OccupancyGrid::from_bytes(&std::fs::read(dir.join("occupancy.bin")).unwrap()).unwrap()
+}
+
+#[test]
+fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
+    let _guard = serial();
+    let scene = ci_scene();
+    let n = 30;
+    let mut config = tiny_config(scene, 2 * n);
+    config.logging.eval_every = 0;
+    config.logging.checkpoint_every = n;
+    config.logging.log_every = 5;
+    config.occupancy = OccupancyConfig::new()
+        .with_enabled(true)
+        .with_resolution(16)
+        .with_warmup(10)
+        .with_update_every(5);
+    let whole = scratch_dir();
+    let a = train::train_new(scene, config.clone(), 4, whole.path(), &session(None)).unwrap();
+    let parts = scratch_dir();
+    train::train_new(scene, config, 4, parts.path(), &session(Some(n))).unwrap();
+    // The grid at the stop is the one of iteration n, saved with its checkpoint.
+    assert_eq!(
+        grid_of(parts.path()).updates(),
+        4,
+        "updates at 10, 15, 20, 25"
+    );
+    let b = train::resume(parts.path(), None, &session(None)).unwrap();
+    assert_eq!(a.summary.iterations, b.summary.iterations);
+
+    let (ga, gb) = (grid_of(whole.path()), grid_of(parts.path()));
+    assert_eq!(
+        ga, gb,
+        "the resumed run refreshed its grid as the uninterrupted one did"
+    );
+    assert_eq!(ga.updates(), 10, "updates at 10, 15, ..., 55");
+    let load = |dir: &Path| eval::run::load_run(dir, &Device::flex()).unwrap();
+    let (ra, rb) = (load(whole.path()), load(parts.path()));
+    assert_eq!(ra.model.occupancy(), Some(&ga));
+    let wa = weights(&ra.model);
+    let wb = weights(&rb.model);
+    let max_diff = wa
+        .iter()
+        .zip(&wb)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max);
+    assert!(max_diff < 1e-4, "weights differ by up to {max_diff}");
+
+    // Training lines report the skipping.
+    let log = std::fs::read_to_string(whole.path().join("metrics.jsonl")).unwrap();
+    let lines: Vec<serde_json::Value> = log
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .filter(|v: &serde_json::Value| v["event"] == "train")
+        .collect();
+    assert!(!lines.is_empty());
+    for v in &lines {
+        let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} in {v}"));
+        assert!(f("occupied_cells") > 0.0 && f("occupied_cells") <= 1.0);
+        assert!(f("rays_rendered") > 0.0 && f("rays_rendered") <= 1.0);
+        assert!(
+            f("ray_length_sampled") > 0.0 && f("ray_length_sampled") <= f("rays_rendered") + 1e-9
+        );
+    }
+
+    // Rendering a view: pixels whose ray crosses no occupied cell show the
+    // background with zero opacity; the others are rendered by the field
+    // over their clipped span.
+    let frame = &scene.frames[1];
+    let with = eval::render::render_view(
+        &ra.model,
+        &frame.camera,
+        &scene.scene_box,
+        scene.background,
+        512,
+        true,
+        &Device::flex(),
+    );
+    let rays = eval::render::camera_rays(&frame.camera, &scene.scene_box);
+    let clipped = ga.clip(&rays);
+    let without = eval::render::render_view(
+        &ra.model.clone().with_occupancy(None),
+        &frame.camera,
+        &scene.scene_box,
+        scene.background,
+        512,
+        true,
+        &Device::flex(),
+    );
+    let mut kept = vec![false; rays.len()];
+    for &i in &clipped.kept {
+        kept[i] = true;
+    }
+    for (i, &k) in kept.iter().enumerate() {
+        if !k {
+            assert_eq!(with.acc[i], 0.0);
+            assert_eq!(with.depth[i], 0.0);
+        } else if clipped.rays[clipped.kept.iter().position(|&j| j == i).unwrap()] == rays[i] {
+            // An unclipped ray renders as without the grid.
+            for c in 3 * i..3 * i + 3 {
+                assert!((with.rgb[c] - without.rgb[c]).abs() < 1e-5, "pixel {i}");
+            }
+        }
+    }
+}
+
+fn weights(model: &model::OpenNerf) -> Vec<f32> {
+    use burn::module::{Module, ModuleVisitor, Param};
+    use burn::tensor::Tensor;
+    struct Collect(Vec<f32>);
+    impl ModuleVisitor for Collect {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            self.0
+                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
+        }
+    }
+    let mut c = Collect(Vec::new());
+    model.visit(&mut c);
+    c.0
+}

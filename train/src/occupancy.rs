@@ -1,0 +1,231 @@
+//! Empty-space skipping during training: the grid's updates from the
+//! field's density, the clipping of each batch to the occupied cells, and
+//! the grid's place in checkpoints and the run directory.
+
+use std::path::Path;
+
+use burn::tensor::{Device, Tensor, TensorData};
+use datasets::sampler::RayBatch;
+use model::{OccupancyConfig, OccupancyGrid, OpenNerf};
+
+use crate::batch::iteration_seed;
+use crate::error::TrainError;
+
+/// Points per density query of an update (bounds the peak memory).
+const QUERY_CHUNK: usize = 8192;
+
+/// Refreshes `grid` from `model` (an inference model): the density at one
+/// random point per cell, drawn from `seed`, is folded in with decay.
+/// Each point is encoded as a Gaussian of a quarter cell (the scale the
+/// samples crossing the cell are seen at).
+pub fn update_grid(grid: &mut OccupancyGrid, model: &OpenNerf, seed: u64, device: &Device) {
+    let points = grid.sample_points(seed);
+    let radius = 0.25 * grid.cell_size() as f32;
+    let mut density = Vec::with_capacity(points.len());
+    for part in points.chunks(QUERY_CHUNK) {
+        let flat: Vec<f32> = part.iter().flatten().copied().collect();
+        let p = Tensor::<2>::from_data(TensorData::new(flat, [part.len(), 3]), device);
+        density.extend(eval::render::tensor_to_vec(model.query_density(p, radius)));
+    }
+    grid.update(&density);
+}
+
+/// The seed of the grid update at `iteration` of a run seeded with `seed`.
+pub fn update_seed(seed: u64, iteration: usize) -> u64 {
+    iteration_seed(seed ^ 0x0cc0_9a1d, iteration)
+}
+
+/// What clipping did to a batch.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ClipStats {
+    /// Rays drawn.
+    pub drawn: usize,
+    /// Rays that crossed an occupied cell (and were rendered).
+    pub kept: usize,
+    /// Sum over drawn rays of the fraction of their length still sampled
+    /// (0 for a skipped ray).
+    pub span_sum: f64,
+}
+
+/// `batch` restricted to the rays that cross an occupied cell of `grid`,
+/// each clipped to its occupied span. A batch in which no ray crosses one is
+/// returned whole (an empty step teaches nothing, and its rays may show the
+/// grid is wrong).
+pub fn clip_batch(grid: &OccupancyGrid, batch: RayBatch) -> (RayBatch, ClipStats) {
+    let clipped = grid.clip(&batch.rays);
+    let drawn = batch.len();
+    let mut stats = ClipStats {
+        drawn,
+        kept: clipped.kept.len(),
+        span_sum: clipped.span_fraction_sum,
+    };
+    if clipped.kept.is_empty() {
+        stats.kept = drawn;
+        stats.span_sum = drawn as f64;
+        return (batch, stats);
+    }
+    let keep = &clipped.kept;
+    let pick = |v: &Vec<f32>, width: usize| -> Vec<f32> {
+        keep.iter()
+            .flat_map(|&i| v[i * width..(i + 1) * width].iter().copied())
+            .collect()
+    };
+    let out = RayBatch {
+        rays: clipped.rays,
+        rgb: keep.iter().map(|&i| batch.rgb[i]).collect(),
+        depth: batch.depth.as_ref().map(|d| pick(d, 1)),
+        depth_weight: batch.depth_weight.as_ref().map(|d| pick(d, 1)),
+        features: batch.features.as_ref().map(|f| pick(f, batch.feature_dim)),
+        feature_mask: batch.feature_mask.as_ref().map(|m| pick(m, 1)),
+        feature_dim: batch.feature_dim,
+        pixels: keep.iter().map(|&i| batch.pixels[i]).collect(),
+    };
+    (out, stats)
+}
+
+/// The grid a run starts with: a complete one when skipping is on.
+pub fn initial_grid(config: &OccupancyConfig) -> Option<OccupancyGrid> {
+    config.enabled.then(|| OccupancyGrid::new(config))
+}
+
+/// The grid as a hex string (for the checkpoint's JSON state).
+pub fn encode(grid: &OccupancyGrid) -> String {
+    grid.to_bytes().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Reads [`encode`]'s output; `path` names the checkpoint in errors.
+pub fn decode(hex: &str, path: &Path) -> Result<OccupancyGrid, TrainError> {
+    let bad = |m: String| TrainError::checkpoint(path, format!("occupancy grid: {m}"));
+    if !hex.len().is_multiple_of(2) {
+        return Err(bad("odd number of hex digits".into()));
+    }
+    let bytes = (0..hex.len())
+        .step_by(2)
+        .map(|i| u8::from_str_radix(&hex[i..i + 2], 16))
+        .collect::<Result<Vec<u8>, _>>()
+        .map_err(|e| bad(e.to_string()))?;
+    OccupancyGrid::from_bytes(&bytes).map_err(bad)
+}
+
+/// Reads a run's `occupancy.bin`.
+pub fn read_grid(path: &Path) -> Result<OccupancyGrid, TrainError> {
+    let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e))?;
+    OccupancyGrid::from_bytes(&bytes).map_err(|m| TrainError::checkpoint(path, m))
+}
+
+/// Checks the grid settings.
+pub fn validate(c: &OccupancyConfig) -> Result<(), String> {
+    if !(2..=256).contains(&c.resolution) {
+        return Err(format!(
+            "occupancy.resolution {}: must be in 2..=256 cells per axis",
+            c.resolution
+        ));
+    }
+    if c.update_every == 0 {
+        return Err("occupancy.update_every 0: give a period of at least 1 iteration".into());
+    }
+    if !(c.decay.is_finite() && c.decay > 0.0 && c.decay <= 1.0) {
+        return Err(format!("occupancy.decay {}: must be in (0, 1]", c.decay));
+    }
+    if !(c.min_opacity.is_finite() && c.min_opacity > 0.0 && c.min_opacity < 1.0) {
+        return Err(format!(
+            "occupancy.min_opacity {}: must be in (0, 1)",
+            c.min_opacity
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::geometry::NormalizedRay;
+
+    fn batch(n: usize) -> RayBatch {
+        let rays = (0..n)
+            .map(|i| {
+                // Rays along +x at heights from -3 to 3: the low ones pass
+                // through the lower half of the cube only.
+                let y = -3.0 + 6.0 * i as f32 / (n - 1) as f32;
+                NormalizedRay {
+                    origin: [-4.0, y, 0.1],
+                    direction: [1.0, 0.0, 0.0],
+                    radius: 0.01,
+                    near: 1.0,
+                    far: 7.0,
+                }
+            })
+            .collect();
+        RayBatch {
+            rays,
+            rgb: (0..n).map(|i| [i as f32; 3]).collect(),
+            depth: Some((0..n).map(|i| i as f32).collect()),
+            depth_weight: Some(vec![1.0; n]),
+            features: Some((0..2 * n).map(|i| i as f32).collect()),
+            feature_mask: Some(vec![1.0; n]),
+            feature_dim: 2,
+            pixels: (0..n as u32).map(|i| [0, i, 0]).collect(),
+        }
+    }
+
+    #[test]
+    fn targets_follow_their_rays_through_the_clip() {
+        // Only cells with y < 0 hold density.
+        let mut grid = OccupancyGrid::new(&OccupancyConfig::new().with_resolution(4));
+        let d: Vec<f32> = (0..64)
+            .map(|c| if (c / 4) % 4 < 2 { 10.0 } else { 0.0 })
+            .collect();
+        grid.update(&d);
+        let (out, stats) = clip_batch(&grid, batch(9));
+        assert_eq!(stats.drawn, 9);
+        assert_eq!(out.len(), stats.kept);
+        assert!(stats.kept > 0 && stats.kept < 9, "kept {}", stats.kept);
+        for (j, (r, p)) in out.rays.iter().zip(&out.pixels).enumerate() {
+            assert!(r.origin[1] < 0.0);
+            assert_eq!(out.rgb[j], [p[1] as f32; 3]);
+        }
+        let j = 1;
+        let i = out.pixels[j][1] as usize;
+        assert_eq!(out.depth.as_ref().unwrap()[j], i as f32);
+        assert_eq!(
+            &out.features.as_ref().unwrap()[2 * j..2 * j + 2],
+            &[2.0 * i as f32, 2.0 * i as f32 + 1.0]
+        );
+    }
+
+    #[test]
+    fn a_batch_that_misses_every_cell_is_kept_whole_and_hex_round_trips() {
+        let mut grid = OccupancyGrid::new(&OccupancyConfig::new().with_resolution(4));
+        let mut d = vec![0.0f32; 64];
+        d[63] = 10.0; // the top corner only
+        grid.update(&d);
+        let b = batch(3);
+        let mut low = b.clone();
+        for r in &mut low.rays {
+            r.origin[1] = -2.5;
+        }
+        let (out, stats) = clip_batch(&grid, low.clone());
+        assert_eq!(out, low);
+        assert_eq!(stats.kept, 3);
+        let path = Path::new("ckpt");
+        assert_eq!(decode(&encode(&grid), path).unwrap(), grid);
+        assert!(decode("abc", path).is_err() && decode("zz", path).is_err());
+    }
+
+    #[test]
+    fn bad_settings_are_named() {
+        let ok = OccupancyConfig::new();
+        assert!(validate(&ok).is_ok());
+        for (bad, word) in [
+            (ok.clone().with_resolution(1), "resolution"),
+            (ok.clone().with_resolution(1000), "resolution"),
+            (ok.clone().with_update_every(0), "update_every"),
+            (ok.clone().with_decay(f32::NAN), "decay"),
+            (ok.clone().with_decay(0.0), "decay"),
+            (ok.clone().with_min_opacity(1.0), "min_opacity"),
+            (ok.clone().with_min_opacity(-0.1), "min_opacity"),
+        ] {
+            assert!(validate(&bad).unwrap_err().contains(word));
+        }
+    }
+}
