@@ -123,6 +123,13 @@ pub struct Cli {
     #[arg(long, default_value_t = 8)]
     pub holdout_every: usize,
 
+    /// Speed/accuracy preset from the measured sweep (README): `fast` (16
+    /// samples per ray and level, occupancy grid, 1600 iterations),
+    /// `balanced` (24 samples, grid, 2300) or `best` (24 samples, grid,
+    /// 5000); a `--config` file and the flags below apply on top of it
+    /// [default: none, the built-in configuration].
+    #[arg(long, value_enum)]
+    pub preset: Option<crate::preset::Preset>,
     /// Full training configuration (JSON: model, sampler, losses, optimiser,
     /// schedule, logging) [default: built-in, sized for a 2-core CPU].
     #[arg(long)]
@@ -151,6 +158,10 @@ pub struct Cli {
     /// Override: initial learning rate (the final rate keeps its ratio to it).
     #[arg(long, allow_negative_numbers = true)]
     pub lr: Option<f64>,
+    /// Override: evaluate the feature head only on the K samples of largest
+    /// weight per ray (0: on every sample, the default configuration's choice).
+    #[arg(long)]
+    pub head_top_k: Option<usize>,
     /// Override: seed of the initialisation, the ray sampler and the jitter.
     #[arg(long)]
     pub seed: Option<u64>,

@@ -20,10 +20,12 @@ pub mod evaluate;
 pub mod metrics;
 pub mod novel;
 pub mod occupancy;
+pub mod preset;
 pub mod report;
 pub mod run;
 pub mod schedule;
 pub mod step;
+pub mod sweep;
 pub mod validate;
 
 pub use backend::BackendKind;
@@ -59,7 +61,10 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         eprintln!("{}", report::NO_FEATURES_WARNING);
     }
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
-    let base = TrainConfig::default_run(dim);
+    let mut base = TrainConfig::default_run(dim);
+    if let Some(p) = cli.preset {
+        p.apply(&mut base);
+    }
     let mut config = match &cli.config {
         Some(path) => TrainConfig::from_file(path, &base)?,
         None => base,
@@ -97,13 +102,16 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     train_new(&scene, config, cli.holdout_every, &out, &session)
 }
 
-/// Lays the novel-view and occupancy-grid flags over the configuration.
+/// Lays the novel-view, occupancy-grid and head top-k flags over the configuration.
 fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
     if cli.occupancy_grid {
         config.occupancy.enabled = true;
     }
     if let Some(r) = cli.grid_resolution {
         config.occupancy.resolution = r;
+    }
+    if let Some(k) = cli.head_top_k {
+        config.model.head_top_k = (k > 0).then_some(k);
     }
     let novel = &mut config.novel;
     if let Some(n) = cli.novel_views {

@@ -179,6 +179,8 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("novel-scale", cli.novel_scale.is_some()),
         ("extractor-command", cli.extractor_command.is_some()),
         ("occupancy-grid", cli.occupancy_grid),
+        ("head-top-k", cli.head_top_k.is_some()),
+        ("preset", cli.preset.is_some()),
         ("grid-resolution", cli.grid_resolution.is_some()),
     ];
     if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {

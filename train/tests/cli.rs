@@ -230,6 +230,10 @@ fn resume_checks_before_writing_and_survives_a_damaged_checkpoint() {
         &["--resume", s(&run), "--width", "8"],
         &["--width", "--resume"],
     );
+    assert_refused(
+        &["--resume", s(&run), "--occupancy-grid"],
+        &["--occupancy-grid", "--resume"],
+    );
     assert_eq!(
         std::fs::read(run.join("config.json")).expect("config.json"),
         config_json,
@@ -253,6 +257,79 @@ fn resume_checks_before_writing_and_survives_a_damaged_checkpoint() {
     assert!(!stale.exists(), "the stale temporary file is still there");
     assert!(ckpts.join("ckpt-00000004.onck.damaged").exists());
     assert!(ckpts.join("ckpt-00000006.onck").exists());
+}
+
+#[test]
+fn occupancy_grid_flags_and_settings_are_checked_and_a_grid_run_saves_its_grid() {
+    for (args, words) in [
+        (
+            &["--occupancy-grid", "--grid-resolution", "1"][..],
+            &["--grid-resolution 1", "2..=256"][..],
+        ),
+        (
+            &["--occupancy-grid", "--grid-resolution", "100000"],
+            &["--grid-resolution 100000"],
+        ),
+        (&["--occupancy-grid", "--grid-resolution", "-3"], &["-3"]),
+        (
+            &["--grid-resolution", "16"],
+            &["--grid-resolution 16", "--occupancy-grid"],
+        ),
+        (&["--head-top-k", "-1"], &["-1"]),
+        (&["--head-top-k", "many"], &["many"]),
+    ] {
+        assert_refused(args, words);
+    }
+    let tmp = tempfile::tempdir().expect("tmp");
+    for (patch, words) in [
+        (
+            r#"{"occupancy": {"enabled": true, "decay": 2.0}}"#,
+            &["occupancy.decay 2"][..],
+        ),
+        (
+            r#"{"occupancy": {"resolution": 0}}"#,
+            &["occupancy.resolution 0"],
+        ),
+        (
+            r#"{"occupancy": {"update_every": 0}}"#,
+            &["occupancy.update_every 0"],
+        ),
+        (
+            r#"{"occupancy": {"min_opacity": 1.0}}"#,
+            &["occupancy.min_opacity 1"],
+        ),
+        (
+            r#"{"occupancy": {"resolutoin": 8}}"#,
+            &["occupancy.resolutoin"],
+        ),
+    ] {
+        let p = tmp.path().join("bad.json");
+        std::fs::write(&p, patch).expect("write");
+        assert_refused(&["--config", s(&p), "--iters", "2", "--quiet"], words);
+    }
+    let config = tiny_config(tmp.path());
+    let run = tmp.path().join("grid-run");
+    let r = train(&[
+        "--config",
+        s(&config),
+        "--iters",
+        "4",
+        "--occupancy-grid",
+        "--grid-resolution",
+        "8",
+        "--out",
+        s(&run),
+        "--quiet",
+    ]);
+    let (_, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    let grid = std::fs::read(run.join("occupancy.bin")).expect("occupancy.bin");
+    assert_eq!(grid.len(), 8 + 24 + 4 * 8 * 8 * 8, "an 8^3 grid");
+    let config: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).expect("config"))
+            .expect("json");
+    assert_eq!(config["occupancy"]["enabled"], true);
+    assert_eq!(config["occupancy"]["resolution"], 8);
 }
 
 #[test]
