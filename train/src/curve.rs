@@ -68,13 +68,8 @@ pub fn parse(jsonl: &str) -> Curves {
 /// Draws `curves` into a PNG at `path`: PSNR on top, losses (log scale)
 /// below, a grey line where novel views joined.
 pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
-    let err = |e: String| format!("drawing {}: {e}", path.display());
-    eval::uncertainty::plot::ensure_font().map_err(err)?;
     let (w, h) = (900u32, 800u32);
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+    eval::uncertainty::plot::draw_png(path, w, h, |root| {
         let (top, bottom) = root.split_vertically(h / 2);
         let all_t = curves
             .batch_psnr
@@ -94,19 +89,19 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             .x_label_area_size(35)
             .y_label_area_size(50)
             .build_cartesian_2d(0f64..t_max, p0..p1)
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .x_desc("seconds")
             .y_desc("PSNR (dB)")
             .draw()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .draw_series(LineSeries::new(
                 curves.batch_psnr.iter().copied(),
                 BLUE.mix(0.35),
             ))
-            .map_err(|e| err(e.to_string()))?
+            .map_err(|e| e.to_string())?
             .label("training batch")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], BLUE.mix(0.35)));
         chart
@@ -114,7 +109,7 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
                 curves.heldout_psnr.iter().copied(),
                 RED.stroke_width(2),
             ))
-            .map_err(|e| err(e.to_string()))?
+            .map_err(|e| e.to_string())?
             .label("held-out views, interior pixels")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RED.stroke_width(2)));
         chart
@@ -124,11 +119,11 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
                     .iter()
                     .map(|&p| Circle::new(p, 3, RED.filled())),
             )
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         for &t in &curves.novel_views {
             chart
                 .draw_series(LineSeries::new([(t, p0), (t, p1)], BLACK.mix(0.4)))
-                .map_err(|e| err(e.to_string()))?;
+                .map_err(|e| e.to_string())?;
         }
         chart
             .configure_series_labels()
@@ -136,7 +131,7 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK.mix(0.3))
             .draw()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
 
         let values = curves
             .losses
@@ -156,14 +151,14 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             .x_label_area_size(35)
             .y_label_area_size(60)
             .build_cartesian_2d(0f64..t_max, (l0..l1).log_scale())
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .x_desc("seconds")
             .y_desc("loss (log scale)")
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .draw()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         let colours = [BLACK, BLUE, GREEN, MAGENTA];
         for ((name, series), colour) in curves.losses.iter().zip(colours) {
             if series.is_empty() {
@@ -171,14 +166,14 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             }
             chart
                 .draw_series(LineSeries::new(series.iter().copied(), colour))
-                .map_err(|e| err(e.to_string()))?
+                .map_err(|e| e.to_string())?
                 .label(*name)
                 .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour));
         }
         for &t in &curves.novel_views {
             chart
                 .draw_series(LineSeries::new([(t, l0), (t, l1)], BLACK.mix(0.4)))
-                .map_err(|e| err(e.to_string()))?;
+                .map_err(|e| e.to_string())?;
         }
         chart
             .configure_series_labels()
@@ -186,10 +181,9 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK.mix(0.3))
             .draw()
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
-    eval::uncertainty::plot::save_png(path, w, h, pixels).map_err(err)
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
 }
 
 /// `[min, max]` of finite values with 5% padding (`[lo, hi]` without any).

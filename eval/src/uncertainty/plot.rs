@@ -25,15 +25,10 @@ pub fn scatter(
         .collect();
     let step = pts.len().div_ceil(MAX_DOTS).max(1);
     let dots: Vec<(f64, f64)> = pts.iter().step_by(step).copied().collect();
-    let err = |e: String| EvalError::Invalid(format!("drawing {}: {e}", path.display()));
-    ensure_font().map_err(err)?;
     let (x0, x1) = range(dots.iter().map(|d| d.0));
     let (y0, y1) = range(dots.iter().map(|d| d.1));
     let (w, h) = (800u32, 600u32);
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+    draw_png(path, w, h, |root| {
         let caption = match r {
             Some(r) => format!(
                 "uncertainty vs feature error (Pearson r = {r:.3}, {} points)",
@@ -41,25 +36,49 @@ pub fn scatter(
             ),
             None => format!("uncertainty vs feature error ({} points)", pts.len()),
         };
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(root)
             .caption(caption, ("sans-serif", 20))
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(60)
             .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .x_desc(format!("log det(Sigma + eps I), k = {}", map.k))
             .y_desc("1 - cos(mean feature, class embedding)")
             .draw()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .draw_series(
                 dots.iter()
                     .map(|&(x, y)| Circle::new((x, y), 2, BLUE.mix(0.25).filled())),
             )
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
+    .map_err(EvalError::Invalid)
+}
+
+/// The drawing area of an in-memory RGB bitmap.
+pub type Canvas<'a> = DrawingArea<BitMapBackend<'a>, plotters::coord::Shift>;
+
+/// Draws a `w x h` picture with `draw` on a white canvas (after checking
+/// that a font is available) and writes it to `path` as PNG; errors name
+/// the file.
+pub fn draw_png(
+    path: &Path,
+    w: u32,
+    h: u32,
+    draw: impl FnOnce(&Canvas<'_>) -> Result<(), String>,
+) -> Result<(), String> {
+    let err = |e: String| format!("drawing {}: {e}", path.display());
+    ensure_font().map_err(err)?;
+    let mut pixels = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        draw(&root).map_err(err)?;
         root.present().map_err(|e| err(e.to_string()))?;
     }
     save_png(path, w, h, pixels).map_err(err)

@@ -294,13 +294,8 @@ fn main() -> Result<()> {
 }
 
 fn plot(curves: &[(&str, Vec<(f64, f64)>)], targets: &[f64], path: &Path) -> Result<(), String> {
-    let err = |e: String| format!("drawing {}: {e}", path.display());
-    eval::uncertainty::plot::ensure_font().map_err(err)?;
     let (w, h) = (800u32, 500u32);
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+    eval::uncertainty::plot::draw_png(path, w, h, |root| {
         let pts = curves.iter().flat_map(|c| c.1.iter());
         let t_max = pts.clone().map(|p| p.0).fold(1.0f64, f64::max) * 1.02;
         let p_max = pts
@@ -308,7 +303,7 @@ fn plot(curves: &[(&str, Vec<(f64, f64)>)], targets: &[f64], path: &Path) -> Res
             .fold(0.0f64, f64::max)
             .max(targets.iter().copied().fold(0.0, f64::max))
             + 1.0;
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(root)
             .caption(
                 "held-out views: PSNR of the interior pixel sample against seconds",
                 ("sans-serif", 18),
@@ -317,17 +312,17 @@ fn plot(curves: &[(&str, Vec<(f64, f64)>)], targets: &[f64], path: &Path) -> Res
             .x_label_area_size(35)
             .y_label_area_size(50)
             .build_cartesian_2d(0f64..t_max, 8f64..p_max)
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .x_desc("seconds")
             .y_desc("PSNR (dB)")
             .draw()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         for &t in targets {
             chart
                 .draw_series(LineSeries::new([(0.0, t), (t_max, t)], BLACK.mix(0.3)))
-                .map_err(|e| err(e.to_string()))?;
+                .map_err(|e| e.to_string())?;
         }
         for ((label, curve), colour) in curves.iter().zip([BLUE, RED]) {
             chart
@@ -335,7 +330,7 @@ fn plot(curves: &[(&str, Vec<(f64, f64)>)], targets: &[f64], path: &Path) -> Res
                     curve.iter().copied(),
                     colour.stroke_width(2),
                 ))
-                .map_err(|e| err(e.to_string()))?
+                .map_err(|e| e.to_string())?
                 .label(*label)
                 .legend(move |(x, y)| {
                     PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2))
@@ -347,8 +342,7 @@ fn plot(curves: &[(&str, Vec<(f64, f64)>)], targets: &[f64], path: &Path) -> Res
             .border_style(BLACK)
             .position(SeriesLabelPosition::LowerRight)
             .draw()
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
-    eval::uncertainty::plot::save_png(path, w, h, pixels)
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
 }

@@ -94,8 +94,6 @@ fn scatter(
     names: &[&str],
     front: &[usize],
 ) -> Result<(), String> {
-    let err = |e: String| format!("drawing {}: {e}", path.display());
-    eval::uncertainty::plot::ensure_font().map_err(err)?;
     let finite: Vec<(f64, f64)> = points
         .iter()
         .copied()
@@ -113,22 +111,19 @@ fn scatter(
     };
     let m_max = memory_mb.iter().copied().fold(1.0, f64::max);
     let (w, h) = (1000u32, 650u32);
-    let mut pixels = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
+    eval::uncertainty::plot::draw_png(path, w, h, |root| {
+        let mut chart = ChartBuilder::on(root)
             .caption(caption, ("sans-serif", 17))
             .margin(14)
             .x_label_area_size(35)
             .y_label_area_size(50)
             .build_cartesian_2d(0f64..t_max, y_lo..y_hi)
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .configure_mesh()
             .x_desc("seconds of training")
             .draw()
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         let radius = |i: usize| (3.0 + 12.0 * (memory_mb[i] / m_max).sqrt()) as i32;
         chart
             .draw_series(
@@ -136,13 +131,13 @@ fn scatter(
                     .filter(|&i| points[i].0.is_finite() && points[i].1.is_finite())
                     .map(|i| Circle::new(points[i], radius(i), BLUE.mix(0.35).filled())),
             )
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .draw_series(LineSeries::new(
                 front.iter().map(|&i| points[i]),
                 RED.stroke_width(2),
             ))
-            .map_err(|e| err(e.to_string()))?;
+            .map_err(|e| e.to_string())?;
         chart
             .draw_series(front.iter().map(|&i| {
                 Text::new(
@@ -151,8 +146,7 @@ fn scatter(
                     ("sans-serif", 13).into_font().color(&RED),
                 )
             }))
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
-    eval::uncertainty::plot::save_png(path, w, h, pixels)
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
 }
