@@ -65,6 +65,7 @@ pub fn result_files(dir: &Path) -> Vec<String> {
         (dir.join("training_curve.png"), "training_curve.png"),
         (run.renders(), "renders/"),
         (run.weights(), "model.bpk"),
+        (run.occupancy(), "occupancy.bin"),
     ]
     .into_iter()
     .filter(|(p, _)| p.exists())

@@ -321,8 +321,9 @@ fn occupancy_grid_flags_and_settings_are_checked_and_a_grid_run_saves_its_grid()
         s(&run),
         "--quiet",
     ]);
-    let (_, stderr) = text(&r);
+    let (stdout, stderr) = text(&r);
     assert!(r.status.success(), "{stderr}");
+    assert!(stdout.contains("model.bpk, occupancy.bin"), "{stdout}");
     let grid = std::fs::read(run.join("occupancy.bin")).expect("occupancy.bin");
     assert_eq!(grid.len(), 8 + 24 + 4 * 8 * 8 * 8, "an 8^3 grid");
     let config: serde_json::Value =
