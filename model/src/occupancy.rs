@@ -217,16 +217,15 @@ impl OccupancyGrid {
     pub fn threshold(&self) -> f64 {
         let opacity = (self.min_opacity as f64).clamp(1e-9, 1.0 - 1e-9);
         let from_opacity = -(1.0 - opacity).ln() / self.cell_size();
-        let finite: Vec<f64> = self
+        let (sum, count) = self
             .density
             .iter()
             .filter(|d| d.is_finite())
-            .map(|&d| d as f64)
-            .collect();
-        if finite.is_empty() {
+            .fold((0.0f64, 0usize), |(s, n), &d| (s + d as f64, n + 1));
+        if count == 0 {
             return from_opacity;
         }
-        let mean = finite.iter().sum::<f64>() / finite.len() as f64;
+        let mean = sum / count as f64;
         from_opacity.min(mean)
     }
 

@@ -6,8 +6,11 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Tensor};
 use datasets::Scene;
-use train::TrainConfig;
+use model::OpenNerf;
+use train::{BackendKind, SessionOptions, TrainConfig};
 
 /// The CI-sized synthetic scene with seed 0, generated once.
 pub fn ci_scene() -> &'static Scene {
@@ -68,4 +71,42 @@ pub fn wgpu_enabled() -> bool {
 pub fn serial() -> std::sync::MutexGuard<'static, ()> {
     static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
     LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// A flex session without the final render, stopping at `stop_at`.
+pub fn flex_session(stop_at: Option<usize>) -> SessionOptions {
+    SessionOptions {
+        backend: BackendKind::Flex,
+        final_render: false,
+        stop_at,
+        ..Default::default()
+    }
+}
+
+/// All weights of `model`, flattened in visiting order.
+pub fn weights(model: &OpenNerf) -> Vec<f32> {
+    struct Collect(Vec<f32>);
+    impl ModuleVisitor for Collect {
+        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+            self.0
+                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
+        }
+    }
+    let mut c = Collect(Vec::new());
+    model.visit(&mut c);
+    c.0
+}
+
+/// All weights of the run in `dir`, flattened.
+pub fn run_weights(dir: &std::path::Path) -> Vec<f32> {
+    weights(&eval::run::load_run(dir, &Device::flex()).unwrap().model)
+}
+
+/// The largest absolute difference between two equally long vectors.
+pub fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0f32, f32::max)
 }

@@ -3,38 +3,13 @@
 //! they were added resumes to the same weights, and evaluation rebuilds the
 //! augmented scene.
 
-use std::path::Path;
-
-use burn::module::{Module, ModuleVisitor, Param};
-use burn::tensor::{Device, Tensor};
+use burn::tensor::Device;
 use eval::novel::{NovelMode, NovelViewConfig};
 use eval::run::{RunDir, Split, load_run_scene};
-use tests::{ci_scene, scratch_dir, serial, tiny_config};
-use train::{BackendKind, SessionOptions, TrainConfig};
-
-fn session(stop_at: Option<usize>) -> SessionOptions {
-    SessionOptions {
-        backend: BackendKind::Flex,
-        final_render: false,
-        stop_at,
-        ..Default::default()
-    }
-}
-
-/// All weights of the run in `dir`, flattened.
-fn weights(dir: &Path) -> Vec<f32> {
-    struct Collect(Vec<f32>);
-    impl ModuleVisitor for Collect {
-        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-            self.0
-                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
-        }
-    }
-    let run = eval::run::load_run(dir, &Device::flex()).unwrap();
-    let mut c = Collect(Vec::new());
-    run.model.visit(&mut c);
-    c.0
-}
+use tests::{
+    ci_scene, flex_session as session, run_weights as weights, scratch_dir, serial, tiny_config,
+};
+use train::TrainConfig;
 
 fn config(mode: NovelMode) -> TrainConfig {
     let scene = ci_scene();

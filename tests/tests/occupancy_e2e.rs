@@ -6,17 +6,9 @@ use std::path::Path;
 
 use burn::tensor::Device;
 use model::{OccupancyConfig, OccupancyGrid};
-use tests::{ci_scene, scratch_dir, serial, tiny_config};
-use train::{BackendKind, SessionOptions};
-
-fn session(stop_at: Option<usize>) -> SessionOptions {
-    SessionOptions {
-        backend: BackendKind::Flex,
-        final_render: false,
-        stop_at,
-        ..Default::default()
-    }
-}
+use tests::{
+    ci_scene, flex_session as session, max_abs_diff, scratch_dir, serial, tiny_config, weights,
+};
 
 fn grid_of(dir: &Path) -> OccupancyGrid {
     OccupancyGrid::from_bytes(&std::fs::read(dir.join("occupancy.bin")).unwrap()).unwrap()
@@ -60,11 +52,7 @@ fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
     assert_eq!(ra.model.occupancy(), Some(&ga));
     let wa = weights(&ra.model);
     let wb = weights(&rb.model);
-    let max_diff = wa
-        .iter()
-        .zip(&wb)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0f32, f32::max);
+    let max_diff = max_abs_diff(&wa, &wb);
     assert!(max_diff < 1e-4, "weights differ by up to {max_diff}");
 
     // Training lines report the skipping.
@@ -88,54 +76,37 @@ fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
     // background with zero opacity; the others are rendered by the field
     // over their clipped span.
     let frame = &scene.frames[1];
-    let with = eval::render::render_view(
-        &ra.model,
-        &frame.camera,
-        &scene.scene_box,
-        scene.background,
-        512,
-        true,
-        &Device::flex(),
-    );
+    let render = |m: &model::OpenNerf| {
+        eval::render::render_view(
+            m,
+            &frame.camera,
+            &scene.scene_box,
+            scene.background,
+            512,
+            true,
+            &Device::flex(),
+        )
+    };
+    let with = render(&ra.model);
     let rays = eval::render::camera_rays(&frame.camera, &scene.scene_box);
     let clipped = ga.clip(&rays);
-    let without = eval::render::render_view(
-        &ra.model.clone().with_occupancy(None),
-        &frame.camera,
-        &scene.scene_box,
-        scene.background,
-        512,
-        true,
-        &Device::flex(),
-    );
-    let mut kept = vec![false; rays.len()];
-    for &i in &clipped.kept {
-        kept[i] = true;
+    let without = render(&ra.model.clone().with_occupancy(None));
+    // Index into the clipped rays of each input ray that was kept.
+    let mut kept = vec![None; rays.len()];
+    for (j, &i) in clipped.kept.iter().enumerate() {
+        kept[i] = Some(j);
     }
-    for (i, &k) in kept.iter().enumerate() {
-        if !k {
+    for (i, k) in kept.iter().enumerate() {
+        let Some(j) = *k else {
             assert_eq!(with.acc[i], 0.0);
             assert_eq!(with.depth[i], 0.0);
-        } else if clipped.rays[clipped.kept.iter().position(|&j| j == i).unwrap()] == rays[i] {
+            continue;
+        };
+        if clipped.rays[j] == rays[i] {
             // An unclipped ray renders as without the grid.
             for c in 3 * i..3 * i + 3 {
                 assert!((with.rgb[c] - without.rgb[c]).abs() < 1e-5, "pixel {i}");
             }
         }
     }
-}
-
-fn weights(model: &model::OpenNerf) -> Vec<f32> {
-    use burn::module::{Module, ModuleVisitor, Param};
-    use burn::tensor::Tensor;
-    struct Collect(Vec<f32>);
-    impl ModuleVisitor for Collect {
-        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-            self.0
-                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
-        }
-    }
-    let mut c = Collect(Vec::new());
-    model.visit(&mut c);
-    c.0
 }

@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use burn::tensor::Device;
-use tests::{ci_scene, scratch_dir, serial, tiny_config, wgpu_enabled};
+use tests::{
+    ci_scene, max_abs_diff, run_weights as weights, scratch_dir, serial, tiny_config, wgpu_enabled,
+};
 use train::checkpoint::{Checkpoint, list_checkpoints};
 use train::{BackendKind, SessionOptions, TrainError};
 
@@ -159,11 +161,7 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
     let wa = weights(whole.path());
     let wb = weights(parts.path());
     assert_eq!(wa.len(), wb.len());
-    let max_diff = wa
-        .iter()
-        .zip(&wb)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0f32, f32::max);
+    let max_diff = max_abs_diff(&wa, &wb);
     assert!(max_diff < 1e-4, "weights differ by up to {max_diff}");
     assert!(
         (a.summary.heldout_interior.psnr - b.summary.heldout_interior.psnr).abs() < 0.05,
@@ -194,23 +192,6 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
         list_checkpoints(&parts.path().join("checkpoints")).unwrap(),
         all
     );
-}
-
-/// All weights of the run in `dir`, flattened.
-fn weights(dir: &Path) -> Vec<f32> {
-    use burn::module::{Module, ModuleVisitor, Param};
-    use burn::tensor::Tensor;
-    struct Collect(Vec<f32>);
-    impl ModuleVisitor for Collect {
-        fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-            self.0
-                .extend(p.val().into_data().try_to_vec::<f32>().unwrap());
-        }
-    }
-    let run = eval::run::load_run(dir, &Device::flex()).unwrap();
-    let mut c = Collect(Vec::new());
-    run.model.visit(&mut c);
-    c.0
 }
 
 /// A short run on `backend` improves the held-out colour and features over

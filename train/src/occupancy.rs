@@ -47,6 +47,15 @@ pub struct ClipStats {
     pub span_sum: f64,
 }
 
+impl ClipStats {
+    /// Adds the counts of `other` (another batch).
+    pub fn add(&mut self, other: ClipStats) {
+        self.drawn += other.drawn;
+        self.kept += other.kept;
+        self.span_sum += other.span_sum;
+    }
+}
+
 /// `batch` restricted to the rays that cross an occupied cell of `grid`,
 /// each clipped to its occupied span. A batch in which no ray crosses one is
 /// returned whole (an empty step teaches nothing, and its rays may show the
@@ -105,12 +114,6 @@ pub fn decode(hex: &str, path: &Path) -> Result<OccupancyGrid, TrainError> {
         .collect::<Result<Vec<u8>, _>>()
         .map_err(|e| bad(e.to_string()))?;
     OccupancyGrid::from_bytes(&bytes).map_err(bad)
-}
-
-/// Reads a run's `occupancy.bin`.
-pub fn read_grid(path: &Path) -> Result<OccupancyGrid, TrainError> {
-    let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e))?;
-    OccupancyGrid::from_bytes(&bytes).map_err(|m| TrainError::checkpoint(path, m))
 }
 
 /// Checks the grid settings.

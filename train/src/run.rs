@@ -579,9 +579,7 @@ fn train_loop(
         let drawn = match model.occupancy() {
             Some(grid) => {
                 let (clipped, stats) = crate::occupancy::clip_batch(grid, drawn);
-                skipping.drawn += stats.drawn;
-                skipping.kept += stats.kept;
-                skipping.span_sum += stats.span_sum;
+                skipping.add(stats);
                 clipped
             }
             None => drawn,

@@ -138,12 +138,10 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
     };
     // Training seconds: the clock of the last training line of the log.
     let log = std::fs::read_to_string(dir.join("metrics.jsonl"))?;
-    let train_seconds = log
-        .lines()
-        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-        .filter(|v| v["event"] == "train")
-        .filter_map(|v| v["wall_seconds"].as_f64())
-        .fold(f64::NAN, f64::max);
+    let train_seconds = train::curve::parse(&log)
+        .batch_psnr
+        .last()
+        .map_or(f64::NAN, |p| p.0);
     Ok(SweepResult {
         point: p.clone(),
         train_seconds,

@@ -48,23 +48,10 @@ struct Args {
     out: PathBuf,
 }
 
-/// `(seconds, held-out PSNR on interior pixels)` of a run's evaluations.
-fn heldout_curve(metrics: &Path) -> Result<Vec<(f64, f64)>> {
-    let text = std::fs::read_to_string(metrics)
-        .with_context(|| format!("reading {}", metrics.display()))?;
-    Ok(text
-        .lines()
-        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-        .filter(|v| matches!(v["event"].as_str(), Some("eval") | Some("final")))
-        .filter_map(|v| Some((v["wall_seconds"].as_f64()?, v["psnr_interior"].as_f64()?)))
-        .collect())
-}
-
-/// Means of the skipping figures of a run's training lines.
-fn skipping(metrics: &Path) -> Result<(Option<f64>, Option<f64>)> {
-    let text = std::fs::read_to_string(metrics)?;
+/// Means of the skipping figures of the training lines of `metrics.jsonl`.
+fn skipping(log: &str) -> (Option<f64>, Option<f64>) {
     let (mut rendered, mut length, mut n) = (0.0, 0.0, 0usize);
-    for v in text
+    for v in log
         .lines()
         .filter_map(|l| serde_json::from_str::<Value>(l).ok())
     {
@@ -78,7 +65,7 @@ fn skipping(metrics: &Path) -> Result<(Option<f64>, Option<f64>)> {
         }
     }
     let mean = |x: f64| (n > 0).then(|| x / n as f64);
-    Ok((mean(rendered), mean(length)))
+    (mean(rendered), mean(length))
 }
 
 /// Seconds of the first evaluation at `target` or above.
@@ -153,22 +140,21 @@ struct Row {
     ray_length_sampled: Option<f64>,
 }
 
-fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<Row> {
+/// What the run in `dir` measured, and its held-out curve `(seconds, PSNR)`.
+fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<(Row, Vec<(f64, f64)>)> {
     let metrics = dir.join("metrics.jsonl");
-    let curve = heldout_curve(&metrics)?;
-    let (rendered, length) = skipping(&metrics)?;
+    let log = std::fs::read_to_string(&metrics)
+        .with_context(|| format!("reading {}", metrics.display()))?;
+    let curves = train::curve::parse(&log);
+    let curve = curves.heldout_psnr;
+    let (rendered, length) = skipping(&log);
     let path = dir.join("summary.json");
     let summary: Value = serde_json::from_str(
         &std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?,
     )?;
-    // Training seconds: the wall clock of the last training log line.
-    let train_seconds = std::fs::read_to_string(&metrics)?
-        .lines()
-        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-        .filter(|v| v["event"] == "train")
-        .filter_map(|v| v["wall_seconds"].as_f64())
-        .fold(0.0, f64::max);
-    Ok(Row {
+    // Training seconds: the clock of the last training line.
+    let train_seconds = curves.batch_psnr.last().map_or(f64::NAN, |p| p.0);
+    let row = Row {
         variant: variant.into(),
         targets: targets
             .iter()
@@ -187,7 +173,8 @@ fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<Row> {
         rays_per_second: summary["rays_per_second"].as_f64().unwrap_or(f64::NAN),
         rays_rendered: rendered,
         ray_length_sampled: length,
-    })
+    };
+    Ok((row, curve))
 }
 
 fn main() -> Result<()> {
@@ -213,8 +200,9 @@ fn main() -> Result<()> {
     for (label, grid) in variants {
         let dir = args.out.join(if grid { "grid" } else { "plain" });
         train(&args, &dir, &config, grid)?;
-        rows.push(measure(label, &dir, &args.targets)?);
-        curves.push((label, heldout_curve(&dir.join("metrics.jsonl"))?));
+        let (row, curve) = measure(label, &dir, &args.targets)?;
+        rows.push(row);
+        curves.push((label, curve));
     }
     let mut csv = String::from(
         "variant,target_db,first_seconds,sustained_seconds,final_psnr_interior,final_psnr_whole,\
