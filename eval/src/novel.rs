@@ -81,6 +81,11 @@ pub struct NovelViewConfig {
     pub offset: f64,
     /// Guided targets closer than this to an accepted one are skipped, metres.
     pub min_separation: f64,
+    /// Guided cameras whose render of their target differs from the colour
+    /// the capture saw there by more than this (RMS, colours in [0, 1]) are
+    /// rejected; `None` (`null` in JSON, the default): no check. See
+    /// [`ProposalOptions::max_color_error`].
+    pub max_color_error: Option<f64>,
     /// External extractor for scenes on disk: program and leading arguments
     /// (see [`CommandExtractor`]); synthetic scenes use their own.
     pub extractor: Option<Vec<String>>,
@@ -98,6 +103,7 @@ impl Default for NovelViewConfig {
             voxel: 0.1,
             offset: 0.5,
             min_separation: 0.5,
+            max_color_error: None,
             extractor: None,
         }
     }
@@ -146,6 +152,13 @@ impl NovelViewConfig {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{k} must be a positive length in metres, got {v}"));
             }
+        }
+        if let Some(e) = self.max_color_error
+            && !(e.is_finite() && e >= 0.0)
+        {
+            return Err(format!(
+                "novel.max_color_error must be a non-negative colour difference or null, got {e}"
+            ));
         }
         if let Some(cmd) = &self.extractor
             && cmd.first().is_none_or(|p| p.trim().is_empty())
@@ -225,11 +238,13 @@ pub fn choose_cameras(
         scene_box: &scene.scene_box,
         device,
         samples: 64,
+        background: scene.background,
     };
     let opts = ProposalOptions {
         max_views: count,
         offset: config.offset,
         min_separation: config.min_separation,
+        max_color_error: config.max_color_error.unwrap_or(f64::INFINITY),
         ..ProposalOptions::default()
     };
     Ok(match mode {
@@ -284,7 +299,7 @@ pub fn choose_cameras(
                 intrinsics,
                 up,
                 centre,
-                |p, t| probe.accept(p, t, &opts),
+                |camera, t| probe.accept(camera, points[t], map.mean_colors[t], &opts),
                 &opts,
                 &mut rng,
             )
@@ -544,6 +559,14 @@ mod tests {
                 extractor: Some(vec![]),
                 ..ok.clone()
             },
+            NovelViewConfig {
+                max_color_error: Some(-0.1),
+                ..ok.clone()
+            },
+            NovelViewConfig {
+                max_color_error: Some(f64::NAN),
+                ..ok.clone()
+            },
         ];
         for (b, key) in bad.iter().zip([
             "depth_weight",
@@ -554,9 +577,21 @@ mod tests {
             "scale",
             "offset",
             "extractor",
+            "max_color_error",
+            "max_color_error",
         ]) {
             let e = b.validate().expect_err("invalid");
             assert!(e.contains(key), "{e}");
         }
+        // The check is off with null and stays off through the JSON.
+        let off = NovelViewConfig {
+            max_color_error: None,
+            ..ok.clone()
+        };
+        assert!(off.validate().is_ok());
+        let json = serde_json::to_string(&off).expect("json");
+        assert!(json.contains("\"max_color_error\":null"), "{json}");
+        let back: NovelViewConfig = serde_json::from_str(&json).expect("read back");
+        assert_eq!(back, off);
     }
 }

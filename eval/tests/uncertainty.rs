@@ -66,6 +66,133 @@ fn the_map_is_finite_normalised_and_maximal_where_seen_less_than_twice() {
     let finite: Vec<f64> = errors.iter().copied().filter(|e| e.is_finite()).collect();
     assert!(finite.len() > pts.len() / 4);
     assert!(finite.iter().all(|e| (0.0..=2.0).contains(e)));
+    // The colours the frames saw each point with are the surface's own:
+    // the frames are renders of it, and the scene's points carry its
+    // shaded colour (up to the pixel the point rounds to).
+    let all = scene.points.as_ref().expect("points");
+    let truth = all.colors.as_ref().expect("point colours");
+    let mut diffs = Vec::new();
+    for (j, &i) in voxel_downsample(&all.positions, 0.05).iter().enumerate() {
+        assert_eq!(map.mean_colors[j].is_some(), map.counts[j] > 0);
+        if let Some(c) = map.mean_colors[j] {
+            let d = (0..3)
+                .map(|k| (c[k] - truth[i][k] as f32 / 255.0).abs())
+                .fold(0f32, f32::max);
+            diffs.push(d);
+        }
+    }
+    diffs.sort_by(f32::total_cmp);
+    let median = diffs[diffs.len() / 2];
+    assert!(median < 0.05, "median colour difference {median}");
+}
+
+/// A tiny untrained field on the CI scene and a 9 x 9 camera looking at the
+/// room's middle, whose principal point is a pixel centre.
+fn probe_setup() -> (model::OpenNerf, Scene, model::geometry::Camera) {
+    use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+    let scene = ci_scene();
+    let dim = scene.features.as_ref().expect("features").dim();
+    let model = OpenNerfConfig::new(FeatureHeadConfig::new(dim).with_width(8).with_layers(1))
+        .with_mlp(
+            MipMlpConfig::new()
+                .with_width(16)
+                .with_depth(2)
+                .with_skip_layer(1),
+        )
+        .with_num_samples(8)
+        .init(&burn::tensor::Device::flex());
+    let k = model::geometry::Intrinsics {
+        width: 9,
+        height: 9,
+        fx: 8.0,
+        fy: 8.0,
+        cx: 4.0,
+        cy: 4.0,
+    };
+    let b = scene.scene_box;
+    let mid: [f64; 3] = std::array::from_fn(|i| 0.5 * (b.min[i] + b.max[i]));
+    let eye = [mid[0] + 0.4, mid[1] - 0.3, mid[2] + 0.1];
+    let pose = model::geometry::look_at(eye, mid, [0.0, 0.0, 1.0]).expect("pose");
+    (
+        model,
+        scene,
+        model::geometry::Camera {
+            intrinsics: k,
+            pose,
+        },
+    )
+}
+
+#[test]
+fn the_probe_renders_the_target_as_the_full_render_does_and_rejects_a_wrong_colour() {
+    use eval::uncertainty::proposals::{FieldProbe, ProposalOptions, color_error};
+    let (model, scene, cam) = probe_setup();
+    let device = burn::tensor::Device::flex();
+    let probe = FieldProbe {
+        model: &model,
+        scene_box: &scene.scene_box,
+        device: &device,
+        samples: 16,
+        background: Some([0.2, 0.4, 0.6]),
+    };
+    let centre = probe.centre_color(&cam);
+    let view = eval::render::render_view(
+        &model,
+        &cam,
+        &scene.scene_box,
+        Some([0.2, 0.4, 0.6]),
+        64,
+        false,
+        &device,
+    );
+    // The 3 x 3 patch around pixel (4, 4) of the full render.
+    let mut want = [0.0f64; 3];
+    for y in 3..=5 {
+        for x in 3..=5 {
+            let o = 3 * (y * 9 + x);
+            (0..3).for_each(|c| want[c] += view.rgb[o + c] as f64 / 9.0);
+        }
+    }
+    for c in 0..3 {
+        assert!((centre[c] - want[c]).abs() < 1e-5, "{centre:?} vs {want:?}");
+    }
+    // Only the colour decides here: density and transmittance never reject.
+    let mid = cam.pose.center();
+    let target = std::array::from_fn(|i| mid[i] + 0.3 * cam.pose.forward()[i]);
+    let opts = ProposalOptions {
+        max_density: f64::INFINITY,
+        min_transmittance: 0.0,
+        max_color_error: 0.01,
+        ..ProposalOptions::default()
+    };
+    let seen = centre.map(|v| v as f32);
+    let ok = probe
+        .accept(&cam, target, Some(seen), &opts)
+        .expect("faithful render accepted");
+    assert!(ok.color_error.expect("checked") < 1e-6);
+    let off = [seen[0], seen[1] + 0.05, seen[2] - 0.04];
+    assert!(probe.accept(&cam, target, Some(off), &opts).is_none());
+    let e = color_error(centre, off);
+    assert!(
+        (e - ((0.05f64.powi(2) + 0.04f64.powi(2)) / 3.0).sqrt()).abs() < 1e-6,
+        "{e}"
+    );
+    // Without an observed colour it is not measured; with no limit (the
+    // default) it is measured and never rejects.
+    let unchecked = probe.accept(&cam, target, None, &opts).expect("accepted");
+    assert_eq!(unchecked.color_error, None);
+    let measured = probe
+        .accept(
+            &cam,
+            target,
+            Some(off),
+            &ProposalOptions {
+                max_color_error: f64::INFINITY,
+                ..opts
+            },
+        )
+        .expect("no limit");
+    assert!((measured.color_error.expect("measured") - e).abs() < 1e-12);
 }
 
 /// Overwrites every target pixel of every map with `f(frame)`.

@@ -199,6 +199,12 @@ pub struct Cli {
     /// in (0, 1]; rendering time goes with its square [default: 0.5].
     #[arg(long, allow_negative_numbers = true)]
     pub novel_scale: Option<f64>,
+    /// Guided views are kept only where the field renders their target
+    /// within this colour difference (RMS, colours in [0, 1]) of what the
+    /// capture saw there: elsewhere the field has not learnt the surface and
+    /// the extractor would label its wrong render [default: inf, no check].
+    #[arg(long, allow_negative_numbers = true)]
+    pub novel_max_color_error: Option<f64>,
     /// For scenes on disk: the 2D feature extractor run on the rendered
     /// views, as `PROGRAM [ARGS...]` (split at spaces); it is called as
     /// `PROGRAM ARGS... IN_DIR OUT_DIR`, reads `IN_DIR/<name>.png` and must

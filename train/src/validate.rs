@@ -73,6 +73,13 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             "--novel-scale {v}: must be in (0, 1] (a fraction of the capture resolution)"
         )));
     }
+    if let Some(e) = cli.novel_max_color_error
+        && (e.is_nan() || e < 0.0)
+    {
+        return Err(flag_error(format!(
+            "--novel-max-color-error {e}: must be a colour difference >= 0 (inf turns the check off)"
+        )));
+    }
     if let Some(r) = cli.grid_resolution {
         if !(2..=256).contains(&r) {
             return Err(flag_error(format!(
@@ -103,6 +110,7 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
     let novel_given = cli.novel_after.is_some()
         || cli.novel_views_mode.is_some()
         || cli.novel_depth_weight.is_some()
+        || cli.novel_max_color_error.is_some()
         || cli.extractor_command.is_some();
     if novel_given && cli.novel_views.is_none() && cli.resume.is_none() {
         return Err(flag_error(
@@ -177,6 +185,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("novel-views-mode", cli.novel_views_mode.is_some()),
         ("novel-depth-weight", cli.novel_depth_weight.is_some()),
         ("novel-scale", cli.novel_scale.is_some()),
+        ("novel-max-color-error", cli.novel_max_color_error.is_some()),
         ("extractor-command", cli.extractor_command.is_some()),
         ("occupancy-grid", cli.occupancy_grid),
         ("head-top-k", cli.head_top_k.is_some()),

@@ -369,6 +369,15 @@ fn novel_view_flags_are_checked_by_flag() {
             &["--novel-views", "2", "--novel-scale", "1.5"],
             &["--novel-scale 1.5"],
         ),
+        (
+            &["--novel-views", "2", "--novel-max-color-error", "-0.1"],
+            &["--novel-max-color-error -0.1", ">= 0"],
+        ),
+        (
+            &["--novel-views", "2", "--novel-max-color-error", "NaN"],
+            &["--novel-max-color-error NaN"],
+        ),
+        (&["--novel-max-color-error", "0.05"], &["--novel-views"]),
         (&["--novel-views", "-2"], &["-2"]),
         (
             &["--novel-views", "2", "--extractor-command", " "],

@@ -77,6 +77,9 @@ pub struct UncertaintyMap {
     /// Per point, the mean centre of the cameras that saw it (`None` where
     /// none did): the free side a new camera can look from.
     pub mean_view_centres: Vec<Option<Vec3>>,
+    /// Per point, the mean colour the training frames saw it with (`None`
+    /// where none did): what a faithful render of the point shows.
+    pub mean_colors: Vec<Option<[f32; 3]>>,
     /// Dimension of the subspace the covariances live in.
     pub k: usize,
 }
@@ -160,6 +163,7 @@ pub fn uncertainty_map(
     let mut stats: Vec<Welford> = (0..points.len()).map(|_| Welford::new(k)).collect();
     let mut sums = vec![0f64; points.len() * dim];
     let mut centres = vec![[0f64; 3]; points.len()];
+    let mut colors = vec![([0f64; 3], 0u64); points.len()];
     let mut feature = vec![0f32; dim];
     for (n, &fi) in frames.iter().enumerate() {
         let frame = scene.frames.get(fi).ok_or_else(|| {
@@ -182,6 +186,10 @@ pub fn uncertainty_map(
             feature.iter_mut().zip(f).for_each(|(o, x)| *o = x.to_f32());
             stats[i].push(&sub.coefficients(&feature));
             (0..3).for_each(|a| centres[i][a] += centre[a]);
+            if let Some(c) = pixel_color(&frame.rgb, hit.u, hit.v, intr.width, intr.height) {
+                (0..3).for_each(|a| colors[i].0[a] += c[a] as f64);
+                colors[i].1 += 1;
+            }
             sums[i * dim..(i + 1) * dim]
                 .iter_mut()
                 .zip(&feature)
@@ -236,14 +244,46 @@ pub fn uncertainty_map(
         .zip(&centres)
         .map(|(&c, s)| (c > 0).then(|| s.map(|v| v / c as f64)))
         .collect();
+    let mean_colors = colors
+        .iter()
+        .map(|&(s, c)| (c > 0).then(|| s.map(|v| (v / c as f64) as f32)))
+        .collect();
     Ok(UncertaintyMap {
         mean_view_centres,
+        mean_colors,
         counts,
         log_det,
         normalised,
         mean_features,
         k,
     })
+}
+
+/// Colour of `image` at image coordinates `(u, v)` of a `width x height`
+/// camera (pixel centres at integers; the image may have another size);
+/// `None` for an empty image.
+fn pixel_color(
+    image: &datasets::scene::RgbImage,
+    u: f64,
+    v: f64,
+    width: u32,
+    height: u32,
+) -> Option<[f32; 3]> {
+    if image.width == 0
+        || image.height == 0
+        || image.data.len() < 3 * (image.width * image.height) as usize
+    {
+        return None;
+    }
+    let x = (((u + 0.5) * image.width as f64 / width as f64)
+        .floor()
+        .max(0.0) as u32)
+        .min(image.width.saturating_sub(1));
+    let y = (((v + 0.5) * image.height as f64 / height as f64)
+        .floor()
+        .max(0.0) as u32)
+        .min(image.height.saturating_sub(1));
+    Some(image.get(x, y))
 }
 
 /// Points on a grid of `voxel` metres: the first point of every occupied

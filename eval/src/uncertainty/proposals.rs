@@ -1,7 +1,8 @@
 //! Novel cameras aimed at uncertain points: targets drawn with probability
 //! equal to their normalised uncertainty and spread apart, a position on the
 //! free side of each target, and checks against the field that the camera is
-//! in empty space and sees its target.
+//! in empty space, sees its target, and renders it with the colour the
+//! capture saw there.
 
 use burn::tensor::{Device, Tensor, TensorData};
 use model::OpenNerf;
@@ -14,6 +15,16 @@ use super::UncertaintyMap;
 /// positions (fog in free space hides the target), so spare targets are
 /// drawn and the first `max_views` that pass are kept.
 pub const SPARE_TARGETS: usize = 4;
+
+/// Pixels a side of the patch at the image centre whose rendered colour is
+/// compared with the target's observed colour.
+const COLOR_PATCH: i32 = 3;
+
+/// RMS over the channels of `rendered - seen`.
+pub fn color_error(rendered: [f64; 3], seen: [f32; 3]) -> f64 {
+    let s: f64 = (0..3).map(|k| (rendered[k] - seen[k] as f64).powi(2)).sum();
+    (s / 3.0).sqrt()
+}
 
 /// Settings of the camera proposals.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,6 +43,13 @@ pub struct ProposalOptions {
     pub max_density: f64,
     /// A position is rejected where the transmittance to the target is below this.
     pub min_transmittance: f64,
+    /// A position is rejected where the field renders the target with a
+    /// colour further than this (RMS over the channels, colours in [0, 1])
+    /// from the mean colour the training frames saw it with: where the field
+    /// has not learnt a surface its render is wrong, and the 2D extractor
+    /// would label the wrong render, teaching the field its own error.
+    /// Infinity (the default) measures the difference without rejecting.
+    pub max_color_error: f64,
 }
 
 impl Default for ProposalOptions {
@@ -44,6 +62,7 @@ impl Default for ProposalOptions {
             retries: 20,
             max_density: 1.0,
             min_transmittance: 0.5,
+            max_color_error: f64::INFINITY,
         }
     }
 }
@@ -121,6 +140,8 @@ pub struct FieldProbe<'a> {
     pub device: &'a Device,
     /// Samples along the segment for the transmittance.
     pub samples: usize,
+    /// Colour of empty space the field was trained with.
+    pub background: Option<[f32; 3]>,
 }
 
 impl FieldProbe<'_> {
@@ -160,16 +181,80 @@ impl FieldProbe<'_> {
 }
 
 impl FieldProbe<'_> {
-    /// The SPEC's checks of a camera position `p` for target `t`: inside the
-    /// scene box, density at `p` at most `max_density` per metre, and
-    /// transmittance to `t` at least `min_transmittance` (returned).
-    pub fn accept(&self, p: Vec3, t: Vec3, opts: &ProposalOptions) -> Option<f64> {
+    /// Mean rendered colour of the `COLOR_PATCH`-pixel square at the image
+    /// centre of `camera` (where a camera made by `look_at` sees its target).
+    pub fn centre_color(&self, camera: &Camera) -> [f64; 3] {
+        let k = &camera.intrinsics;
+        let r = COLOR_PATCH / 2;
+        let rays: Vec<_> = (-r..=r)
+            .flat_map(|j| (-r..=r).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let ray = camera.ray(k.cx + i as f64, k.cy + j as f64);
+                self.scene_box
+                    .normalize_ray(&ray, crate::render::RENDER_MIN_NEAR)
+            })
+            .collect();
+        let out = crate::render::render_rays(
+            self.model,
+            &rays,
+            self.background,
+            rays.len(),
+            model::FeatureMode::None,
+            self.device,
+        );
+        let n = (out.rgb.len() / 3).max(1) as f64;
+        let mut mean = [0.0; 3];
+        for px in out.rgb.chunks(3) {
+            (0..3).for_each(|c| mean[c] += px[c] as f64 / n);
+        }
+        mean
+    }
+
+    /// The SPEC's checks of `camera` for target `t`: its centre inside the
+    /// scene box, density there at most `max_density` per metre,
+    /// transmittance to `t` at least `min_transmittance`; and, where the
+    /// target's observed colour `seen` is known, the field's render of the
+    /// target within `max_color_error` of it (the difference is returned).
+    pub fn accept(
+        &self,
+        camera: &Camera,
+        t: Vec3,
+        seen: Option<[f32; 3]>,
+        opts: &ProposalOptions,
+    ) -> Option<Accepted> {
+        let p = camera.pose.center();
         if !self.scene_box.contains(p) || self.density(&[p])[0] > opts.max_density {
             return None;
         }
-        let tr = self.transmittance(p, t);
-        (tr >= opts.min_transmittance).then_some(tr)
+        let transmittance = self.transmittance(p, t);
+        if transmittance < opts.min_transmittance {
+            return None;
+        }
+        let color_error = match seen {
+            Some(seen) => {
+                let e = color_error(self.centre_color(camera), seen);
+                if e.is_nan() || e > opts.max_color_error {
+                    return None;
+                }
+                Some(e)
+            }
+            None => None,
+        };
+        Some(Accepted {
+            transmittance,
+            color_error,
+        })
     }
+}
+
+/// What the checks of a usable camera measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Accepted {
+    /// Transmittance from the camera to the target.
+    pub transmittance: f64,
+    /// RMS colour difference of the render at the target from the colour the
+    /// capture saw there (`None`: not checked).
+    pub color_error: Option<f64>,
 }
 
 /// A proposed view and how it was found.
@@ -183,13 +268,15 @@ pub struct Proposal {
     pub attempts: usize,
     /// Transmittance from the camera to the target.
     pub transmittance: f64,
+    /// Colour difference of the render at the target (see [`Accepted`]).
+    pub color_error: Option<f64>,
 }
 
 /// One camera per target where a position passes `accept` within
 /// `opts.retries` attempts: `p = t + offset n + noise` with `n` towards the
-/// free side; `accept(p, t)` returns the transmittance from `p` to `t` when
-/// the position is usable (see [`FieldProbe::accept`]). The camera looks at
-/// `t` with `up`.
+/// free side, looking at `t` with `up`; `accept(camera, target index)`
+/// measures a usable camera and rejects the others (see
+/// [`FieldProbe::accept`]).
 #[allow(clippy::too_many_arguments)]
 pub fn propose_cameras(
     map: &UncertaintyMap,
@@ -198,7 +285,7 @@ pub fn propose_cameras(
     intrinsics: Intrinsics,
     up: Vec3,
     fallback_centre: Vec3,
-    mut accept: impl FnMut(Vec3, Vec3) -> Option<f64>,
+    mut accept: impl FnMut(&Camera, usize) -> Option<Accepted>,
     opts: &ProposalOptions,
     rng: &mut impl Rng,
 ) -> Vec<Proposal> {
@@ -214,17 +301,19 @@ pub fn propose_cameras(
         for attempt in 1..=opts.retries.max(1) {
             let jitter: Vec3 = std::array::from_fn(|_| gaussian(rng) * opts.noise);
             let p = add_scaled(add_scaled(target, opts.offset, n), 1.0, jitter);
-            let Some(tr) = accept(p, target) else {
+            let Ok(pose) = look_at(p, target, up) else {
                 continue;
             };
-            let Ok(pose) = look_at(p, target, up) else {
+            let camera = Camera { intrinsics, pose };
+            let Some(checks) = accept(&camera, t) else {
                 continue;
             };
             out.push(Proposal {
                 target: t,
-                camera: Camera { intrinsics, pose },
+                camera,
                 attempts: attempt,
-                transmittance: tr,
+                transmittance: checks.transmittance,
+                color_error: checks.color_error,
             });
             break;
         }
@@ -278,6 +367,7 @@ mod tests {
             normalised: vec![1.0, 1.0, 0.25, 1.0],
             mean_features: vec![None; 4],
             mean_view_centres: vec![None; 4],
+            mean_colors: vec![None; 4],
             k: 1,
         };
         assert_eq!(target_chances(&map), vec![0.0, 1.0, 0.25, 0.0]);
@@ -302,12 +392,18 @@ mod tests {
             normalised: vec![1.0, 1.0],
             mean_features: vec![None, None],
             mean_view_centres: vec![Some([0.0, 0.0, 4.0]), Some([3.0, 4.0, 0.0])],
+            mean_colors: vec![None, None],
             k: 1,
         };
         let k = Intrinsics::from_fov_x(64, 48, 1.0);
         let opts = ProposalOptions::default();
         // The second target's free side is blocked everywhere.
-        let accept = |p: Vec3, _t: Vec3| (p[0] < 1.5).then_some(0.9);
+        let accept = |c: &Camera, _t: usize| {
+            (c.pose.center()[0] < 1.5).then_some(Accepted {
+                transmittance: 0.9,
+                color_error: None,
+            })
+        };
         let got = propose_cameras(
             &map,
             &positions,

@@ -99,6 +99,7 @@ pub fn write_proposals(
         scene_box: &run.meta.scene_box,
         device: &device,
         samples: 64,
+        background: run.meta.background,
     };
     let proposals = propose_cameras(
         map,
@@ -107,7 +108,7 @@ pub fn write_proposals(
         intrinsics,
         scene_up(scene, &split.train),
         centre,
-        |p, t| probe.accept(p, t, &opts),
+        |camera, t| probe.accept(camera, points[t], map.mean_colors[t], &opts),
         &opts,
         &mut rng,
     );
@@ -127,6 +128,7 @@ pub fn write_proposals(
                     "target": points[p.target],
                     "uncertainty": map.normalised[p.target],
                     "transmittance": p.transmittance,
+                    "color_error": p.color_error,
                 }),
             )
         }),

@@ -120,9 +120,11 @@ pub struct SweepResult {
     pub rays_per_second: f64,
     /// Peak resident memory of the training process, bytes.
     pub peak_memory_bytes: Option<u64>,
-    /// Held-out PSNR over the interior pixels of the held-out views.
+    /// Held-out PSNR over the interior pixels of the held-out views (on the
+    /// bench room, over the final evaluation's sample of them).
     pub psnr_interior: f64,
-    /// Held-out PSNR over every pixel of the held-out views.
+    /// Held-out PSNR over every pixel of the held-out views (`None` where
+    /// they were not rendered in full).
     pub psnr_whole: Option<f64>,
     /// Held-out depth MAE (metres), where the scene has depth.
     pub depth_mae: Option<f64>,
