@@ -90,7 +90,8 @@ pub fn common_points(budget: f64) -> Vec<SweepPoint> {
 }
 
 /// The points of a scene with feature maps: the common ones plus the
-/// feature knobs (PCA off / auto / 8 / 32, head top-k).
+/// feature knobs (PCA off / auto / 8 / 32, head top-k) and 128 rays with
+/// 16 samples, with and without the grid.
 pub fn feature_points(budget: f64) -> Vec<SweepPoint> {
     let b = budget;
     let mut points = common_points(budget);
@@ -100,6 +101,13 @@ pub fn feature_points(budget: f64) -> Vec<SweepPoint> {
         point("pca-32", &["--pca", "32"], b),
         point("head-top-k-4", &["--head-top-k", "4"], b),
         point("head-top-k-16", &["--head-top-k", "16"], b),
+        // The two knobs that gain most on the room, together.
+        point("rays-128-samples-16", &["--rays", "128", "--samples", "16"], b),
+        point(
+            "grid-rays-128-samples-16",
+            &["--occupancy-grid", "--rays", "128", "--samples", "16"],
+            b,
+        ),
     ]);
     points
 }
