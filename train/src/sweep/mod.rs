@@ -102,7 +102,11 @@ pub fn feature_points(budget: f64) -> Vec<SweepPoint> {
         point("head-top-k-4", &["--head-top-k", "4"], b),
         point("head-top-k-16", &["--head-top-k", "16"], b),
         // The two knobs that gain most on the room, together.
-        point("rays-128-samples-16", &["--rays", "128", "--samples", "16"], b),
+        point(
+            "rays-128-samples-16",
+            &["--rays", "128", "--samples", "16"],
+            b,
+        ),
         point(
             "grid-rays-128-samples-16",
             &["--occupancy-grid", "--rays", "128", "--samples", "16"],
