@@ -89,18 +89,9 @@ fn the_map_is_finite_normalised_and_maximal_where_seen_less_than_twice() {
 /// A tiny untrained field on the CI scene and a 9 x 9 camera looking at the
 /// room's middle, whose principal point is a pixel centre.
 fn probe_setup() -> (model::OpenNerf, Scene, model::geometry::Camera) {
-    use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
     let scene = ci_scene();
     let dim = scene.features.as_ref().expect("features").dim();
-    let model = OpenNerfConfig::new(FeatureHeadConfig::new(dim).with_width(8).with_layers(1))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1),
-        )
-        .with_num_samples(8)
-        .init(&burn::tensor::Device::flex());
+    let model = common::tiny_config(dim).init(&burn::tensor::Device::flex());
     let k = model::geometry::Intrinsics {
         width: 9,
         height: 9,

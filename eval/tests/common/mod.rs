@@ -10,24 +10,26 @@ use datasets::SceneMeta;
 use datasets::synthetic::{SceneSize, generate};
 use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 
+/// The tiny field: a 2 x 16 trunk, a one-layer head to `dim` channels,
+/// 4 + 4 samples a ray.
+pub fn tiny_config(dim: usize) -> OpenNerfConfig {
+    OpenNerfConfig::new(FeatureHeadConfig::new(dim).with_width(8).with_layers(1))
+        .with_mlp(
+            MipMlpConfig::new()
+                .with_width(16)
+                .with_depth(2)
+                .with_skip_layer(1)
+                .with_max_deg(4),
+        )
+        .with_num_samples(4)
+}
+
 /// Writes `model.bpk`, `config.json`, `scene.json` and `split.json` (frame 0
 /// held out) of the tiny run into `dir`.
 pub fn write_tiny_run(dir: &Path) {
     let scene = generate(0, SceneSize::Ci).expect("CI scene");
     let features = scene.features.as_ref().expect("features");
-    let config = OpenNerfConfig::new(
-        FeatureHeadConfig::new(features.dim())
-            .with_width(8)
-            .with_layers(1),
-    )
-    .with_mlp(
-        MipMlpConfig::new()
-            .with_width(16)
-            .with_depth(2)
-            .with_skip_layer(1)
-            .with_max_deg(4),
-    )
-    .with_num_samples(4);
+    let config = tiny_config(features.dim());
     let bytes = config
         .init(&Device::flex())
         .into_record()
