@@ -35,7 +35,7 @@ fn read_class(f: &[f32], emb: &[f32], dim: usize) -> usize {
     best.0
 }
 
-/// Class read at map pixel `(x, y)` of the extractor's map of `rgb`.
+/// The class read at every pixel of the extractor's map of `rgb`, row-major.
 fn read_at(
     ex: &impl FeatureExtractor,
     rgb: &RgbImage,
@@ -62,15 +62,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let room = build_room(seed);
     let palette = classes::palette(seed);
     let ex = synthetic::extractor_for(seed, size);
-    let emb = ex.embeddings().clone();
-    let normed: Vec<f32> = emb
-        .data
-        .chunks(emb.dim)
-        .flat_map(|r| {
-            let n = r.iter().map(|v| v * v).sum::<f32>().sqrt().max(1e-12);
-            r.iter().map(move |v| v / n)
-        })
-        .collect();
+    // Rows already L2-normalised: the dot product ranks like the cosine.
+    let emb = ex.embeddings();
     let nc = CLASSES.len();
 
     // Captured views: every map pixel against the label under its centre.
@@ -80,7 +73,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = render::render_view(&room, &palette, cam);
         let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
         let (mw, mh) = ex.map_size(w, h);
-        let read = read_at(&ex, &r.rgb, &normed, emb.dim)?;
+        let read = read_at(&ex, &r.rgb, &emb.data, emb.dim)?;
         for y in 0..mh {
             for x in 0..mw {
                 let px = ((x as f64 + 0.5) * w as f64 / mw as f64) as u32;
@@ -145,7 +138,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 if r.labels[(cy * k.width + cx) as usize] as usize != c {
                     continue; // the point is hidden from here
                 }
-                let read = read_at(&ex, &r.rgb, &normed, emb.dim)?;
+                let read = read_at(&ex, &r.rgb, &emb.data, emb.dim)?;
                 slot.1 += 1;
                 slot.0 += usize::from(read[((mh / 2) * mw + mw / 2) as usize] == c);
             }

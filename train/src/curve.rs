@@ -18,6 +18,23 @@ pub struct Curves {
     pub losses: Vec<(&'static str, Vec<(f64, f64)>)>,
     /// Seconds at which novel views joined the training frames.
     pub novel_views: Vec<f64>,
+    /// `(share of rays rendered, share of their length sampled)` of the
+    /// training lines of a run with the occupancy grid.
+    pub skipping: Vec<(f64, f64)>,
+}
+
+impl Curves {
+    /// Means of [`Curves::skipping`] (`None` without the grid).
+    pub fn mean_skipping(&self) -> Option<(f64, f64)> {
+        let n = self.skipping.len();
+        (n > 0).then(|| {
+            let (r, l) = self
+                .skipping
+                .iter()
+                .fold((0.0, 0.0), |(r, l), &(a, b)| (r + a, l + b));
+            (r / n as f64, l / n as f64)
+        })
+    }
 }
 
 const LOSS_KEYS: [(&str, &str); 4] = [
@@ -51,6 +68,9 @@ pub fn parse(jsonl: &str) -> Curves {
                     if let Some(x) = num(key).filter(|x| *x > 0.0) {
                         series.push((t, x));
                     }
+                }
+                if let (Some(r), Some(l)) = (num("rays_rendered"), num("ray_length_sampled")) {
+                    c.skipping.push((r, l));
                 }
             }
             Some("eval") | Some("final") => {
@@ -210,7 +230,8 @@ mod tests {
             r#"{"event":"eval","iteration":0,"psnr_interior":11.5,"wall_seconds":0.0}"#,
             r#"{"event":"train","iteration":25,"loss":0.14,"rgb_mse":0.03,"open":0.07,"depth":0.25,"psnr":15.1,"wall_seconds":6.0}"#,
             r#"{"event":"novel_views","iteration":30,"wall_seconds":7.5}"#,
-            r#"{"event":"train","iteration":50,"loss":0.12,"rgb_mse":0.02,"open":0.07,"depth":0.0,"psnr":"NaN","wall_seconds":12.0}"#,
+            r#"{"event":"train","iteration":50,"loss":0.12,"rgb_mse":0.02,"open":0.07,"depth":0.0,"psnr":"NaN","wall_seconds":12.0,"rays_rendered":0.5,"ray_length_sampled":0.25}"#,
+            r#"{"event":"train","iteration":60,"loss":0.11,"wall_seconds":14.0,"rays_rendered":1.0,"ray_length_sampled":0.75}"#,
             r#"{"event":"nonfinite","iteration":51,"loss":"NaN"}"#,
             r#"{"event":"final","iteration":50,"psnr_interior":17.25,"wall_seconds":13.0}"#,
             r#"{"event":"train","iteration":75,"loss":0.1"#,
@@ -223,10 +244,14 @@ mod tests {
         let total = &c.losses[0];
         assert_eq!(
             (total.0, total.1.clone()),
-            ("total loss", vec![(6.0, 0.14), (12.0, 0.12)])
+            ("total loss", vec![(6.0, 0.14), (12.0, 0.12), (14.0, 0.11)])
         );
         // A zero loss has no place on a log scale.
         assert_eq!(c.losses[3].1, vec![(6.0, 0.25)]);
+        // The grid's figures, where the lines have them, and their means.
+        assert_eq!(c.skipping, vec![(0.5, 0.25), (1.0, 0.75)]);
+        assert_eq!(c.mean_skipping(), Some((0.75, 0.5)));
+        assert_eq!(parse("").mean_skipping(), None);
     }
 
     #[test]

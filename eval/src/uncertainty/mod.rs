@@ -171,6 +171,10 @@ pub fn uncertainty_map(
         })?;
         let intr = &frame.camera.intrinsics;
         let centre = frame.camera.pose.center();
+        let rgb = &frame.rgb;
+        let has_rgb = rgb.width > 0
+            && rgb.height > 0
+            && rgb.data.len() >= 3 * (rgb.width * rgb.height) as usize;
         let depth = frame.depth.as_ref().map(|d| DepthRef {
             width: d.width,
             height: d.height,
@@ -186,7 +190,8 @@ pub fn uncertainty_map(
             feature.iter_mut().zip(f).for_each(|(o, x)| *o = x.to_f32());
             stats[i].push(&sub.coefficients(&feature));
             (0..3).for_each(|a| centres[i][a] += centre[a]);
-            if let Some(c) = pixel_color(&frame.rgb, hit.u, hit.v, intr.width, intr.height) {
+            if has_rgb {
+                let c = pixel_color(rgb, hit.u, hit.v, intr.width, intr.height);
                 (0..3).for_each(|a| colors[i].0[a] += c[a] as f64);
                 colors[i].1 += 1;
             }
@@ -260,21 +265,15 @@ pub fn uncertainty_map(
 }
 
 /// Colour of `image` at image coordinates `(u, v)` of a `width x height`
-/// camera (pixel centres at integers; the image may have another size);
-/// `None` for an empty image.
+/// camera (pixel centres at integers; the image, not empty, may have
+/// another size).
 fn pixel_color(
     image: &datasets::scene::RgbImage,
     u: f64,
     v: f64,
     width: u32,
     height: u32,
-) -> Option<[f32; 3]> {
-    if image.width == 0
-        || image.height == 0
-        || image.data.len() < 3 * (image.width * image.height) as usize
-    {
-        return None;
-    }
+) -> [f32; 3] {
     let x = (((u + 0.5) * image.width as f64 / width as f64)
         .floor()
         .max(0.0) as u32)
@@ -283,7 +282,7 @@ fn pixel_color(
         .floor()
         .max(0.0) as u32)
         .min(image.height.saturating_sub(1));
-    Some(image.get(x, y))
+    image.get(x, y)
 }
 
 /// Points on a grid of `voxel` metres: the first point of every occupied

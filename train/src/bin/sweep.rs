@@ -16,7 +16,8 @@ use std::process::Command;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
-use serde_json::Value;
+use eval::metrics::SegmentationScores;
+use train::metrics::{Summary, read_json};
 use train::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 
 /// Which scene to sweep.
@@ -77,12 +78,6 @@ fn run(cmd: &mut Command, what: &str) -> Result<()> {
     Ok(())
 }
 
-fn read_json(path: &Path) -> Result<Value> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
-}
-
 /// Trains (and on the bench scene segments) one point, unless done before.
 fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
     let dir = out.join(&p.name);
@@ -127,20 +122,18 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
         ]);
         run(&mut cmd, &format!("segmenting {}", p.name))?;
     }
-    let s = read_json(&dir.join("summary.json"))?;
-    let num = |v: &Value| v.as_f64();
+    let s: Summary = read_json(&dir.join("summary.json"))?;
     let (miou, miou_tail) = if bench {
-        let v = read_json(&seg)?;
+        let v: SegmentationScores = read_json(&seg)?;
         let pct = |x: f64| 100.0 * x;
-        (
-            num(&v["all"]["miou"]).map(pct),
-            num(&v["tail"]["miou"]).map(pct),
-        )
+        (v.all.miou.map(pct), v.tail.and_then(|t| t.miou).map(pct))
     } else {
         (None, None)
     };
     // Training seconds: the clock of the last training line of the log.
-    let log = std::fs::read_to_string(dir.join("metrics.jsonl"))?;
+    let metrics = dir.join("metrics.jsonl");
+    let log = std::fs::read_to_string(&metrics)
+        .with_context(|| format!("reading {}", metrics.display()))?;
     let train_seconds = train::curve::parse(&log)
         .batch_psnr
         .last()
@@ -148,13 +141,13 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
     Ok(SweepResult {
         point: p.clone(),
         train_seconds,
-        wall_seconds: num(&s["wall_seconds"]).unwrap_or(f64::NAN),
-        iterations: s["iterations"].as_u64().unwrap_or(0) as usize,
-        rays_per_second: num(&s["rays_per_second"]).unwrap_or(f64::NAN),
-        peak_memory_bytes: s["peak_memory_bytes"].as_u64(),
-        psnr_interior: num(&s["heldout_interior"]["psnr"]).unwrap_or(f64::NAN),
-        psnr_whole: num(&s["heldout_whole"]["psnr"]),
-        depth_mae: num(&s["heldout_interior"]["depth_mae"]),
+        wall_seconds: s.wall_seconds,
+        iterations: s.iterations,
+        rays_per_second: s.rays_per_second,
+        peak_memory_bytes: s.peak_memory_bytes,
+        psnr_interior: s.heldout_interior.psnr,
+        psnr_whole: s.heldout_whole.map(|m| m.psnr),
+        depth_mae: s.heldout_interior.depth_mae,
         miou,
         miou_tail,
     })

@@ -16,7 +16,8 @@ use anyhow::{Context, Result, bail};
 use clap::Parser;
 use plotters::prelude::*;
 use serde::Serialize;
-use serde_json::{Value, json};
+use serde_json::json;
+use train::metrics::{Summary, read_json};
 
 /// Options.
 #[derive(Debug, Parser)]
@@ -46,26 +47,6 @@ struct Args {
     /// Output directory (one run directory per variant inside).
     #[arg(long, default_value = "runs/time-to-accuracy")]
     out: PathBuf,
-}
-
-/// Means of the skipping figures of the training lines of `metrics.jsonl`.
-fn skipping(log: &str) -> (Option<f64>, Option<f64>) {
-    let (mut rendered, mut length, mut n) = (0.0, 0.0, 0usize);
-    for v in log
-        .lines()
-        .filter_map(|l| serde_json::from_str::<Value>(l).ok())
-    {
-        if let (Some(r), Some(l)) = (
-            v["rays_rendered"].as_f64(),
-            v["ray_length_sampled"].as_f64(),
-        ) {
-            rendered += r;
-            length += l;
-            n += 1;
-        }
-    }
-    let mean = |x: f64| (n > 0).then(|| x / n as f64);
-    (mean(rendered), mean(length))
 }
 
 /// Seconds of the first evaluation at `target` or above.
@@ -146,14 +127,11 @@ fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<(Row, Vec<(f64,
     let log = std::fs::read_to_string(&metrics)
         .with_context(|| format!("reading {}", metrics.display()))?;
     let curves = train::curve::parse(&log);
-    let curve = curves.heldout_psnr;
-    let (rendered, length) = skipping(&log);
-    let path = dir.join("summary.json");
-    let summary: Value = serde_json::from_str(
-        &std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?,
-    )?;
+    let skipping = curves.mean_skipping();
+    let summary: Summary = read_json(&dir.join("summary.json"))?;
     // Training seconds: the clock of the last training line.
     let train_seconds = curves.batch_psnr.last().map_or(f64::NAN, |p| p.0);
+    let curve = curves.heldout_psnr;
     let row = Row {
         variant: variant.into(),
         targets: targets
@@ -164,15 +142,13 @@ fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<(Row, Vec<(f64,
                 sustained_seconds: sustained_reaching(&curve, t),
             })
             .collect(),
-        final_psnr_interior: summary["heldout_interior"]["psnr"]
-            .as_f64()
-            .unwrap_or(f64::NAN),
-        final_psnr_whole: summary["heldout_whole"]["psnr"].as_f64(),
+        final_psnr_interior: summary.heldout_interior.psnr,
+        final_psnr_whole: summary.heldout_whole.map(|m| m.psnr),
         train_seconds,
-        wall_seconds: summary["wall_seconds"].as_f64().unwrap_or(f64::NAN),
-        rays_per_second: summary["rays_per_second"].as_f64().unwrap_or(f64::NAN),
-        rays_rendered: rendered,
-        ray_length_sampled: length,
+        wall_seconds: summary.wall_seconds,
+        rays_per_second: summary.rays_per_second,
+        rays_rendered: skipping.map(|s| s.0),
+        ray_length_sampled: skipping.map(|s| s.1),
     };
     Ok((row, curve))
 }
