@@ -7,6 +7,8 @@ Reads <dir>/seed-*/<mode>/seg/segmentation_compare.json and prints, per seed
 and as the mean over seeds, mIoU / mAcc (percent) for all / head / common /
 tail classes of one field mode per ablation mode, then the tail classes'
 IoU per mode, and the views each run added (from its novel/views.json).
+Runs whose views came from the ground truth (<mode>-oracle-<which>, see
+scripts/novel-ablation.sh --oracle) get rows of their own after the four.
 """
 import json
 import pathlib
@@ -88,11 +90,13 @@ def main():
         sys.exit(__doc__)
     root = pathlib.Path(args[0])
     seeds = sorted(p for p in root.glob("seed-*") if p.is_dir())
-    sums = {m: [[0.0, 0.0, 0] for _ in GROUPS] for m in MODES}
+    oracles = sorted({p.name for s in seeds for p in s.glob("*-oracle-*") if p.is_dir()})
+    modes = MODES + oracles
+    sums = {m: [[0.0, 0.0, 0] for _ in GROUPS] for m in modes}
     print(f"Field mode `{method}`, mIoU / mAcc in percent.\n")
     for seed in seeds:
         rows = []
-        for mode in MODES:
+        for mode in modes:
             row = load(seed / mode, method)
             if row is None:
                 continue
@@ -111,7 +115,7 @@ def main():
             f"{m} ({sums[m][0][2]} seeds)",
             [(s[0] / s[2], s[1] / s[2]) if s[2] else (None, None) for s in sums[m]],
         )
-        for m in MODES
+        for m in modes
         if sums[m][0][2]
     ]
     print(table("mean over seeds", mean))
@@ -130,14 +134,14 @@ def main():
             for c in base["per_class"]
             if c["iou"] is not None
         ]
-        per = {m: load(seed / m, method) for m in MODES}
+        per = {m: load(seed / m, method) for m in modes}
         print(f"{seed.name}: IoU per class (percent)\n")
-        print("| class | points | " + " | ".join(MODES) + " |")
-        print("|---" * (2 + len(MODES)) + "|")
+        print("| class | points | " + " | ".join(modes) + " |")
+        print("|---" * (2 + len(modes)) + "|")
         for n in names:
             pts = next(c["points"] for c in base["per_class"] if c["name"] == n)
             vals = []
-            for m in MODES:
+            for m in modes:
                 r = per[m]
                 c = None if r is None else next(c for c in r["per_class"] if c["name"] == n)
                 vals.append(pct(None if c is None else c["iou"]))

@@ -3,7 +3,8 @@
 # random and guided views, the same iteration budget for all four (the views
 # are counted in it), then 3D segmentation of each run.
 #
-#   scripts/novel-ablation.sh [--iters T] [--after A] [--views N] [--out DIR] SEED...
+#   scripts/novel-ablation.sh [--iters T] [--after A] [--views N] [--out DIR]
+#                             [--modes "M..."] [--oracle renders|labels] SEED...
 #
 # Per seed, one run trains to iteration A and stops; each mode continues a
 # copy of it from that checkpoint with its own novel-view settings to T.
@@ -14,7 +15,10 @@
 # Segmentation projects into the same captured cameras for every mode, so
 # that only the field differs. The table is written by
 # scripts/novel-ablation-table.py. The programs are copied into
-# <out>/bin on the first call and reused by later calls.
+# <out>/bin on the first call and reused by later calls. --modes picks the
+# modes (default: all four); --oracle takes the views from the synthetic
+# scene's ground truth (train --novel-oracle) and names the runs
+# <mode>-oracle-<which>, beside the plain ones.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -22,6 +26,8 @@ iters=2400
 after=1200
 views=24
 out=runs/novel-ablation
+modes="none trajectory random guided"
+oracle=""
 seeds=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -29,7 +35,9 @@ while [ $# -gt 0 ]; do
     --after) after="$2"; shift 2 ;;
     --views) views="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    --modes) modes="$2"; shift 2 ;;
+    --oracle) oracle="$2"; shift 2 ;;
+    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
     -*) echo "error: unknown option $1" >&2; exit 2 ;;
     *) seeds+=("$1"); shift ;;
   esac
@@ -39,6 +47,16 @@ if ! [ "$after" -ge 1 ] 2>/dev/null || ! [ "$iters" -gt "$after" ] 2>/dev/null; 
   echo "error: need 1 <= --after ($after) < --iters ($iters)" >&2
   exit 2
 fi
+for mode in $modes; do
+  case "$mode" in
+    none|trajectory|random|guided) ;;
+    *) echo "error: unknown mode $mode (none, trajectory, random, guided)" >&2; exit 2 ;;
+  esac
+done
+case "$oracle" in
+  ""|renders|labels) ;;
+  *) echo "error: --oracle must be renders or labels, got $oracle" >&2; exit 2 ;;
+esac
 
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/opennerf-target}"
 # The binaries are copied into the output directory once, so that an
@@ -59,15 +77,21 @@ for seed in "${seeds[@]}"; do
     "$bin/train" --scene-size bench --scene-seed "$seed" --iters "$iters" \
       --stop-at "$after" --no-final-render --quiet --out "$base"
   fi
-  for mode in none trajectory random guided; do
+  for mode in $modes; do
     run="$dir/$mode"
+    if [ -n "$oracle" ]; then
+      # `none` adds no views: there is nothing for an oracle to replace.
+      [ "$mode" != none ] || continue
+      run="$dir/$mode-oracle-$oracle"
+    fi
     if [ ! -f "$run/done" ]; then
       echo "== seed $seed, $mode: iterations $after -> $iters"
       rm -rf "$run"
       cp -r "$base" "$run"
       if [ "$mode" != none ]; then
-        jq --arg m "$mode" --argjson n "$views" --argjson a "$after" \
-          '.novel.mode = $m | .novel.views = $n | .novel.after = $a' \
+        jq --arg m "$mode" --argjson n "$views" --argjson a "$after" --arg o "$oracle" \
+          '.novel.mode = $m | .novel.views = $n | .novel.after = $a
+           | .novel.oracle = (if $o == "" then null else $o end)' \
           "$run/config.json" > "$run/config.json.new"
         mv "$run/config.json.new" "$run/config.json"
       fi

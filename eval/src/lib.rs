@@ -12,6 +12,7 @@ pub mod commands;
 pub mod error;
 pub mod metrics;
 pub mod novel;
+pub mod oracle;
 pub mod project;
 pub mod query;
 pub mod render;

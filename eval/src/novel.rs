@@ -15,6 +15,7 @@ use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use crate::error::EvalError;
+use crate::oracle::{GroundTruth, NovelOracle};
 use crate::project::ProjectOptions;
 use crate::render::render_view;
 use crate::uncertainty::proposals::{
@@ -89,6 +90,10 @@ pub struct NovelViewConfig {
     /// External extractor for scenes on disk: program and leading arguments
     /// (see [`CommandExtractor`]); synthetic scenes use their own.
     pub extractor: Option<Vec<String>>,
+    /// Ground truth in place of the field's render or the extractor's
+    /// reading (synthetic scenes only; a diagnostic, see [`NovelOracle`]);
+    /// `None` (the default): the method as specified.
+    pub oracle: Option<NovelOracle>,
 }
 
 impl Default for NovelViewConfig {
@@ -105,6 +110,7 @@ impl Default for NovelViewConfig {
             min_separation: 0.5,
             max_color_error: None,
             extractor: None,
+            oracle: None,
         }
     }
 }
@@ -409,7 +415,9 @@ fn gaussian(rng: &mut impl Rng) -> f64 {
 /// Renders each camera, runs `extractor` on the rendered colour and
 /// compresses the map with the scene's basis. Rendered depth is kept where
 /// the accumulated opacity reaches `config.min_acc` (0 elsewhere: no target).
-/// `progress(done, total)` is called per view.
+/// With `config.oracle`, a synthetic scene's ground truth stands in for the
+/// field's render (and for the extractor's reading with
+/// [`NovelOracle::Labels`]). `progress(done, total)` is called per view.
 #[allow(clippy::too_many_arguments)]
 pub fn render_views(
     model: &OpenNerf,
@@ -422,39 +430,27 @@ pub fn render_views(
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Vec<NovelView>, EvalError> {
     let pca = scene.features.as_ref().and_then(|f| f.pca.as_ref());
+    let truth = config
+        .oracle
+        .map(|o| GroundTruth::of(scene, o))
+        .transpose()?;
     let mut out = Vec::with_capacity(cameras.len());
     for (i, aimed) in cameras.iter().enumerate() {
-        let view = render_view(
-            model,
-            &aimed.camera,
-            &scene.scene_box,
-            scene.background,
-            chunk,
-            false,
-            device,
-        );
-        let rgb = RgbImage {
-            width: view.width,
-            height: view.height,
-            data: view.rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect(),
+        let (rgb, depth, full) = match &truth {
+            Some(truth) => {
+                let v = truth.view(&aimed.camera, extractor)?;
+                (v.rgb, v.depth, v.features)
+            }
+            None => field_view(
+                model,
+                &aimed.camera,
+                scene,
+                extractor,
+                config,
+                chunk,
+                device,
+            )?,
         };
-        let depth = DepthImage {
-            width: view.width,
-            height: view.height,
-            data: view
-                .depth
-                .iter()
-                .zip(&view.acc)
-                .map(|(&d, &a)| {
-                    if a >= config.min_acc && d.is_finite() && d > 0.0 {
-                        d
-                    } else {
-                        0.0
-                    }
-                })
-                .collect(),
-        };
-        let full = extractor.extract(&rgb)?;
         let features = match pca {
             Some(basis) => compress_map(&full, basis),
             None => full,
@@ -472,6 +468,52 @@ pub fn render_views(
         progress(i + 1, cameras.len());
     }
     Ok(out)
+}
+
+/// The field's render of `camera` (colour clamped to [0, 1], depth kept
+/// where the opacity reaches `config.min_acc`) and the extractor's reading
+/// of it, before compression.
+fn field_view(
+    model: &OpenNerf,
+    camera: &Camera,
+    scene: &Scene,
+    extractor: &dyn FeatureExtractor,
+    config: &NovelViewConfig,
+    chunk: usize,
+    device: &Device,
+) -> Result<(RgbImage, DepthImage, datasets::FeatureMap), EvalError> {
+    let view = render_view(
+        model,
+        camera,
+        &scene.scene_box,
+        scene.background,
+        chunk,
+        false,
+        device,
+    );
+    let rgb = RgbImage {
+        width: view.width,
+        height: view.height,
+        data: view.rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect(),
+    };
+    let depth = DepthImage {
+        width: view.width,
+        height: view.height,
+        data: view
+            .depth
+            .iter()
+            .zip(&view.acc)
+            .map(|(&d, &a)| {
+                if a >= config.min_acc && d.is_finite() && d > 0.0 {
+                    d
+                } else {
+                    0.0
+                }
+            })
+            .collect(),
+    };
+    let full = extractor.extract(&rgb)?;
+    Ok((rgb, depth, full))
 }
 
 #[cfg(test)]

@@ -205,6 +205,14 @@ pub struct Cli {
     /// the extractor would label its wrong render [default: inf, no check].
     #[arg(long, allow_negative_numbers = true)]
     pub novel_max_color_error: Option<f64>,
+    /// Diagnostic for synthetic scenes: take the novel views from the
+    /// scene's ground truth instead of the pipeline, to measure what camera
+    /// choice could give. `renders`: colour and depth ray-traced from the
+    /// scene (a perfect field), read by the scene's extractor; `labels`:
+    /// also features that name every pixel's true class (a perfect
+    /// extractor). [default: neither, the method as specified]
+    #[arg(long, value_enum)]
+    pub novel_oracle: Option<eval::oracle::NovelOracle>,
     /// For scenes on disk: the 2D feature extractor run on the rendered
     /// views, as `PROGRAM [ARGS...]` (split at spaces); it is called as
     /// `PROGRAM ARGS... IN_DIR OUT_DIR`, reads `IN_DIR/<name>.png` and must

@@ -132,6 +132,9 @@ fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
     if let Some(e) = cli.novel_max_color_error {
         novel.max_color_error = e.is_finite().then_some(e);
     }
+    if let Some(o) = cli.novel_oracle {
+        novel.oracle = Some(o);
+    }
     if let Some(c) = &cli.extractor_command {
         novel.extractor = Some(c.split_whitespace().map(str::to_string).collect());
     }

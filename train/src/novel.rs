@@ -96,7 +96,13 @@ pub fn add_views(
         device,
         &mut progress,
     )?;
-    datasets::novel::write_record(&run.novel(), novel.mode.name(), iteration, &views)?;
+    // The record says where the views came from, so that a run whose views
+    // were taken from the ground truth is never mistaken for the method's.
+    let mode = match novel.oracle {
+        Some(o) => format!("{} (ground-truth {})", novel.mode.name(), o.name()),
+        None => novel.mode.name().to_string(),
+    };
+    datasets::novel::write_record(&run.novel(), &mode, iteration, &views)?;
     let added = reload_recorded(scene, run)?.ok_or_else(|| {
         TrainError::Config(format!(
             "{}: the novel views just written cannot be read back",

@@ -111,6 +111,7 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
         || cli.novel_views_mode.is_some()
         || cli.novel_depth_weight.is_some()
         || cli.novel_max_color_error.is_some()
+        || cli.novel_oracle.is_some()
         || cli.extractor_command.is_some();
     if novel_given && cli.novel_views.is_none() && cli.resume.is_none() {
         return Err(flag_error(
@@ -136,6 +137,14 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             ));
         }
         _ => {}
+    }
+    if let Some(o) = cli.novel_oracle
+        && cli.dataset != DatasetKind::Synthetic
+    {
+        return Err(flag_error(format!(
+            "--novel-oracle {}: the oracle takes novel views from a synthetic scene's ground              truth; a scene on disk has none (leave --novel-oracle out)",
+            o.name()
+        )));
     }
     if cli.dataset == DatasetKind::Synthetic {
         if let Some(data) = &cli.data {
@@ -186,6 +195,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("novel-depth-weight", cli.novel_depth_weight.is_some()),
         ("novel-scale", cli.novel_scale.is_some()),
         ("novel-max-color-error", cli.novel_max_color_error.is_some()),
+        ("novel-oracle", cli.novel_oracle.is_some()),
         ("extractor-command", cli.extractor_command.is_some()),
         ("occupancy-grid", cli.occupancy_grid),
         ("head-top-k", cli.head_top_k.is_some()),

@@ -378,6 +378,24 @@ fn novel_view_flags_are_checked_by_flag() {
             &["--novel-max-color-error NaN"],
         ),
         (&["--novel-max-color-error", "0.05"], &["--novel-views"]),
+        (&["--novel-oracle", "labels"], &["--novel-views"]),
+        (
+            &["--novel-views", "2", "--novel-oracle", "perfect"],
+            &["perfect", "renders", "labels"],
+        ),
+        (
+            &[
+                "--dataset",
+                "replica",
+                "--data",
+                "/nonexistent/room0",
+                "--novel-views",
+                "2",
+                "--novel-oracle",
+                "renders",
+            ],
+            &["--novel-oracle renders", "synthetic"],
+        ),
         (&["--novel-views", "-2"], &["-2"]),
         (
             &["--novel-views", "2", "--extractor-command", " "],
@@ -435,6 +453,10 @@ fn novel_views_need_feature_maps_and_an_extractor_and_resume_keeps_them() {
     assert_refused(
         &["--resume", s(&run), "--novel-views", "3"],
         &["--novel-views", "--resume"],
+    );
+    assert_refused(
+        &["--resume", s(&run), "--novel-oracle", "labels"],
+        &["--novel-oracle", "--resume"],
     );
 }
 
