@@ -187,7 +187,8 @@ pub struct AimedCamera {
 }
 
 /// The scene's 2D feature extractor: the simulated one of a synthetic scene,
-/// the configured command for a scene on disk.
+/// the configured command for a scene on disk. Also refuses an oracle on a
+/// scene without ground truth.
 pub fn scene_extractor(
     scene: &Scene,
     config: &NovelViewConfig,
@@ -198,6 +199,10 @@ pub fn scene_extractor(
             scene.name
         ))
     })?;
+    if let Some(oracle) = config.oracle {
+        // Refused here, before training, rather than half-way through it.
+        GroundTruth::of(scene, oracle)?;
+    }
     match (&scene.source, &config.extractor) {
         (_, Some(cmd)) => {
             let (program, args) = cmd

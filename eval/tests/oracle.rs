@@ -151,4 +151,15 @@ fn label_features_refuse_a_label_without_embedding_and_disk_scenes_have_no_oracl
         .err()
         .expect("no ground truth on disk");
     assert!(err.to_string().contains("synthetic"), "{err}");
+    // Training asks for the extractor before its first step: refused there.
+    let config = NovelViewConfig {
+        views: 2,
+        oracle: Some(NovelOracle::Renders),
+        extractor: Some(vec!["extract".into()]),
+        ..NovelViewConfig::default()
+    };
+    let err = scene_extractor(&scene, &config)
+        .err()
+        .expect("refused before training");
+    assert!(err.to_string().contains("renders"), "{err}");
 }
