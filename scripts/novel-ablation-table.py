@@ -7,8 +7,9 @@ Reads <dir>/seed-*/<mode>/seg/segmentation_compare.json and prints, per seed
 and as the mean over seeds, mIoU / mAcc (percent) for all / head / common /
 tail classes of one field mode per ablation mode, then the tail classes'
 IoU per mode, and the views each run added (from its novel/views.json).
-Runs whose views came from the ground truth (<mode>-oracle-<which>, see
-scripts/novel-ablation.sh --oracle) get rows of their own after the four.
+Further runs (<mode>-oracle-<which>, <mode>-<tag>: see
+scripts/novel-ablation.sh --oracle and --tag) get rows of their own after
+the four.
 """
 import json
 import pathlib
@@ -90,8 +91,10 @@ def main():
         sys.exit(__doc__)
     root = pathlib.Path(args[0])
     seeds = sorted(p for p in root.glob("seed-*") if p.is_dir())
-    oracles = sorted({p.name for s in seeds for p in s.glob("*-oracle-*") if p.is_dir()})
-    modes = MODES + oracles
+    extra = sorted(
+        {p.name for s in seeds for p in s.iterdir() if (p / "seg").is_dir()} - set(MODES)
+    )
+    modes = MODES + extra
     sums = {m: [[0.0, 0.0, 0] for _ in GROUPS] for m in modes}
     print(f"Field mode `{method}`, mIoU / mAcc in percent.\n")
     for seed in seeds:

@@ -4,7 +4,8 @@
 # are counted in it), then 3D segmentation of each run.
 #
 #   scripts/novel-ablation.sh [--iters T] [--after A] [--views N] [--out DIR]
-#                             [--modes "M..."] [--oracle renders|labels] SEED...
+#                             [--modes "M..."] [--oracle renders|labels]
+#                             [--set JQ --tag NAME] SEED...
 #
 # Per seed, one run trains to iteration A and stops; each mode continues a
 # copy of it from that checkpoint with its own novel-view settings to T.
@@ -18,7 +19,9 @@
 # <out>/bin on the first call and reused by later calls. --modes picks the
 # modes (default: all four); --oracle takes the views from the synthetic
 # scene's ground truth (train --novel-oracle) and names the runs
-# <mode>-oracle-<which>, beside the plain ones.
+# <mode>-oracle-<which>, beside the plain ones. --set applies a jq update to
+# the runs' config.json (e.g. '.novel.offset = 1.5') and --tag NAME, which
+# it needs, is appended to their names.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,6 +31,8 @@ views=24
 out=runs/novel-ablation
 modes="none trajectory random guided"
 oracle=""
+set_expr="."
+tag=""
 seeds=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -37,7 +42,9 @@ while [ $# -gt 0 ]; do
     --out) out="$2"; shift 2 ;;
     --modes) modes="$2"; shift 2 ;;
     --oracle) oracle="$2"; shift 2 ;;
-    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
+    --set) set_expr="$2"; shift 2 ;;
+    --tag) tag="$2"; shift 2 ;;
+    -h|--help) sed -n '2,26p' "$0"; exit 0 ;;
     -*) echo "error: unknown option $1" >&2; exit 2 ;;
     *) seeds+=("$1"); shift ;;
   esac
@@ -53,6 +60,13 @@ for mode in $modes; do
     *) echo "error: unknown mode $mode (none, trajectory, random, guided)" >&2; exit 2 ;;
   esac
 done
+if [ "$set_expr" != "." ] && [ -z "$tag" ]; then
+  echo "error: --set needs --tag NAME (the runs it changes are named after it)" >&2
+  exit 2
+fi
+case "$tag" in
+  */*|.*) echo "error: --tag $tag: a name without / and not starting with ." >&2; exit 2 ;;
+esac
 case "$oracle" in
   ""|renders|labels) ;;
   *) echo "error: --oracle must be renders or labels, got $oracle" >&2; exit 2 ;;
@@ -84,6 +98,10 @@ for seed in "${seeds[@]}"; do
       [ "$mode" != none ] || continue
       run="$dir/$mode-oracle-$oracle"
     fi
+    if [ -n "$tag" ]; then
+      [ "$mode" != none ] || continue
+      run="$run-$tag"
+    fi
     if [ ! -f "$run/done" ]; then
       echo "== seed $seed, $mode: iterations $after -> $iters"
       rm -rf "$run"
@@ -91,7 +109,7 @@ for seed in "${seeds[@]}"; do
       if [ "$mode" != none ]; then
         jq --arg m "$mode" --argjson n "$views" --argjson a "$after" --arg o "$oracle" \
           '.novel.mode = $m | .novel.views = $n | .novel.after = $a
-           | .novel.oracle = (if $o == "" then null else $o end)' \
+           | .novel.oracle = (if $o == "" then null else $o end) | '"$set_expr" \
           "$run/config.json" > "$run/config.json.new"
         mv "$run/config.json.new" "$run/config.json"
       fi
