@@ -175,6 +175,18 @@ impl NovelViewConfig {
     }
 }
 
+/// A novel view's colour, depth (0 = no target) and full-dimension
+/// features, before compression into the scene's feature space.
+#[derive(Debug, Clone)]
+pub struct ExtractedView {
+    /// Colour image.
+    pub rgb: RgbImage,
+    /// Z-depth, metres.
+    pub depth: DepthImage,
+    /// The feature map read from the colour.
+    pub features: datasets::FeatureMap,
+}
+
 /// A camera to render, with the point it is aimed at (guided views).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AimedCamera {
@@ -441,11 +453,12 @@ pub fn render_views(
         .transpose()?;
     let mut out = Vec::with_capacity(cameras.len());
     for (i, aimed) in cameras.iter().enumerate() {
-        let (rgb, depth, full) = match &truth {
-            Some(truth) => {
-                let v = truth.view(&aimed.camera, extractor)?;
-                (v.rgb, v.depth, v.features)
-            }
+        let ExtractedView {
+            rgb,
+            depth,
+            features: full,
+        } = match &truth {
+            Some(truth) => truth.view(&aimed.camera, extractor)?,
             None => field_view(
                 model,
                 &aimed.camera,
@@ -486,7 +499,7 @@ fn field_view(
     config: &NovelViewConfig,
     chunk: usize,
     device: &Device,
-) -> Result<(RgbImage, DepthImage, datasets::FeatureMap), EvalError> {
+) -> Result<ExtractedView, EvalError> {
     let view = render_view(
         model,
         camera,
@@ -517,8 +530,12 @@ fn field_view(
             })
             .collect(),
     };
-    let full = extractor.extract(&rgb)?;
-    Ok((rgb, depth, full))
+    let features = extractor.extract(&rgb)?;
+    Ok(ExtractedView {
+        rgb,
+        depth,
+        features,
+    })
 }
 
 #[cfg(test)]

@@ -8,12 +8,13 @@
 use datasets::extractor::FeatureExtractor;
 use datasets::synthetic::{self, Room, SceneSize, classes, render};
 use datasets::text::TextEmbeddings;
-use datasets::{DepthImage, FeatureMap, RgbImage, Scene, SceneSource};
+use datasets::{FeatureMap, Scene, SceneSource};
 use half::f16;
 use model::geometry::Camera;
 use serde::{Deserialize, Serialize};
 
 use crate::error::EvalError;
+use crate::novel::ExtractedView;
 
 /// Which ground truth replaces the pipeline's own output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -35,18 +36,6 @@ impl NovelOracle {
             NovelOracle::Labels => "labels",
         }
     }
-}
-
-/// A novel view taken from the ground truth: colour, z-depth (every pixel
-/// hits a surface) and full-dimension features.
-#[derive(Debug, Clone)]
-pub struct OracleView {
-    /// Ray-traced colour.
-    pub rgb: RgbImage,
-    /// Ray-traced z-depth, metres.
-    pub depth: DepthImage,
-    /// Features before compression.
-    pub features: FeatureMap,
 }
 
 /// The ground truth of a synthetic scene, ready to ray-trace views.
@@ -90,7 +79,7 @@ impl GroundTruth {
         &self,
         camera: &Camera,
         extractor: &dyn FeatureExtractor,
-    ) -> Result<OracleView, EvalError> {
+    ) -> Result<ExtractedView, EvalError> {
         let r = render::render_view(&self.room, &self.palette, camera);
         let mut features = extractor.extract(&r.rgb)?;
         if self.oracle == NovelOracle::Labels {
@@ -103,7 +92,7 @@ impl GroundTruth {
                 &self.embeddings,
             )?;
         }
-        Ok(OracleView {
+        Ok(ExtractedView {
             rgb: r.rgb,
             depth: r.depth,
             features,
