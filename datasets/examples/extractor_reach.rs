@@ -12,7 +12,7 @@
 //! (seed 21 and scale 0.5, the render scale of novel views, by default).
 
 use datasets::extractor::FeatureExtractor;
-use datasets::scene::RgbImage;
+use datasets::scene::{RgbImage, nearest_pixel};
 use datasets::synthetic::{self, CLASSES, SceneSize, build_room, classes, render};
 use model::geometry::{Camera, Intrinsics, Vec3, look_at, norm, sub};
 
@@ -76,8 +76,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let read = read_at(&ex, &r.rgb, &emb.data, emb.dim)?;
         for y in 0..mh {
             for x in 0..mw {
-                let px = ((x as f64 + 0.5) * w as f64 / mw as f64) as u32;
-                let py = ((y as f64 + 0.5) * h as f64 / mh as f64) as u32;
+                let (px, py) = nearest_pixel(x as f64, y as f64, (mw, mh), (w, h));
                 let label = r.labels[(py * w + px) as usize] as usize;
                 if label < nc {
                     captured[label].1 += 1;

@@ -14,11 +14,36 @@ pub struct RgbImage {
     pub data: Vec<f32>,
 }
 
+/// The pixel of a `to_width x to_height` grid nearest to point `(u, v)` of
+/// a `from_width x from_height` grid covering the same image (pixel centres
+/// at integers in both), clamped to the grid. With `(u, v)` a pixel of the
+/// first grid, it is the pixel of the second under that pixel's centre.
+pub fn nearest_pixel(
+    u: f64,
+    v: f64,
+    (from_width, from_height): (u32, u32),
+    (to_width, to_height): (u32, u32),
+) -> (u32, u32) {
+    let sx = to_width as f64 / from_width as f64;
+    let sy = to_height as f64 / from_height as f64;
+    let x = (((u + 0.5) * sx).floor().max(0.0) as u32).min(to_width.saturating_sub(1));
+    let y = (((v + 0.5) * sy).floor().max(0.0) as u32).min(to_height.saturating_sub(1));
+    (x, y)
+}
+
 impl RgbImage {
     /// Colour of pixel `(x, y)`.
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
         let i = 3 * (y as usize * self.width as usize + x as usize);
         [self.data[i], self.data[i + 1], self.data[i + 2]]
+    }
+
+    /// Colour at image point `(u, v)` of an `image_width x image_height`
+    /// camera (pixel centres at integers): the nearest pixel after scaling
+    /// to this image's size.
+    pub fn lookup(&self, u: f64, v: f64, image_width: u32, image_height: u32) -> [f32; 3] {
+        let (x, y) = nearest_pixel(u, v, (image_width, image_height), (self.width, self.height));
+        self.get(x, y)
     }
 }
 
@@ -83,10 +108,7 @@ impl FeatureMap {
     /// Feature at image point `(u, v)` of an `image_width x image_height`
     /// image (pixel centres at integers): nearest map pixel after scaling.
     pub fn lookup(&self, u: f64, v: f64, image_width: u32, image_height: u32) -> &[f16] {
-        let sx = self.width as f64 / image_width as f64;
-        let sy = self.height as f64 / image_height as f64;
-        let x = (((u + 0.5) * sx).floor().max(0.0) as u32).min(self.width - 1);
-        let y = (((v + 0.5) * sy).floor().max(0.0) as u32).min(self.height - 1);
+        let (x, y) = nearest_pixel(u, v, (image_width, image_height), (self.width, self.height));
         self.pixel(x, y)
     }
 }
@@ -154,4 +176,49 @@ pub struct SceneMeta {
     pub pca: Option<crate::features::Pca>,
     /// Dimension of the original feature space (D).
     pub feature_dim: Option<usize>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cell of the second grid whose span (in the first grid's pixel
+    /// units) contains the point, found by scanning every cell.
+    fn brute_force(u: f64, (fw, _): (u32, u32), tw: u32) -> u32 {
+        let edge = u + 0.5; // distance from the image's left edge
+        (0..tw)
+            .find(|&x| {
+                let (lo, hi) = (
+                    x as f64 * fw as f64 / tw as f64,
+                    (x + 1) as f64 * fw as f64 / tw as f64,
+                );
+                edge >= lo && edge < hi
+            })
+            .unwrap_or(if edge < 0.0 { 0 } else { tw - 1 })
+    }
+
+    #[test]
+    fn nearest_pixel_is_the_cell_under_the_point_and_clamps() {
+        for (from, to) in [
+            ((320, 180), (80, 45)),
+            ((40, 22), (160, 90)),
+            ((7, 5), (3, 2)),
+        ] {
+            for i in -3..(4 * from.0 as i32 + 3) {
+                let u = i as f64 / 4.0 - 0.5;
+                let v = u.min(from.1 as f64);
+                let (x, y) = nearest_pixel(u, v, from, to);
+                assert_eq!(x, brute_force(u, from, to.0), "u {u}, {from:?} -> {to:?}");
+                assert_eq!(y, brute_force(v, (from.1, 0), to.1), "v {v}");
+            }
+        }
+        let img = RgbImage {
+            width: 2,
+            height: 1,
+            data: vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
+        };
+        // Pixel 3 of an 8-wide camera lies in the first half of the image.
+        assert_eq!(img.lookup(3.0, 0.0, 8, 4), [0.1, 0.2, 0.3]);
+        assert_eq!(img.lookup(4.0, 3.0, 8, 4), [0.4, 0.5, 0.6]);
+    }
 }

@@ -5,7 +5,8 @@
 //! camera choice can achieve on a scene; they are diagnostics, not a way to
 //! train on real captures (there is no ground truth there).
 
-use datasets::extractor::FeatureExtractor;
+use datasets::extractor::{FeatureExtractor, SimulatedExtractor};
+use datasets::scene::nearest_pixel;
 use datasets::synthetic::{self, Room, SceneSize, classes, render};
 use datasets::text::TextEmbeddings;
 use datasets::{FeatureMap, Scene, SceneSource};
@@ -43,9 +44,9 @@ pub struct GroundTruth {
     oracle: NovelOracle,
     room: Room,
     palette: Vec<[f64; 3]>,
-    /// Class text embeddings (rows unit length), the ones the extractor
-    /// mixes its features from.
-    embeddings: TextEmbeddings,
+    /// The scene's own extractor: its map grid and the class embeddings it
+    /// mixes its features from are those of the label maps.
+    simulated: SimulatedExtractor,
 }
 
 impl GroundTruth {
@@ -62,36 +63,34 @@ impl GroundTruth {
             )));
         };
         let size: SceneSize = size.parse()?;
-        let embeddings = synthetic::extractor_for(*seed, size).embeddings().clone();
         Ok(Self {
             oracle,
             room: synthetic::build_room(*seed),
             palette: classes::palette(*seed),
-            embeddings,
+            simulated: synthetic::extractor_for(*seed, size),
         })
     }
 
     /// Ray-traces `camera` and reads the result: with `extractor` for
-    /// [`NovelOracle::Renders`], from the labels for [`NovelOracle::Labels`]
-    /// (on the grid of `extractor`'s maps, the label under each cell's
-    /// centre).
+    /// [`NovelOracle::Renders`]; from the labels for [`NovelOracle::Labels`],
+    /// on the grid of the scene's own extractor (the label under each cell's
+    /// centre), without running an extractor.
     pub fn view(
         &self,
         camera: &Camera,
         extractor: &dyn FeatureExtractor,
     ) -> Result<ExtractedView, EvalError> {
         let r = render::render_view(&self.room, &self.palette, camera);
-        let mut features = extractor.extract(&r.rgb)?;
-        if self.oracle == NovelOracle::Labels {
-            features = label_features(
+        let (width, height) = (r.rgb.width, r.rgb.height);
+        let features = match self.oracle {
+            NovelOracle::Renders => extractor.extract(&r.rgb)?,
+            NovelOracle::Labels => label_features(
                 &r.labels,
-                r.rgb.width,
-                r.rgb.height,
-                features.width,
-                features.height,
-                &self.embeddings,
-            )?;
-        }
+                (width, height),
+                self.simulated.map_size(width, height),
+                self.simulated.embeddings(),
+            )?,
+        };
         Ok(ExtractedView {
             rgb: r.rgb,
             depth: r.depth,
@@ -107,18 +106,15 @@ impl GroundTruth {
 /// labels `[height * width]` -> `[map_h, map_w, D]`.
 pub fn label_features(
     labels: &[u16],
-    width: u32,
-    height: u32,
-    map_w: u32,
-    map_h: u32,
+    (width, height): (u32, u32),
+    (map_w, map_h): (u32, u32),
     embeddings: &TextEmbeddings,
 ) -> Result<FeatureMap, EvalError> {
     let dim = embeddings.dim;
     let mut data = Vec::with_capacity((map_w * map_h) as usize * dim);
     for y in 0..map_h {
         for x in 0..map_w {
-            let px = (((x as f64 + 0.5) * width as f64 / map_w as f64) as u32).min(width - 1);
-            let py = (((y as f64 + 0.5) * height as f64 / map_h as f64) as u32).min(height - 1);
+            let (px, py) = nearest_pixel(x as f64, y as f64, (map_w, map_h), (width, height));
             let label = labels[(py * width + px) as usize] as usize;
             if label >= embeddings.len() {
                 return Err(EvalError::Invalid(format!(

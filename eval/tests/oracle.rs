@@ -129,7 +129,7 @@ fn label_features_refuse_a_label_without_embedding_and_disk_scenes_have_no_oracl
     let emb = datasets::synthetic::extractor_for(0, SceneSize::Ci)
         .embeddings()
         .clone();
-    let ok = label_features(&[0, 1, 2, 3], 2, 2, 1, 1, &emb).expect("one cell");
+    let ok = label_features(&[0, 1, 2, 3], (2, 2), (1, 1), &emb).expect("one cell");
     // The centre of a 2 x 2 image in a 1 x 1 map is pixel (1, 1): label 3.
     let row: Vec<f32> = ok.data.iter().map(|v| v.to_f32()).collect();
     let want: Vec<f32> = emb
@@ -138,7 +138,7 @@ fn label_features_refuse_a_label_without_embedding_and_disk_scenes_have_no_oracl
         .map(|&v| half::f16::from_f32(v).to_f32())
         .collect();
     assert_eq!(row, want);
-    let err = label_features(&[0, 1, 2, u16::MAX], 2, 2, 1, 1, &emb).expect_err("no class");
+    let err = label_features(&[0, 1, 2, u16::MAX], (2, 2), (1, 1), &emb).expect_err("no class");
     assert!(err.to_string().contains("65535"), "{err}");
 
     let mut scene = ci_scene();

@@ -191,7 +191,7 @@ pub fn uncertainty_map(
             stats[i].push(&sub.coefficients(&feature));
             (0..3).for_each(|a| centres[i][a] += centre[a]);
             if has_rgb {
-                let c = pixel_color(rgb, hit.u, hit.v, intr.width, intr.height);
+                let c = rgb.lookup(hit.u, hit.v, intr.width, intr.height);
                 (0..3).for_each(|a| colors[i].0[a] += c[a] as f64);
                 colors[i].1 += 1;
             }
@@ -262,27 +262,6 @@ pub fn uncertainty_map(
         mean_features,
         k,
     })
-}
-
-/// Colour of `image` at image coordinates `(u, v)` of a `width x height`
-/// camera (pixel centres at integers; the image, not empty, may have
-/// another size).
-fn pixel_color(
-    image: &datasets::scene::RgbImage,
-    u: f64,
-    v: f64,
-    width: u32,
-    height: u32,
-) -> [f32; 3] {
-    let x = (((u + 0.5) * image.width as f64 / width as f64)
-        .floor()
-        .max(0.0) as u32)
-        .min(image.width.saturating_sub(1));
-    let y = (((v + 0.5) * image.height as f64 / height as f64)
-        .floor()
-        .max(0.0) as u32)
-        .min(image.height.saturating_sub(1));
-    image.get(x, y)
 }
 
 /// Points on a grid of `voxel` metres: the first point of every occupied
