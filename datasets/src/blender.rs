@@ -236,6 +236,47 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
     })
 }
 
+/// The cameras of a transforms file alone, named after their images' file
+/// stems, as [`load_blender`] reads them: OpenGL poses converted to OpenCV,
+/// intrinsics from the file's keys (a frame's own keys over the top-level
+/// ones) at the image size `w`/`h` the file gives, else at the size of the
+/// frame's image (read from its header only).
+pub fn read_cameras(path: &Path) -> Result<Vec<(String, Camera)>, DatasetError> {
+    let root = path.parent().unwrap_or(Path::new("."));
+    let text = std::fs::read_to_string(path).map_err(|e| DatasetError::io(path, e))?;
+    let t: Transforms = serde_json::from_str(&text)
+        .map_err(|e| DatasetError::invalid(path, format!("bad transforms file: {e}")))?;
+    if t.frames.is_empty() {
+        return Err(DatasetError::invalid(path, "no frames"));
+    }
+    t.frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let what = format!("frames[{i}] ({})", f.file_path);
+            let pose = checked_pose(path, &what, f.transform_matrix, true)?;
+            let given = (f.camera.w.or(t.camera.w), f.camera.h.or(t.camera.h));
+            let size = match given {
+                (Some(w), Some(h)) => (w.round() as u32, h.round() as u32),
+                _ => {
+                    let img = resolve_image(root, &f.file_path).ok_or_else(|| {
+                        DatasetError::invalid(
+                            path,
+                            format!("{what}: no \"w\"/\"h\" and no image to take the size from"),
+                        )
+                    })?;
+                    imageio::dimensions(&img)?
+                }
+            };
+            let intrinsics = intrinsics(path, &t.camera, &f.camera, size)?;
+            let name = Path::new(&f.file_path)
+                .file_stem()
+                .map_or(format!("frame{i:04}"), |s| s.to_string_lossy().into_owned());
+            Ok((name, Camera { intrinsics, pose }))
+        })
+        .collect()
+}
+
 /// The point minimising the summed squared distance to all optical axes.
 /// `None` when the axes are (nearly) parallel.
 pub fn focus_point(cameras: &[Camera]) -> Option<Vec3> {

@@ -338,14 +338,7 @@ pub fn save_png(image: &RgbImage, path: &Path) -> Result<(), DatasetError> {
         .iter()
         .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
         .collect();
-    image::save_buffer(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        image::ColorType::Rgb8,
-    )
-    .map_err(|e| DatasetError::invalid(path, format!("cannot write image: {e}")))
+    crate::imageio::save_rgb8(path, image.width, image.height, &bytes)
 }
 
 impl CommandExtractor {

@@ -129,6 +129,22 @@ pub fn load_depth16(
     })
 }
 
+/// Writes `height * width * 3` bytes as an 8-bit RGB PNG: the one PNG
+/// writer of frames, renders, figures and plots.
+pub fn save_rgb8(path: &Path, width: u32, height: u32, data: &[u8]) -> Result<(), DatasetError> {
+    if data.len() != width as usize * height as usize * 3 {
+        return Err(DatasetError::invalid(
+            path,
+            format!(
+                "cannot write image: {} bytes do not hold {width}x{height} RGB pixels",
+                data.len()
+            ),
+        ));
+    }
+    image::save_buffer(path, data, width, height, image::ColorType::Rgb8)
+        .map_err(|e| DatasetError::invalid(path, format!("cannot write image: {e}")))
+}
+
 /// Width and height of an image file, from its header only.
 pub fn dimensions(path: &Path) -> Result<(u32, u32), DatasetError> {
     image::image_dimensions(path)

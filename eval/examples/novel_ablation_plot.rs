@@ -12,8 +12,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use eval::metrics::SegmentationScores;
-use eval::uncertainty::plot::draw_png;
+use field_ops::plot::draw_png;
+use field_ops::scores::SegmentationScores;
 use plotters::prelude::*;
 
 /// The ablation's own modes, drawn first and in this order.

@@ -1,13 +1,13 @@
 //! Cameras to evaluate at: Blender / nerfstudio `transforms.json`, Nice-SLAM
-//! `traj.txt` with `cam_params.json`, resizing, and smooth camera paths
-//! (slerp of rotations, lerp of positions) between poses.
+//! `traj.txt` with `cam_params.json` (parsed by the `datasets` loaders),
+//! resizing, and smooth camera paths (slerp of rotations, lerp of positions)
+//! between poses.
 
 use std::path::Path;
 
+use field_ops::OpsError;
 use model::geometry::{Camera, Intrinsics, Pose};
-
-use crate::error::EvalError;
-use crate::run::read_json;
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 
 /// A camera with the name its output files take.
 #[derive(Debug, Clone, PartialEq)]
@@ -18,159 +18,43 @@ pub struct NamedCamera {
     pub camera: Camera,
 }
 
-/// Cameras of a Blender / nerfstudio `transforms.json` (OpenGL poses,
-/// converted to OpenCV). Intrinsics come from `fl_x`/`fl_y`/`cx`/`cy`/`w`/`h`
-/// when present, else from `camera_angle_x` and the size of the first frame's
-/// image (read from its header only).
-pub fn load_transforms_json(path: &Path) -> Result<Vec<NamedCamera>, EvalError> {
-    let json: serde_json::Value = read_json(path)?;
-    let bad = |m: String| EvalError::json(path, m);
-    let num = |v: &serde_json::Value, k: &str| v.get(k).and_then(|x| x.as_f64());
-    let frames = json
-        .get("frames")
-        .and_then(|f| f.as_array())
-        .ok_or_else(|| bad("no \"frames\" array".into()))?;
-    if frames.is_empty() {
-        return Err(bad("\"frames\" is empty".into()));
-    }
-    let (w, h) = match (num(&json, "w"), num(&json, "h")) {
-        (Some(w), Some(h)) => (w as u32, h as u32),
-        _ => image_size_of_first_frame(path, &frames[0])?,
-    };
-    if w == 0 || h == 0 {
-        return Err(bad(format!("image size {w}x{h}")));
-    }
-    let intrinsics = match (num(&json, "fl_x"), num(&json, "camera_angle_x")) {
-        (Some(fx), _) => Intrinsics {
-            width: w,
-            height: h,
-            fx,
-            fy: num(&json, "fl_y").unwrap_or(fx),
-            // nerfstudio's principal point is in pixel-edge coordinates.
-            cx: num(&json, "cx").map_or((w as f64 - 1.0) / 2.0, |c| c - 0.5),
-            cy: num(&json, "cy").map_or((h as f64 - 1.0) / 2.0, |c| c - 0.5),
-        },
-        (None, Some(fov)) => Intrinsics::from_fov_x(w, h, fov),
-        (None, None) => return Err(bad("neither \"fl_x\" nor \"camera_angle_x\"".into())),
-    };
-    frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            let m = matrix4(f.get("transform_matrix"))
-                .ok_or_else(|| bad(format!("frame {i}: transform_matrix is not a 4x4 matrix")))?;
-            let pose = Pose::from_opengl(m).map_err(|e| bad(format!("frame {i}: {e}")))?;
-            let name = f
-                .get("file_path")
-                .and_then(|p| p.as_str())
-                .and_then(|p| {
-                    Path::new(p)
-                        .file_stem()
-                        .and_then(|s| s.to_str())
-                        .map(String::from)
-                })
-                .unwrap_or_else(|| format!("frame{i:04}"));
-            Ok(NamedCamera {
-                name,
-                camera: Camera { intrinsics, pose },
-            })
-        })
-        .collect()
-}
-
-fn matrix4(v: Option<&serde_json::Value>) -> Option<[[f64; 4]; 4]> {
-    let rows = v?.as_array()?;
-    if rows.len() != 4 {
-        return None;
-    }
-    let mut m = [[0.0; 4]; 4];
-    for (r, row) in rows.iter().enumerate() {
-        let row = row.as_array()?;
-        if row.len() != 4 {
-            return None;
-        }
-        for (c, x) in row.iter().enumerate() {
-            m[r][c] = x.as_f64()?;
-        }
-    }
-    Some(m)
-}
-
-fn image_size_of_first_frame(
-    path: &Path,
-    frame: &serde_json::Value,
-) -> Result<(u32, u32), EvalError> {
-    let rel = frame
-        .get("file_path")
-        .and_then(|p| p.as_str())
-        .ok_or_else(|| EvalError::json(path, "no \"w\"/\"h\" and frame 0 has no file_path"))?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let mut img = base.join(rel);
-    if img.extension().is_none() {
-        img.set_extension("png");
-    }
-    image::image_dimensions(&img).map_err(|e| EvalError::Image {
-        path: img.clone(),
-        message: e.to_string(),
-    })
+/// Cameras of a Blender / nerfstudio `transforms.json` (read by
+/// [`datasets::blender::read_cameras`]: OpenGL poses converted to OpenCV,
+/// per-frame intrinsics).
+pub fn load_transforms_json(path: &Path) -> Result<Vec<NamedCamera>, OpsError> {
+    Ok(datasets::blender::read_cameras(path)?
+        .into_iter()
+        .map(|(name, camera)| NamedCamera { name, camera })
+        .collect())
 }
 
 /// Nice-SLAM cameras: `traj.txt` (one row-major 4x4 camera-to-world matrix
-/// per line, OpenCV) and the intrinsics of `cam_params.json`. Frames are named
-/// `frameNNNNNN` after their line index; `stride` keeps every n-th line.
+/// per line, OpenCV) and the intrinsics of `cam_params.json`, both read by
+/// the `datasets` Replica parsers. Frames are named `frameNNNNNN` after
+/// their pose index; `stride` keeps every n-th pose.
 pub fn load_traj(
     traj: &Path,
     cam_params: &Path,
     stride: usize,
-) -> Result<Vec<NamedCamera>, EvalError> {
-    let json: serde_json::Value = read_json(cam_params)?;
-    let c = json
-        .get("camera")
-        .ok_or_else(|| EvalError::json(cam_params, "no \"camera\" object"))?;
-    let get = |k: &str| {
-        c.get(k).and_then(|x| x.as_f64()).ok_or_else(|| {
-            EvalError::json(cam_params, format!("camera.{k} missing or not a number"))
-        })
-    };
+) -> Result<Vec<NamedCamera>, OpsError> {
+    let c = datasets::replica::read_cam_params(cam_params)?;
     let intrinsics = Intrinsics {
-        width: get("w")? as u32,
-        height: get("h")? as u32,
-        fx: get("fx")?,
-        fy: get("fy")?,
-        cx: get("cx")?,
-        cy: get("cy")?,
+        width: c.w,
+        height: c.h,
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
     };
-    let text = std::fs::read_to_string(traj).map_err(|e| EvalError::io(traj, e))?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() || i % stride.max(1) != 0 {
-            continue;
-        }
-        let v: Vec<f64> = line
-            .split_whitespace()
-            .map(|x| x.parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|e| EvalError::Invalid(format!("{}: line {}: {e}", traj.display(), i + 1)))?;
-        if v.len() != 16 {
-            return Err(EvalError::Invalid(format!(
-                "{}: line {}: {} numbers, expected 16",
-                traj.display(),
-                i + 1,
-                v.len()
-            )));
-        }
-        let mut m = [[0.0; 4]; 4];
-        for r in 0..4 {
-            m[r].copy_from_slice(&v[4 * r..4 * r + 4]);
-        }
-        let pose = Pose::from_matrix(m)
-            .map_err(|e| EvalError::Invalid(format!("{}: line {}: {e}", traj.display(), i + 1)))?;
-        out.push(NamedCamera {
+    Ok(datasets::replica::read_trajectory(traj)?
+        .into_iter()
+        .enumerate()
+        .step_by(stride.max(1))
+        .map(|(i, pose)| NamedCamera {
             name: format!("frame{i:06}"),
             camera: Camera { intrinsics, pose },
-        });
-    }
-    Ok(out)
+        })
+        .collect())
 }
 
 /// The same cameras at `width x height` (intrinsics rescaled).
@@ -183,96 +67,23 @@ pub fn resized(cams: &[NamedCamera], width: u32, height: u32) -> Vec<NamedCamera
         .collect()
 }
 
-/// A unit quaternion `[w, x, y, z]` from a rotation matrix (Shepperd's method).
-pub fn quat_from_matrix(r: &[[f64; 3]; 3]) -> [f64; 4] {
-    let tr = r[0][0] + r[1][1] + r[2][2];
-    let q = if tr > 0.0 {
-        let s = (tr + 1.0).sqrt() * 2.0;
-        [
-            0.25 * s,
-            (r[2][1] - r[1][2]) / s,
-            (r[0][2] - r[2][0]) / s,
-            (r[1][0] - r[0][1]) / s,
-        ]
-    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
-        let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
-        [
-            (r[2][1] - r[1][2]) / s,
-            0.25 * s,
-            (r[0][1] + r[1][0]) / s,
-            (r[0][2] + r[2][0]) / s,
-        ]
-    } else if r[1][1] > r[2][2] {
-        let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
-        [
-            (r[0][2] - r[2][0]) / s,
-            (r[0][1] + r[1][0]) / s,
-            0.25 * s,
-            (r[1][2] + r[2][1]) / s,
-        ]
-    } else {
-        let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
-        [
-            (r[1][0] - r[0][1]) / s,
-            (r[0][2] + r[2][0]) / s,
-            (r[1][2] + r[2][1]) / s,
-            0.25 * s,
-        ]
-    };
-    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    q.map(|x| x / n)
+/// The unit quaternion of a rotation matrix.
+pub fn quat_from_matrix(r: &[[f64; 3]; 3]) -> UnitQuaternion<f64> {
+    let m = Matrix3::from_fn(|i, j| r[i][j]);
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
 }
 
-/// The rotation matrix of a unit quaternion `[w, x, y, z]`.
-pub fn matrix_from_quat(q: [f64; 4]) -> [[f64; 3]; 3] {
-    let [w, x, y, z] = q;
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
-/// Spherical linear interpolation along the shorter arc, `s` in `[0, 1]`.
-pub fn slerp(a: [f64; 4], b: [f64; 4], s: f64) -> [f64; 4] {
-    let mut d: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
-    let b = if d < 0.0 {
-        d = -d;
-        b.map(|x| -x)
-    } else {
-        b
-    };
-    let (wa, wb) = if d > 0.9995 {
-        (1.0 - s, s)
-    } else {
-        let theta = d.clamp(-1.0, 1.0).acos();
-        let sin = theta.sin();
-        (((1.0 - s) * theta).sin() / sin, (s * theta).sin() / sin)
-    };
-    let q: Vec<f64> = a.iter().zip(&b).map(|(x, y)| wa * x + wb * y).collect();
-    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
-    [q[0] / n, q[1] / n, q[2] / n, q[3] / n]
+/// The rotation matrix of a unit quaternion.
+pub fn matrix_from_quat(q: UnitQuaternion<f64>) -> [[f64; 3]; 3] {
+    let m = q.to_rotation_matrix();
+    std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]))
 }
 
 /// Pose between `a` (`s = 0`) and `b` (`s = 1`): slerped rotation, lerped centre.
 pub fn interpolate_pose(a: &Pose, b: &Pose, s: f64) -> Pose {
-    let q = slerp(
-        quat_from_matrix(&a.rotation),
-        quat_from_matrix(&b.rotation),
-        s,
-    );
+    let (qa, qb) = (quat_from_matrix(&a.rotation), quat_from_matrix(&b.rotation));
+    // Along the shorter arc; rotations too close for slerp are taken as one.
+    let q = qa.try_slerp(&qb, s, 1e-12).unwrap_or(qa);
     let t = [0, 1, 2].map(|k| (1.0 - s) * a.translation[k] + s * b.translation[k]);
     Pose {
         rotation: matrix_from_quat(q),
@@ -283,9 +94,9 @@ pub fn interpolate_pose(a: &Pose, b: &Pose, s: f64) -> Pose {
 /// `n` cameras evenly spaced in the path parameter through the key cameras
 /// in order (the first and last key poses are the path's ends); intrinsics of
 /// the first key camera. Named `path0000`, `path0001`, ...
-pub fn camera_path(keys: &[NamedCamera], n: usize) -> Result<Vec<NamedCamera>, EvalError> {
+pub fn camera_path(keys: &[NamedCamera], n: usize) -> Result<Vec<NamedCamera>, OpsError> {
     let Some(first) = keys.first() else {
-        return Err(EvalError::Invalid(
+        return Err(OpsError::Invalid(
             "a camera path needs at least one key camera".into(),
         ));
     };

@@ -1,5 +1,6 @@
-//! Checks of the command-line arguments and of inputs that parse but cannot
-//! be right, run before anything is loaded or rendered. Each error names the
+//! Checks shared by the subcommands, of arguments and of inputs that parse
+//! but cannot be right, run before anything is loaded or rendered (each
+//! subcommand checks its own flags with these). Each error names the
 //! flag or the file and says what would work, instead of an out-of-range
 //! value being rendered, scored or silently replaced.
 
@@ -8,23 +9,22 @@ use std::path::Path;
 use datasets::SceneMeta;
 use datasets::points::ClassMap;
 
-use crate::backend::check_device_flag;
-use crate::commands::{QueryArgs, RenderArgs, SegmentArgs};
-use crate::error::EvalError;
+use field_ops::OpsError;
 
-fn invalid(message: String) -> EvalError {
-    EvalError::Invalid(message)
+pub(crate) fn invalid(message: String) -> OpsError {
+    OpsError::Invalid(message)
 }
 
 /// `--NAME 0` for counts that must be at least one.
-fn at_least_one(flag: &str, value: Option<usize>, hint: &str) -> Result<(), EvalError> {
+pub fn at_least_one(flag: &str, value: Option<usize>, hint: &str) -> Result<(), OpsError> {
     if value == Some(0) {
         return Err(invalid(format!("--{flag} 0: must be at least 1{hint}")));
     }
     Ok(())
 }
 
-fn max_views(value: Option<usize>) -> Result<(), EvalError> {
+/// `--max-views`: at least one when given.
+pub fn max_views(value: Option<usize>) -> Result<(), OpsError> {
     at_least_one(
         "max-views",
         value,
@@ -32,63 +32,14 @@ fn max_views(value: Option<usize>) -> Result<(), EvalError> {
     )
 }
 
-/// Checks `render` (and the camera part of `query`).
-pub fn render_args(a: &RenderArgs) -> Result<(), EvalError> {
-    for (flag, value) in [("width", a.width), ("height", a.height)] {
-        if value == Some(0) {
-            return Err(invalid(format!(
-                "--{flag} 0: an image needs at least 1 pixel"
-            )));
-        }
-    }
-    max_views(a.max_views)?;
-    at_least_one(
-        "camera-path",
-        a.camera_path,
-        " (the number of cameras along the path)",
-    )?;
-    at_least_one("chunk", Some(a.chunk), "")?;
-    check_device_flag(a.backend, a.device).map_err(invalid)
-}
-
 /// A query radius: a finite, non-negative number of metres.
-fn radius(value: f64) -> Result<(), EvalError> {
+pub fn radius(value: f64) -> Result<(), OpsError> {
     if !(value.is_finite() && value >= 0.0) {
         return Err(invalid(format!(
             "--radius {value}: must be a finite, non-negative number of metres"
         )));
     }
     Ok(())
-}
-
-/// Checks `segment`.
-pub fn segment_args(a: &SegmentArgs) -> Result<(), EvalError> {
-    radius(a.radius)?;
-    if !(a.render_scale.is_finite() && a.render_scale > 0.0 && a.render_scale <= 4.0) {
-        return Err(invalid(format!(
-            "--render-scale {}: must be in (0, 4] (a fraction of the camera resolution)",
-            a.render_scale
-        )));
-    }
-    max_views(a.max_views)?;
-    at_least_one("chunk", Some(a.chunk), "")?;
-    crate::text_query::check_flags(None, a.classes.as_deref(), a.text_model.as_deref())?;
-    if let Some(out) = &a.out
-        && out.is_file()
-    {
-        return Err(invalid(format!(
-            "--out {}: is a file; segment writes several files and takes a directory",
-            out.display()
-        )));
-    }
-    check_device_flag(a.backend, a.device).map_err(invalid)
-}
-
-/// Checks `query`.
-pub fn query_args(a: &QueryArgs) -> Result<(), EvalError> {
-    render_args(&a.render)?;
-    crate::text_query::check_flags(a.text.as_deref(), None, a.text_model.as_deref())?;
-    radius(a.radius)
 }
 
 /// The query embedding must live in the run's feature space: as many values
@@ -99,7 +50,7 @@ pub fn query_dimension(
     meta: &SceneMeta,
     run: &Path,
     source: &str,
-) -> Result<(), EvalError> {
+) -> Result<(), OpsError> {
     match meta.feature_dim {
         None => Err(invalid(format!(
             "{}: the run was trained without feature maps, so it cannot be queried \
@@ -124,7 +75,7 @@ pub fn labels_in_range(
     map: &ClassMap,
     source: &Path,
     class_map: Option<&Path>,
-) -> Result<(), EvalError> {
+) -> Result<(), OpsError> {
     let mapped = map.map(raw);
     match class_map {
         None => {

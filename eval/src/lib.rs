@@ -1,26 +1,17 @@
-//! Evaluation of trained OpenNeRF runs: loading run directories, rendering
-//! views, projecting points into views, zero-shot 3D semantic segmentation
-//! with its metrics, relevancy queries, and the uncertainty of the 2D
-//! feature maps.
+//! Evaluation of trained OpenNeRF runs: zero-shot 3D semantic segmentation
+//! with its metrics, relevancy queries (class names, embeddings or free
+//! text), and the `eval` command line (one module per subcommand in
+//! [`commands`]). What a run can do that training also needs (loading it,
+//! rendering, projecting, the uncertainty map, novel views) lives in the
+//! `field_ops` crate.
 #![warn(missing_docs)]
 
-pub mod backend;
 pub mod cameras;
 pub mod checks;
-pub mod colormap;
 pub mod commands;
-pub mod error;
+pub mod figures;
 pub mod metrics;
-pub mod novel;
-pub mod oracle;
-pub mod project;
 pub mod query;
-pub mod render;
-pub mod run;
 pub mod segment;
 pub mod similarity;
 pub mod text_query;
-pub mod uncertainty;
-pub mod visual;
-
-pub use error::EvalError;

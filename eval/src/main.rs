@@ -1,10 +1,10 @@
 //! `eval`: segment, query and render trained OpenNeRF runs.
 
 use clap::{Parser, Subcommand};
-use eval::commands::{
-    QueryArgs, RenderArgs, SegmentArgs, query_command, render_command, segment_command,
-};
-use eval::uncertainty::report::{UncertaintyArgs, uncertainty_command};
+use eval::commands::query::{QueryArgs, query_command};
+use eval::commands::render::{RenderArgs, render_command};
+use eval::commands::segment::{SegmentArgs, segment_command};
+use eval::commands::uncertainty::{UncertaintyArgs, uncertainty_command};
 
 /// Zero-shot 3D semantic segmentation, relevancy queries and rendering of trained runs.
 #[derive(Parser)]

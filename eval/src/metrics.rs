@@ -11,6 +11,7 @@
 //!   they are false negatives of the true class of those points.
 
 use datasets::points::IGNORE_LABEL;
+use field_ops::scores::{ClassScore, GroupScore, SegmentationScores};
 
 /// Counts of (ground truth, prediction) pairs, row-major `[gt, pred]`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -92,30 +93,6 @@ impl ConfusionMatrix {
     }
 }
 
-/// Scores of one class.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct ClassScore {
-    /// Class name.
-    pub name: String,
-    /// IoU in `[0, 1]`; `None` without ground-truth points.
-    pub iou: Option<f64>,
-    /// Accuracy (recall) in `[0, 1]`; `None` without ground-truth points.
-    pub acc: Option<f64>,
-    /// Ground-truth points of this class.
-    pub points: u64,
-}
-
-/// Means over one group of classes.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct GroupScore {
-    /// Mean IoU over the group's classes with ground truth; `None` if none has.
-    pub miou: Option<f64>,
-    /// Mean accuracy over the same classes.
-    pub macc: Option<f64>,
-    /// Number of classes that entered the means.
-    pub classes: usize,
-}
-
 /// Class groups by frequency (indices into the class list).
 #[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct ClassSplit {
@@ -127,7 +104,8 @@ pub struct ClassSplit {
     pub tail: Vec<String>,
 }
 
-/// Replica's head classes (SPEC 7).
+/// Replica's head classes: of the 51 evaluation classes ordered by point
+/// count, head = the first 17, common = the next 17, tail = the last 17.
 pub const REPLICA_HEAD: [&str; 17] = [
     "wall",
     "ceiling",
@@ -213,27 +191,6 @@ impl ClassSplit {
             .iter()
             .position(|g| g.iter().any(|n| n == name))
     }
-}
-
-/// The full result of one segmentation evaluation.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct SegmentationScores {
-    /// Mode that produced the predictions (`sampled`, `project`, ...).
-    pub mode: String,
-    /// Means over all classes with ground truth.
-    pub all: GroupScore,
-    /// Means over the head classes (`None` without a split).
-    pub head: Option<GroupScore>,
-    /// Means over the common classes.
-    pub common: Option<GroupScore>,
-    /// Means over the tail classes.
-    pub tail: Option<GroupScore>,
-    /// Scores of every class, in class-list order.
-    pub per_class: Vec<ClassScore>,
-    /// Points evaluated (ground truth not ignored).
-    pub points: u64,
-    /// Overall point accuracy (fraction of evaluated points correct).
-    pub point_accuracy: f64,
 }
 
 fn mean(v: &[f64]) -> Option<f64> {

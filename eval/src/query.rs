@@ -8,19 +8,19 @@ use datasets::features::Pca;
 use datasets::npy::read_npy_f32;
 use datasets::text::TextEmbeddings;
 
-use crate::colormap::{to_u8, turbo};
-use crate::error::EvalError;
-use crate::render::RenderedView;
 use crate::similarity::ClassScorer;
+use field_ops::OpsError;
+use field_ops::colormap::{to_u8, turbo};
+use field_ops::render::RenderedView;
 
 /// Relevancy below this (after scaling to `[0, 1]`) leaves the rendered colour.
 pub const RELEVANCY_THRESHOLD: f32 = 0.5;
 
 /// The query vector: the embedding of class `name` in `texts`.
-pub fn embedding_by_name(texts: &TextEmbeddings, name: &str) -> Result<Vec<f32>, EvalError> {
+pub fn embedding_by_name(texts: &TextEmbeddings, name: &str) -> Result<Vec<f32>, OpsError> {
     let i = texts.index_of(name).ok_or_else(|| {
         let some: Vec<&str> = texts.names.iter().take(8).map(String::as_str).collect();
-        EvalError::Invalid(format!(
+        OpsError::Invalid(format!(
             "no class {name:?} among {} class names (e.g. {})",
             texts.names.len(),
             some.join(", ")
@@ -30,11 +30,11 @@ pub fn embedding_by_name(texts: &TextEmbeddings, name: &str) -> Result<Vec<f32>,
 }
 
 /// The query vector stored in `path` (`.npy` of shape `[D]` or `[1, D]`).
-pub fn embedding_from_npy(path: &Path) -> Result<Vec<f32>, EvalError> {
+pub fn embedding_from_npy(path: &Path) -> Result<Vec<f32>, OpsError> {
     let (shape, data) = read_npy_f32(path)?;
     let ok = matches!(shape.as_slice(), [_] | [1, _]);
     if !ok || data.is_empty() || data.iter().any(|v| !v.is_finite()) {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "{}: expected one finite embedding of shape [D] or [1, D], got {shape:?}",
             path.display()
         )));
@@ -48,11 +48,11 @@ pub fn cosine_scores(
     features: &[f32],
     query: &[f32],
     pca: Option<&Pca>,
-) -> Result<Vec<f64>, EvalError> {
+) -> Result<Vec<f64>, OpsError> {
     let scorer = ClassScorer::new(query, query.len(), pca)?;
     let k = scorer.dim;
     if k == 0 || !features.len().is_multiple_of(k) {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "features of {} values do not split into rows of {k}",
             features.len()
         )));
@@ -134,9 +134,9 @@ pub fn view_cosines(
     view: &RenderedView,
     query: &[f32],
     pca: Option<&Pca>,
-) -> Result<Vec<f64>, EvalError> {
+) -> Result<Vec<f64>, OpsError> {
     if view.feature_dim == 0 {
-        return Err(EvalError::Invalid("the view has no feature image".into()));
+        return Err(OpsError::Invalid("the view has no feature image".into()));
     }
     cosine_scores(&view.feature, query, pca)
 }
@@ -147,9 +147,9 @@ pub fn relevancy_image(
     view: &RenderedView,
     query: &[f32],
     pca: Option<&Pca>,
-) -> Result<Vec<f32>, EvalError> {
+) -> Result<Vec<f32>, OpsError> {
     if view.feature_dim == 0 {
-        return Err(EvalError::Invalid("the view has no feature image".into()));
+        return Err(OpsError::Invalid("the view has no feature image".into()));
     }
     Ok(normalize_scores(&cosine_scores(&view.feature, query, pca)?))
 }

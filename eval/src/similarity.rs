@@ -15,7 +15,7 @@
 
 use datasets::features::Pca;
 
-use crate::error::EvalError;
+use field_ops::OpsError;
 
 /// Scores features (in the field's output space) against class embeddings.
 #[derive(Debug, Clone, PartialEq)]
@@ -39,9 +39,9 @@ pub struct ClassScorer {
 impl ClassScorer {
     /// A scorer for `classes` embeddings (`C x D` row-major) and the run's
     /// PCA basis (`None` when the field predicts D-dimensional features).
-    pub fn new(embeddings: &[f32], embed_dim: usize, pca: Option<&Pca>) -> Result<Self, EvalError> {
+    pub fn new(embeddings: &[f32], embed_dim: usize, pca: Option<&Pca>) -> Result<Self, OpsError> {
         if embed_dim == 0 || !embeddings.len().is_multiple_of(embed_dim) {
-            return Err(EvalError::Invalid(format!(
+            return Err(OpsError::Invalid(format!(
                 "embeddings of {} values do not split into rows of {embed_dim}",
                 embeddings.len()
             )));
@@ -49,7 +49,7 @@ impl ClassScorer {
         if let Some(p) = pca
             && p.dim != embed_dim
         {
-            return Err(EvalError::Invalid(format!(
+            return Err(OpsError::Invalid(format!(
                 "text embeddings have dimension {embed_dim} but the run's feature space has {}",
                 p.dim
             )));

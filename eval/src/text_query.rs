@@ -7,14 +7,14 @@ use burn::tensor::Device;
 use datasets::SceneMeta;
 use datasets::text::TextEmbeddings;
 
-use crate::error::EvalError;
+use field_ops::OpsError;
 
 /// The class names of `--classes "a, b, c"`: comma-separated, trimmed, each
 /// non-empty and given once.
-pub fn parse_classes(list: &str) -> Result<Vec<String>, EvalError> {
+pub fn parse_classes(list: &str) -> Result<Vec<String>, OpsError> {
     let names: Vec<String> = list.split(',').map(|s| s.trim().to_string()).collect();
     if let Some(i) = names.iter().position(String::is_empty) {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "--classes {list:?}: class {} is empty (give names separated by commas, e.g. \
              --classes \"chair, wooden table, something to sit on\")",
             i + 1
@@ -22,7 +22,7 @@ pub fn parse_classes(list: &str) -> Result<Vec<String>, EvalError> {
     }
     for (i, n) in names.iter().enumerate() {
         if names[..i].contains(n) {
-            return Err(EvalError::Invalid(format!(
+            return Err(OpsError::Invalid(format!(
                 "--classes {list:?}: {n:?} is given twice"
             )));
         }
@@ -36,11 +36,11 @@ pub fn check_flags(
     text: Option<&str>,
     classes: Option<&str>,
     text_model: Option<&Path>,
-) -> Result<(), EvalError> {
+) -> Result<(), OpsError> {
     if let Some(t) = text
         && t.trim().is_empty()
     {
-        return Err(EvalError::Invalid(
+        return Err(OpsError::Invalid(
             "--text: empty text; give some words to query, e.g. --text \"something to sit on\""
                 .into(),
         ));
@@ -51,7 +51,7 @@ pub fn check_flags(
     if let Some(dir) = text_model
         && !dir.is_dir()
     {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "--text-model {}: not a directory (a CLIP text model: model.safetensors, \
              config.json, vocab.json, merges.txt)",
             dir.display()
@@ -69,23 +69,23 @@ pub fn embed(
     run: &Path,
     meta: &SceneMeta,
     device: &Device,
-) -> Result<TextEmbeddings, EvalError> {
+) -> Result<TextEmbeddings, OpsError> {
     let flag = format!("--text-model {}", model_dir.display());
     let e = clip::embed_texts(model_dir, texts, Some(run), device)
-        .map_err(|e| EvalError::Invalid(format!("{flag}: {e}")))?;
+        .map_err(|e| OpsError::Invalid(format!("{flag}: {e}")))?;
     for note in &e.notes {
         eprintln!("note: {note}");
     }
     match meta.feature_dim {
         None => {
-            return Err(EvalError::Invalid(format!(
+            return Err(OpsError::Invalid(format!(
                 "{}: the run was trained without feature maps, so it cannot be queried \
                  (train with --features)",
                 run.display()
             )));
         }
         Some(d) if d != e.dim => {
-            return Err(EvalError::Invalid(format!(
+            return Err(OpsError::Invalid(format!(
                 "{flag}: the text model embeds in {} dimensions but the run's features have {d}; \
                  use the CLIP model whose image features the field was trained on",
                 e.dim

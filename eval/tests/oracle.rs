@@ -8,8 +8,8 @@ mod common;
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
 use datasets::{Scene, SceneSource};
-use eval::novel::{AimedCamera, NovelViewConfig, render_views, scene_extractor};
-use eval::oracle::{GroundTruth, NovelOracle, label_features};
+use field_ops::novel::oracle::{GroundTruth, NovelOracle, label_features};
+use field_ops::novel::{AimedCamera, NovelViewConfig, render_views, scene_extractor};
 
 fn ci_scene() -> Scene {
     generate(0, SceneSize::Ci).expect("CI scene")

@@ -8,8 +8,8 @@ use std::process::Command;
 
 use datasets::scene::Scene;
 use datasets::synthetic::{SceneSize, generate};
-use eval::uncertainty::report::feature_errors;
-use eval::uncertainty::{UncertaintyOptions, uncertainty_map, voxel_downsample};
+use eval::commands::uncertainty::feature_errors;
+use field_ops::uncertainty::{UncertaintyOptions, uncertainty_map, voxel_downsample};
 use half::f16;
 
 fn ci_scene() -> Scene {
@@ -116,7 +116,7 @@ fn probe_setup() -> (model::OpenNerf, Scene, model::geometry::Camera) {
 
 #[test]
 fn the_probe_renders_the_target_as_the_full_render_does_and_rejects_a_wrong_colour() {
-    use eval::uncertainty::proposals::{FieldProbe, ProposalOptions, color_error};
+    use field_ops::novel::guided::{FieldProbe, ProposalOptions, color_error};
     let (model, scene, cam) = probe_setup();
     let device = burn::tensor::Device::flex();
     let probe = FieldProbe {
@@ -127,7 +127,7 @@ fn the_probe_renders_the_target_as_the_full_render_does_and_rejects_a_wrong_colo
         background: Some([0.2, 0.4, 0.6]),
     };
     let centre = probe.centre_color(&cam);
-    let view = eval::render::render_view(
+    let view = field_ops::render::render_view(
         &model,
         &cam,
         &scene.scene_box,

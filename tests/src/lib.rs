@@ -99,7 +99,11 @@ pub fn weights(model: &OpenNerf) -> Vec<f32> {
 
 /// All weights of the run in `dir`, flattened.
 pub fn run_weights(dir: &std::path::Path) -> Vec<f32> {
-    weights(&eval::run::load_run(dir, &Device::flex()).unwrap().model)
+    weights(
+        &field_ops::run_dir::load_run(dir, &Device::flex())
+            .unwrap()
+            .model,
+    )
 }
 
 /// The largest absolute difference between two equally long vectors.

@@ -4,14 +4,15 @@
 
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
-use eval::commands::{PointArgs, SegmentArgs, segment_command};
+use eval::commands::common::PointArgs;
+use eval::commands::segment::{SegmentArgs, segment_command};
 use eval::metrics::format_table;
-use eval::project::ProjectOptions;
-use eval::run::load_run;
 use eval::segment::{
     EvalPoints, SegmentMode, SegmentOptions, evaluate, scene_views, segment_oracle,
     segment_with_2d_features, segment_with_field,
 };
+use field_ops::project::ProjectOptions;
+use field_ops::run_dir::load_run;
 use train::{SessionOptions, TrainConfig, train_new};
 
 #[test]
@@ -141,7 +142,7 @@ fn train_then_segment_in_every_mode() {
         chunk: 4096,
         split: None,
         out: Some(dir.path().join("seg")),
-        backend: eval::backend::BackendKind::Flex,
+        backend: field_ops::backend::BackendKind::Flex,
         device: None,
         compare: true,
         classes: None,

@@ -4,8 +4,8 @@
 //! augmented scene.
 
 use burn::tensor::Device;
-use eval::novel::{NovelMode, NovelViewConfig};
-use eval::run::{RunDir, Split, load_run_scene};
+use field_ops::novel::{NovelMode, NovelViewConfig};
+use field_ops::run_dir::{RunDir, Split, load_run_scene};
 use tests::{
     ci_scene, flex_session as session, run_weights as weights, scratch_dir, serial, tiny_config,
 };
@@ -116,14 +116,14 @@ fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
     assert_eq!(rebuilt.frames.len(), n + 3);
     assert_eq!(split.train.len(), base_train + 3);
     assert_eq!(&split.train[base_train..], &[n, n + 1, n + 2]);
-    let ctx = eval::commands::Context::load(whole.path(), &Device::flex()).unwrap();
+    let ctx = eval::commands::common::Context::load(whole.path(), &Device::flex()).unwrap();
     assert_eq!(ctx.scene.as_ref().unwrap().frames.len(), n + 3);
     assert!(ctx.run.split.train.contains(&(n + 2)));
     drop(ctx);
     #[derive(clap::Parser)]
     struct Segment {
         #[command(flatten)]
-        args: eval::commands::SegmentArgs,
+        args: eval::commands::segment::SegmentArgs,
     }
     let seg = scratch_dir();
     let out = seg.path().join("segmentation.json");
@@ -138,7 +138,7 @@ fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
     ])
     .unwrap()
     .args;
-    let scores = eval::commands::segment_command(&args).unwrap();
+    let scores = eval::commands::segment::segment_command(&args).unwrap();
     assert!(scores.all.miou.is_some_and(f64::is_finite), "{scores:?}");
     assert!(out.exists());
 }
@@ -169,8 +169,8 @@ fn trajectory_views_sit_half_way_between_consecutive_training_cameras() {
     use model::geometry::{add_scaled, dot, norm, sub};
     let scene = ci_scene();
     let train: Vec<usize> = (0..scene.frames.len()).filter(|i| i % 4 != 0).collect();
-    let up = eval::uncertainty::propose::scene_up(scene, &train);
-    let cams = eval::novel::trajectory_cameras(scene, &train, 5, up);
+    let up = field_ops::novel::cameras::scene_up(scene, &train);
+    let cams = field_ops::novel::cameras::trajectory_cameras(scene, &train, 5, up);
     assert_eq!(cams.len(), 5);
     for c in &cams {
         let p = c.pose.center();
@@ -184,7 +184,7 @@ fn trajectory_views_sit_half_way_between_consecutive_training_cameras() {
         assert!(c.pose.orthonormality_error() < 1e-9);
     }
     // No more views than segments of the path.
-    let all = eval::novel::trajectory_cameras(scene, &train, 1000, up);
+    let all = field_ops::novel::cameras::trajectory_cameras(scene, &train, 1000, up);
     assert_eq!(all.len(), train.len() - 1);
-    assert!(eval::novel::trajectory_cameras(scene, &train[..1], 3, up).is_empty());
+    assert!(field_ops::novel::cameras::trajectory_cameras(scene, &train[..1], 3, up).is_empty());
 }

@@ -47,7 +47,7 @@ fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
         "the resumed run refreshed its grid as the uninterrupted one did"
     );
     assert_eq!(ga.updates(), 10, "updates at 10, 15, ..., 55");
-    let load = |dir: &Path| eval::run::load_run(dir, &Device::flex()).unwrap();
+    let load = |dir: &Path| field_ops::run_dir::load_run(dir, &Device::flex()).unwrap();
     let (ra, rb) = (load(whole.path()), load(parts.path()));
     assert_eq!(ra.model.occupancy(), Some(&ga));
     let wa = weights(&ra.model);
@@ -77,7 +77,7 @@ fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
     // over their clipped span.
     let frame = &scene.frames[1];
     let render = |m: &model::OpenNerf| {
-        eval::render::render_view(
+        field_ops::render::render_view(
             m,
             &frame.camera,
             &scene.scene_box,
@@ -88,7 +88,7 @@ fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
         )
     };
     let with = render(&ra.model);
-    let rays = eval::render::camera_rays(&frame.camera, &scene.scene_box);
+    let rays = field_ops::render::camera_rays(&frame.camera, &scene.scene_box);
     let clipped = ga.clip(&rays);
     let without = render(&ra.model.clone().with_occupancy(None));
     // Index into the clipped rays of each input ray that was kept.

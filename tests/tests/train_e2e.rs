@@ -59,7 +59,7 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     assert!(whole.psnr.is_finite());
 
     // The run directory holds what evaluation needs.
-    let run = eval::run::RunDir::new(dir.path());
+    let run = field_ops::run_dir::RunDir::new(dir.path());
     let summary = read_json(&run.summary());
     for key in [
         "iterations",
@@ -96,7 +96,7 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     assert!(last.get("psnr").is_none(), "unqualified PSNR in {last}");
     let split = read_json(&run.split());
     assert_eq!(split["heldout"], serde_json::json!([0, 4, 8, 12, 16]));
-    let loaded = eval::run::load_run(dir.path(), &Device::flex()).unwrap();
+    let loaded = field_ops::run_dir::load_run(dir.path(), &Device::flex()).unwrap();
     assert_eq!(loaded.split.heldout, vec![0, 4, 8, 12, 16]);
     for name in [
         "frame000004_rgb.png",
@@ -241,7 +241,7 @@ fn ndarray_backend_trains() {
 
 #[test]
 fn wgpu_backend_trains_when_a_vulkan_driver_is_present() {
-    if !eval::backend::WGPU_BUILT {
+    if !field_ops::backend::WGPU_BUILT {
         println!("skipped: built without the wgpu feature");
         return;
     }

@@ -5,7 +5,7 @@ use burn::tensor::Device;
 
 // One definition for both binaries, so `--backend` and `--device` mean the
 // same in `train` and `eval`.
-pub use eval::backend::{BackendKind, device};
+pub use field_ops::backend::{BackendKind, device};
 
 /// The training device: [`device`] with autodiff enabled.
 pub fn training_device(kind: BackendKind, index: Option<usize>) -> Device {

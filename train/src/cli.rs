@@ -190,7 +190,7 @@ pub struct Cli {
     /// consecutive training cameras, `random` places them uniformly in the
     /// scene box, `none` adds nothing (the ablation's baseline).
     #[arg(long, value_enum)]
-    pub novel_views_mode: Option<eval::novel::NovelMode>,
+    pub novel_views_mode: Option<field_ops::novel::NovelMode>,
     /// Weight of the novel views' rendered depth in the depth loss, in
     /// [0, 1] (sensor depth weighs 1) [default: 0.1].
     #[arg(long, allow_negative_numbers = true)]
@@ -212,7 +212,7 @@ pub struct Cli {
     /// also features that name every pixel's true class (a perfect
     /// extractor). [default: neither, the method as specified]
     #[arg(long, value_enum)]
-    pub novel_oracle: Option<eval::oracle::NovelOracle>,
+    pub novel_oracle: Option<field_ops::novel::oracle::NovelOracle>,
     /// For scenes on disk: the 2D feature extractor run on the rendered
     /// views, as `PROGRAM [ARGS...]` (split at spaces); it is called as
     /// `PROGRAM ARGS... IN_DIR OUT_DIR`, reads `IN_DIR/<name>.png` and must

@@ -6,7 +6,7 @@ use std::path::Path;
 use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 use serde::{Deserialize, Serialize};
 
-pub use eval::novel::{NovelMode, NovelViewConfig};
+pub use field_ops::novel::{NovelMode, NovelViewConfig};
 
 use crate::error::TrainError;
 use crate::schedule::ScheduleConfig;

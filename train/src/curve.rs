@@ -89,7 +89,7 @@ pub fn parse(jsonl: &str) -> Curves {
 /// below, a grey line where novel views joined.
 pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
     let (w, h) = (900u32, 800u32);
-    eval::uncertainty::plot::draw_png(path, w, h, |root| {
+    field_ops::plot::draw_png(path, w, h, |root| {
         let (top, bottom) = root.split_vertically(h / 2);
         let all_t = curves
             .batch_psnr

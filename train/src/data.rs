@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use datasets::features::{Pca, PcaSetting};
+use datasets::features::PcaSetting;
 use datasets::{Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
@@ -109,14 +109,6 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
 /// its PCA basis when it has one.
 pub fn load(source: &SceneSource) -> Result<Scene, TrainError> {
     Ok(datasets::load_scene(source)?)
-}
-
-/// Rebuilds the scene of a run from its `scene.json`, compressing its
-/// feature maps with the stored basis (not a new fit), so that the targets
-/// are the ones the field was trained on.
-pub fn reload(meta: &SceneMeta) -> Result<Scene, TrainError> {
-    let basis: Option<&Pca> = meta.pca.as_ref();
-    Ok(datasets::load_scene_with_basis(&meta.source, basis)?)
 }
 
 /// What `scene.json` records about `scene`.

@@ -3,26 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
+use field_ops::OpsError;
+
 /// Everything that can stop a training run.
 #[derive(Debug, thiserror::Error)]
 pub enum TrainError {
-    /// Reading or writing a file failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// A JSON file could not be parsed or has the wrong shape.
-    #[error("{path}: invalid JSON: {message}")]
-    Json {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        message: String,
-    },
     /// A checkpoint file is truncated, overwritten with garbage or does not
     /// match the model it is loaded into.
     #[error("{path}: corrupt or incompatible checkpoint: {message}")]
@@ -55,9 +40,10 @@ pub enum TrainError {
     /// A dataset could not be loaded.
     #[error(transparent)]
     Dataset(#[from] datasets::DatasetError),
-    /// Rendering or writing the evaluation outputs failed.
+    /// Reading or writing a file of the run, rendering or novel views
+    /// failed (the errors shared with `eval`).
     #[error(transparent)]
-    Eval(#[from] eval::error::EvalError),
+    Ops(#[from] OpsError),
     /// An option or configuration value is out of range or inconsistent.
     #[error("invalid configuration: {0}")]
     Config(String),
@@ -67,20 +53,15 @@ pub enum TrainError {
 }
 
 impl TrainError {
-    /// A [`TrainError::Io`] for `path`.
+    /// A failed read or write of `path` ([`OpsError::Io`]).
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
-        Self::Io {
-            path: path.as_ref().to_path_buf(),
-            source,
-        }
+        Self::Ops(OpsError::io(path.as_ref(), source))
     }
 
-    /// A [`TrainError::Json`] for `path`.
+    /// A JSON file at `path` that does not parse or has the wrong shape
+    /// ([`OpsError::Json`]).
     pub fn json(path: impl AsRef<Path>, message: impl ToString) -> Self {
-        Self::Json {
-            path: path.as_ref().to_path_buf(),
-            message: message.to_string(),
-        }
+        Self::Ops(OpsError::json(path.as_ref(), message))
     }
 
     /// A [`TrainError::Checkpoint`] for `path`.

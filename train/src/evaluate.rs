@@ -1,5 +1,5 @@
 //! Held-out evaluation: a fixed pixel subset for the periodic checks during
-//! training, and full views (rendered with [`eval::render`]) at the end.
+//! training, and full views (rendered with [`field_ops::render`]) at the end.
 
 use std::path::Path;
 
@@ -93,7 +93,8 @@ pub fn evaluate_pixels(
         } else {
             model::FeatureMode::None
         };
-        let out = eval::render::render_rays(model, part, scene.background, chunk, mode, device);
+        let out =
+            field_ops::render::render_rays(model, part, scene.background, chunk, mode, device);
         let (rgb, depth) = (out.rgb, out.depth);
         let feat = match (out.feature_dim > 0, pixels.feature.as_ref()) {
             (true, Some(_)) => Some(lift_features(scene, out.feature)),
@@ -153,7 +154,7 @@ pub fn evaluate_views(
     let mut whole = EvalAccumulator::default();
     for &f in frames {
         let frame = &scene.frames[f];
-        let mut view = eval::render::render_view(
+        let mut view = field_ops::render::render_view(
             model,
             &frame.camera,
             &scene.scene_box,
@@ -167,7 +168,7 @@ pub fn evaluate_views(
             view.feature.clear();
             view.feature_dim = 0;
         }
-        eval::render::save_view_pngs(&view, renders_dir, &frame.name)?;
+        field_ops::images::save_view_pngs(&view, renders_dir, &frame.name)?;
         let (w, h) = (view.width, view.height);
         let ((x0, x1), (y0, y1)) = datasets::sampler::interior(margin, w, h);
         let lifted = (view.feature_dim > 0).then(|| lift_features(scene, view.feature.clone()));

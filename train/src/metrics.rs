@@ -135,8 +135,8 @@ pub struct Summary {
 
 /// Frames `0, n, 2n, ...` are held out (none when `n` is 0 or there are
 /// fewer than two frames); the rest are trained on.
-pub fn split_frames(frames: usize, holdout_every: usize) -> eval::run::Split {
-    let mut split = eval::run::Split::default();
+pub fn split_frames(frames: usize, holdout_every: usize) -> field_ops::run_dir::Split {
+    let mut split = field_ops::run_dir::Split::default();
     for i in 0..frames {
         if holdout_every > 0 && frames > 1 && i.is_multiple_of(holdout_every) {
             split.heldout.push(i);

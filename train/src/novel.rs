@@ -10,23 +10,12 @@ use std::time::Instant;
 
 use burn::tensor::Device;
 use datasets::Scene;
-use eval::run::RunDir;
+use field_ops::novel::record::{RecordedViews, ViewChoice, append_recorded, write_record};
+use field_ops::run_dir::RunDir;
 use model::OpenNerf;
 
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-
-/// Novel views known to a run: the iteration they join training at and
-/// their frame indices.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct AddedViews {
-    /// First iteration whose batch may draw them.
-    pub at: usize,
-    /// Their indices in the scene.
-    pub frames: Vec<usize>,
-    /// The mode that chose them.
-    pub mode: String,
-}
 
 /// The iteration novel views are due at: the configured one, else half the
 /// schedule. `None` when no views are configured.
@@ -37,21 +26,11 @@ pub fn due_at(config: &TrainConfig) -> Option<usize> {
         .then(|| config.novel.after.unwrap_or(config.schedule.iterations / 2))
 }
 
-/// Appends the views recorded in `run` (if any) to `scene`.
-pub fn reload_recorded(scene: &mut Scene, run: &RunDir) -> Result<Option<AddedViews>, TrainError> {
-    let found = datasets::novel::append_recorded(scene, &run.novel())?;
-    Ok(found.map(|(record, frames)| AddedViews {
-        at: record.added_at,
-        frames,
-        mode: record.mode,
-    }))
-}
-
 /// What adding the views cost and gave.
 #[derive(Debug, Clone)]
 pub struct AddReport {
     /// The views.
-    pub added: AddedViews,
+    pub added: RecordedViews,
     /// Cameras asked for.
     pub requested: usize,
     /// Seconds spent choosing, rendering and extracting.
@@ -75,8 +54,8 @@ pub fn add_views(
 ) -> Result<AddReport, TrainError> {
     let start = Instant::now();
     let novel = &config.novel;
-    let extractor = eval::novel::scene_extractor(scene, novel)?;
-    let cameras = eval::novel::choose_cameras(
+    let extractor = field_ops::novel::scene_extractor(scene, novel)?;
+    let cameras = field_ops::novel::choose_cameras(
         novel.mode,
         novel.views,
         model,
@@ -86,7 +65,7 @@ pub fn add_views(
         config.seed ^ 0x9e37_79b9_7f4a_7c15 ^ iteration as u64,
         device,
     )?;
-    let views = eval::novel::render_views(
+    let views = field_ops::novel::render_views(
         model,
         &cameras,
         scene,
@@ -98,12 +77,12 @@ pub fn add_views(
     )?;
     // The record says where the views came from, so that a run whose views
     // were taken from the ground truth is never mistaken for the method's.
-    let mode = match novel.oracle {
-        Some(o) => format!("{} (ground-truth {})", novel.mode.name(), o.name()),
-        None => novel.mode.name().to_string(),
+    let choice = ViewChoice {
+        mode: novel.mode,
+        oracle: novel.oracle,
     };
-    datasets::novel::write_record(&run.novel(), &mode, iteration, &views)?;
-    let added = reload_recorded(scene, run)?.ok_or_else(|| {
+    write_record(&run.novel(), choice, iteration, &views)?;
+    let added = append_recorded(scene, &run.novel())?.ok_or_else(|| {
         TrainError::Config(format!(
             "{}: the novel views just written cannot be read back",
             run.novel().display()

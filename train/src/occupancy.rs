@@ -25,7 +25,9 @@ pub fn update_grid(grid: &mut OccupancyGrid, model: &OpenNerf, seed: u64, device
     for part in points.chunks(QUERY_CHUNK) {
         let flat: Vec<f32> = part.iter().flatten().copied().collect();
         let p = Tensor::<2>::from_data(TensorData::new(flat, [part.len(), 3]), device);
-        density.extend(eval::render::tensor_to_vec(model.query_density(p, radius)));
+        density.extend(field_ops::render::tensor_to_vec(
+            model.query_density(p, radius),
+        ));
     }
     grid.update(&density);
 }

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use datasets::{SceneMeta, SceneSource};
-use eval::run::RunDir;
+use field_ops::run_dir::RunDir;
 
 /// Printed when the scene has no feature maps.
 pub const NO_FEATURES_WARNING: &str = "warning: training without --features: the field learns \

@@ -11,7 +11,7 @@ use burn::optim::{AdamConfig, ModuleOptimizer};
 use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Device};
 use datasets::{Scene, SceneMeta};
-use eval::run::{RunDir, Split};
+use field_ops::run_dir::{RunDir, Split};
 use indicatif::{ProgressBar, ProgressStyle};
 use model::OpenNerf;
 use serde_json::json;
@@ -25,8 +25,8 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels, evaluate_views};
 use crate::metrics::{EvalMetrics, MetricsLog, Summary, read_json, write_json};
-use crate::novel::AddedViews;
 use crate::step::{StepRates, train_step};
+use field_ops::novel::record::RecordedViews;
 
 /// How a session runs (as opposed to what is trained, which is the config).
 #[derive(Debug, Clone)]
@@ -97,7 +97,7 @@ pub fn train_new(
                 config.schedule.iterations
             )));
         }
-        eval::novel::scene_extractor(scene, &config.novel)?;
+        field_ops::novel::scene_extractor(scene, &config.novel)?;
     }
     let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
     let run = RunDir::new(out);
@@ -161,8 +161,10 @@ pub fn resume(
     }
     // config.json is rewritten only once everything it describes checks out.
     config.validate()?;
-    let mut scene = crate::data::reload(&meta)?;
-    let added = crate::novel::reload_recorded(&mut scene, &run)?;
+    let field_ops::run_dir::RunScene {
+        scene,
+        novel: added,
+    } = field_ops::run_dir::rebuild_scene(&run, &meta)?;
     let n = scene.frames.len();
     if split.train.iter().chain(&split.heldout).any(|&i| i >= n) {
         return Err(TrainError::json(
@@ -394,7 +396,7 @@ fn progress_bar(session: &SessionOptions, start: usize, end: usize) -> ProgressB
 #[allow(clippy::too_many_arguments)]
 fn train_loop(
     scene: &Scene,
-    mut added: Option<AddedViews>,
+    mut added: Option<RecordedViews>,
     config: &TrainConfig,
     split: &Split,
     run: &RunDir,
@@ -449,7 +451,7 @@ fn train_loop(
     let space = feature_space(scene, device);
     // Novel views are appended to a copy of the scene when they are made.
     let mut scene: Cow<'_, Scene> = Cow::Borrowed(scene);
-    let training_frames = |added: Option<&AddedViews>, it: usize| -> Vec<usize> {
+    let training_frames = |added: Option<&RecordedViews>, it: usize| -> Vec<usize> {
         let mut frames = split.train.clone();
         if let Some(a) = added.filter(|a| it >= a.at) {
             frames.extend(&a.frames);
@@ -530,7 +532,7 @@ fn train_loop(
             log.write(&json!({
                 "event": "novel_views",
                 "iteration": it,
-                "mode": report.added.mode,
+                "mode": report.added.choice.to_string(),
                 "requested": report.requested,
                 "added": report.added.frames.len(),
                 "seconds": report.seconds,

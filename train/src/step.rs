@@ -180,7 +180,7 @@ pub fn train_step_from(
         ],
         0,
     );
-    let v: Vec<f32> = eval::render::tensor_to_vec(values);
+    let v: Vec<f32> = field_ops::render::tensor_to_vec(values);
     let mut report = StepReport {
         loss: v[0] as f64,
         rgb_mse: v[1] as f64,

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use eval::run::{RunDir, Split};
+use field_ops::run_dir::{RunDir, Split};
 
 use crate::checkpoint::list_checkpoints;
 use crate::cli::{Cli, DatasetKind};
@@ -58,7 +58,7 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             )));
         }
     }
-    eval::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)?;
+    field_ops::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)?;
     if let Some(w) = cli.novel_depth_weight
         && !(w.is_finite() && (0.0..=1.0).contains(&w))
     {

@@ -16,7 +16,7 @@ use std::process::Command;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
-use eval::metrics::SegmentationScores;
+use field_ops::scores::SegmentationScores;
 use train::metrics::{Summary, read_json};
 use train::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 

@@ -259,7 +259,7 @@ fn main() -> Result<()> {
 
 fn plot(curves: &[(&str, Vec<(f64, f64)>)], targets: &[f64], path: &Path) -> Result<(), String> {
     let (w, h) = (800u32, 500u32);
-    eval::uncertainty::plot::draw_png(path, w, h, |root| {
+    field_ops::plot::draw_png(path, w, h, |root| {
         let pts = curves.iter().flat_map(|c| c.1.iter());
         let t_max = pts.clone().map(|p| p.0).fold(1.0f64, f64::max) * 1.02;
         let p_max = pts

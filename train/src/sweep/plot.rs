@@ -111,7 +111,7 @@ fn scatter(
     };
     let m_max = memory_mb.iter().copied().fold(1.0, f64::max);
     let (w, h) = (1000u32, 650u32);
-    eval::uncertainty::plot::draw_png(path, w, h, |root| {
+    field_ops::plot::draw_png(path, w, h, |root| {
         let mut chart = ChartBuilder::on(root)
             .caption(caption, ("sans-serif", 17))
             .margin(14)

@@ -4,37 +4,21 @@
 use std::path::{Path, PathBuf};
 
 use datasets::Scene;
+use field_ops::OpsError;
+use field_ops::images::save_view_pngs;
+use field_ops::novel::cameras::{mean_centre, scene_up};
+use field_ops::novel::guided::{FieldProbe, GuidedProposals, ProposalOptions, guided_proposals};
+use field_ops::render::render_view;
+use field_ops::run_dir::{RunDir, Split, load_run};
+use field_ops::uncertainty::UncertaintyMap;
 use model::geometry::{Camera, Intrinsics, Pose, Vec3};
 use rand::SeedableRng;
 use serde_json::json;
 
-use super::UncertaintyMap;
-use super::proposals::{
-    FieldProbe, ProposalOptions, propose_cameras, select_targets, target_chances,
-};
-use super::report::UncertaintyArgs;
-use crate::error::EvalError;
-use crate::render::{render_view, save_view_pngs};
-use crate::run::{RunDir, Split, load_run};
+use field_ops::backend::BackendKind;
 
 /// Width of the preview renders, pixels (the aspect ratio is kept).
 const PREVIEW_WIDTH: u32 = 160;
-
-/// The scene's up direction: the mean of the training cameras' up axes
-/// (OpenCV cameras have y pointing down).
-pub fn scene_up(scene: &Scene, frames: &[usize]) -> Vec3 {
-    let mut up = [0.0; 3];
-    for &i in frames {
-        let r = scene.frames[i].camera.pose.rotate([0.0, -1.0, 0.0]);
-        (0..3).for_each(|a| up[a] += r[a]);
-    }
-    let n = model::geometry::norm(up);
-    if n > 1e-9 {
-        up.map(|v| v / n)
-    } else {
-        [0.0, 0.0, 1.0]
-    }
-}
 
 /// A nerfstudio-style `transforms.json` of cameras sharing `intrinsics`:
 /// each frame has its name as `file_path`, its pose as an OpenGL
@@ -61,39 +45,42 @@ pub fn transforms_json(
     })
 }
 
+/// How many cameras to propose, with which draw, on which backend.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProposalRequest {
+    /// Most cameras proposed.
+    pub views: usize,
+    /// Seed of the target draw and the position noise.
+    pub seed: u64,
+    /// Backend of the field's checks and the previews.
+    pub backend: BackendKind,
+}
+
 /// Proposes cameras, writes `novel_views.json` and previews into `out`.
 #[allow(clippy::too_many_arguments)]
 pub fn write_proposals(
-    args: &UncertaintyArgs,
+    args: ProposalRequest,
     run_dir: &RunDir,
     scene: &Scene,
     split: &Split,
     points: &[Vec3],
     map: &UncertaintyMap,
     out: &Path,
-) -> Result<Vec<PathBuf>, EvalError> {
-    let device = crate::backend::device(args.backend, None);
+) -> Result<Vec<PathBuf>, OpsError> {
+    let device = field_ops::backend::device(args.backend, None);
     let run = load_run(&run_dir.dir, &device)?;
     let opts = ProposalOptions {
         max_views: args.views,
         ..ProposalOptions::default()
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(args.seed);
-    let targets = select_targets(
-        &target_chances(map),
-        points,
-        opts.max_views
-            .saturating_mul(super::proposals::SPARE_TARGETS),
-        opts.min_separation,
-        &mut rng,
-    );
-    let first = split.train.first().copied().unwrap_or(0);
+    let first = *split.train.first().ok_or_else(|| {
+        OpsError::Invalid(format!(
+            "{}: the run has no training frames to place novel cameras by",
+            run_dir.split().display()
+        ))
+    })?;
     let intrinsics = scene.frames[first].camera.intrinsics;
-    let mut centre = [0.0; 3];
-    for &i in &split.train {
-        let c = scene.frames[i].camera.pose.center();
-        (0..3).for_each(|a| centre[a] += c[a] / split.train.len() as f64);
-    }
     let probe = FieldProbe {
         model: &run.model,
         scene_box: &run.meta.scene_box,
@@ -101,21 +88,23 @@ pub fn write_proposals(
         samples: 64,
         background: run.meta.background,
     };
-    let proposals = propose_cameras(
+    let GuidedProposals {
+        targets_drawn,
+        proposals,
+    } = guided_proposals(
         map,
         points,
-        &targets,
         intrinsics,
         scene_up(scene, &split.train),
-        centre,
-        |camera, t| probe.accept(camera, points[t], map.mean_colors[t], &opts),
+        mean_centre(scene, &split.train),
+        &probe,
         &opts,
         &mut rng,
     );
     println!(
         "proposed {} novel cameras from {} candidate targets drawn by uncertainty",
         proposals.len(),
-        targets.len()
+        targets_drawn
     );
     let mut written = Vec::new();
     let file = transforms_json(
@@ -135,7 +124,7 @@ pub fn write_proposals(
     );
     let k = intrinsics;
     let path = out.join("novel_views.json");
-    crate::run::write_json(&path, &file)?;
+    field_ops::json::write_json(&path, &file)?;
     written.push(path);
     let previews = out.join("previews");
     for (i, p) in proposals.iter().enumerate() {
@@ -187,7 +176,7 @@ mod tests {
         );
         let dir = tempfile::tempdir().expect("tmp");
         let path = dir.path().join("novel_views.json");
-        crate::run::write_json(&path, &file).expect("write");
+        field_ops::json::write_json(&path, &file).expect("write");
         let cams = crate::cameras::load_transforms_json(&path).expect("load");
         assert_eq!(cams.len(), 2);
         for (c, p) in cams.iter().zip(&poses) {

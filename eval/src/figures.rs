@@ -1,17 +1,16 @@
 //! Images meant for reading results: a held-out render next to its ground
 //! truth and an error image, a colour bar with its scale for relevancy
-//! images, animated GIFs of camera paths, and progress bars for long loops.
+//! images and animated GIFs of camera paths.
 
 use std::path::Path;
 
 use datasets::RgbImage;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame, RgbaImage};
-use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::colormap::{to_u8, turbo};
-use crate::error::EvalError;
-use crate::render::RenderedView;
+use field_ops::OpsError;
+use field_ops::colormap::{to_u8, turbo};
+use field_ops::render::RenderedView;
 
 /// Mean absolute colour error mapped to the top of the error colour scale.
 /// Fixed (not per image) so that error images of different views compare.
@@ -139,12 +138,12 @@ pub fn write_gif(
     height: u32,
     frames: &[Vec<u8>],
     fps: u32,
-) -> Result<(), EvalError> {
-    let err = |m: String| EvalError::Image {
+) -> Result<(), OpsError> {
+    let err = |m: String| OpsError::Image {
         path: path.to_path_buf(),
         message: m,
     };
-    let file = std::fs::File::create(path).map_err(|e| EvalError::io(path, e))?;
+    let file = std::fs::File::create(path).map_err(|e| OpsError::io(path, e))?;
     let mut enc = GifEncoder::new_with_speed(std::io::BufWriter::new(file), 10);
     enc.set_repeat(Repeat::Infinite)
         .map_err(|e| err(e.to_string()))?;
@@ -160,46 +159,6 @@ pub fn write_gif(
             .map_err(|e| err(e.to_string()))?;
     }
     Ok(())
-}
-
-/// A progress bar over `len` items on stderr; hidden where stderr is not a
-/// terminal (callers then print plain lines, see [`note`]).
-pub fn progress(len: usize, what: &str) -> ProgressBar {
-    use std::io::IsTerminal;
-    if !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(len as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
-}
-
-/// A spinner with `message` for work without a count; where stderr is not a
-/// terminal the message is printed once instead.
-pub fn spinner(message: String) -> ProgressBar {
-    use std::io::IsTerminal;
-    if !std::io::stderr().is_terminal() {
-        eprintln!("{message}");
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new_spinner();
-    bar.set_message(message);
-    bar.enable_steady_tick(std::time::Duration::from_millis(200));
-    bar
-}
-
-/// A line above the bar, or on stderr when the bar is hidden.
-pub fn note(bar: &ProgressBar, message: String) {
-    if bar.is_hidden() {
-        eprintln!("{message}");
-    } else {
-        bar.println(message);
-    }
 }
 
 #[cfg(test)]

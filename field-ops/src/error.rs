@@ -1,12 +1,12 @@
-//! Typed errors of the evaluation crate; every variant names the file or
-//! input at fault.
+//! The typed errors of operations on runs, shared by training and
+//! evaluation; every variant names the file or input at fault.
 
 use std::path::PathBuf;
 
 /// Everything that can go wrong while loading runs, cameras, point clouds or
-/// embeddings, or while writing results.
+/// embeddings, rendering, or writing results.
 #[derive(Debug, thiserror::Error)]
-pub enum EvalError {
+pub enum OpsError {
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
@@ -57,8 +57,8 @@ pub enum EvalError {
     Invalid(String),
 }
 
-impl EvalError {
-    /// An [`EvalError::Io`] for `path`.
+impl OpsError {
+    /// An [`OpsError::Io`] for `path`.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Self::Io {
             path: path.into(),
@@ -66,7 +66,7 @@ impl EvalError {
         }
     }
 
-    /// An [`EvalError::Json`] for `path`.
+    /// An [`OpsError::Json`] for `path`.
     pub fn json(path: impl Into<PathBuf>, message: impl ToString) -> Self {
         Self::Json {
             path: path.into(),

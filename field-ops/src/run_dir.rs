@@ -1,4 +1,5 @@
-//! Run directories: the file layout written by training and read back here.
+//! Run directories: the file layout written by training and read back by
+//! every later command.
 //!
 //! A run directory holds `config.json` (the full training configuration; its
 //! top-level `"model"` key is the [`OpenNerfConfig`]), `model.bpk` (the
@@ -12,7 +13,9 @@ use burn::tensor::Device;
 use datasets::SceneMeta;
 use model::{OpenNerf, OpenNerfConfig};
 
-use crate::error::EvalError;
+use crate::error::OpsError;
+use crate::json::read_json;
+use crate::novel::record::{RecordedViews, append_recorded};
 
 /// The paths of the files in a run directory.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -109,45 +112,20 @@ pub struct LoadedRun {
     pub dir: RunDir,
 }
 
-/// Reads and parses a JSON file into `T`, naming the file in every error.
-pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, EvalError> {
-    let text = read_text(path)?;
-    serde_json::from_str(&text).map_err(|e| EvalError::json(path, e))
-}
-
-/// Writes `value` as pretty JSON to `path`.
-pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<(), EvalError> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| EvalError::json(path, e))?;
-    std::fs::write(path, text).map_err(|e| EvalError::io(path, e))
-}
-
-fn read_text(path: &Path) -> Result<String, EvalError> {
-    std::fs::read_to_string(path).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::NotFound {
-            EvalError::Missing {
-                path: path.to_path_buf(),
-                what: "required file of a run directory".into(),
-            }
-        } else {
-            EvalError::io(path, e)
-        }
-    })
-}
-
 /// The model configuration stored under the `"model"` key of `config.json`.
-pub fn read_model_config(path: &Path) -> Result<OpenNerfConfig, EvalError> {
+pub fn read_model_config(path: &Path) -> Result<OpenNerfConfig, OpsError> {
     let value: serde_json::Value = read_json(path)?;
     let model = value
         .get("model")
-        .ok_or_else(|| EvalError::json(path, "no top-level \"model\" key"))?;
-    serde_json::from_value(model.clone()).map_err(|e| EvalError::json(path, format!("model: {e}")))
+        .ok_or_else(|| OpsError::json(path, "no top-level \"model\" key"))?;
+    serde_json::from_value(model.clone()).map_err(|e| OpsError::json(path, format!("model: {e}")))
 }
 
 /// Loads a trained run: configuration, weights, scene metadata and split.
 ///
 /// The split file is optional (an empty split is used without it), so runs
 /// exported without one can still be rendered and segmented.
-pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
+pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, OpsError> {
     let run = RunDir::new(dir);
     let config = read_model_config(&run.config())?;
     let meta: SceneMeta = read_json(&run.scene())?;
@@ -158,7 +136,7 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
     };
     let weights = run.weights();
     if !weights.exists() {
-        return Err(EvalError::Missing {
+        return Err(OpsError::Missing {
             path: weights,
             what: "model weights (burnpack)".into(),
         });
@@ -166,15 +144,15 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
     let model = config
         .init(device)
         .try_load_file(&weights)
-        .map_err(|e| EvalError::Weights {
+        .map_err(|e| OpsError::Weights {
             path: weights.clone(),
             message: e.to_string(),
         })?;
     let grid_path = run.occupancy();
     let grid = if grid_path.exists() {
-        let bytes = std::fs::read(&grid_path).map_err(|e| EvalError::io(&grid_path, e))?;
+        let bytes = std::fs::read(&grid_path).map_err(|e| OpsError::io(&grid_path, e))?;
         let grid = model::OccupancyGrid::from_bytes(&bytes).map_err(|m| {
-            EvalError::Invalid(format!(
+            OpsError::Invalid(format!(
                 "{}: damaged occupancy grid: {m} (delete it to render without empty-space skipping)",
                 grid_path.display()
             ))
@@ -193,19 +171,38 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, EvalError> {
     })
 }
 
-/// Rebuilds the scene a run was trained on: the scene of `scene.json`
-/// (compressed with the stored basis) with the run's recorded novel views
-/// appended, whose indices are added to `split.train`.
+/// The scene a run was trained on, rebuilt from its directory.
+pub struct RunScene {
+    /// The scene of `scene.json` (feature maps compressed with the stored
+    /// basis) with the run's recorded novel views appended.
+    pub scene: datasets::Scene,
+    /// The recorded novel views, if the run made any.
+    pub novel: Option<RecordedViews>,
+}
+
+/// Rebuilds the scene a run was trained on: the one way every command
+/// (a resumed training run, `eval`) gets it back. The feature maps are
+/// compressed with the stored basis (not a new fit), so that the targets
+/// are the ones the field was trained on, and the recorded novel views are
+/// appended as read from `novel/`.
+pub fn rebuild_scene(dir: &RunDir, meta: &SceneMeta) -> Result<RunScene, OpsError> {
+    let mut scene = datasets::load_scene_with_basis(&meta.source, meta.pca.as_ref())?;
+    let novel = append_recorded(&mut scene, &dir.novel())?;
+    Ok(RunScene { scene, novel })
+}
+
+/// [`rebuild_scene`], with the novel views' indices added to
+/// `split.train` (they are training frames).
 pub fn load_run_scene(
     dir: &RunDir,
     meta: &SceneMeta,
     split: &mut Split,
-) -> Result<datasets::Scene, EvalError> {
-    let mut scene = datasets::load_scene_with_basis(&meta.source, meta.pca.as_ref())?;
-    if let Some((_, added)) = datasets::novel::append_recorded(&mut scene, &dir.novel())? {
-        split.train.extend(added);
+) -> Result<datasets::Scene, OpsError> {
+    let rebuilt = rebuild_scene(dir, meta)?;
+    if let Some(novel) = rebuilt.novel {
+        split.train.extend(novel.frames);
     }
-    Ok(scene)
+    Ok(rebuilt.scene)
 }
 
 #[cfg(test)]
@@ -226,7 +223,7 @@ mod tests {
         let dir = std::env::temp_dir().join("eval-missing-run-dir-does-not-exist");
         let err = load_run(&dir, &Device::flex()).unwrap_err();
         match err {
-            EvalError::Missing { path, .. } => assert!(path.ends_with("config.json")),
+            OpsError::Missing { path, .. } => assert!(path.ends_with("config.json")),
             other => panic!("unexpected error {other}"),
         }
     }
@@ -242,7 +239,7 @@ mod tests {
         std::fs::write(&path, "{not json").unwrap();
         assert!(matches!(
             read_model_config(&path),
-            Err(EvalError::Json { .. })
+            Err(OpsError::Json { .. })
         ));
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -14,8 +14,8 @@ use half::f16;
 use model::geometry::Camera;
 use serde::{Deserialize, Serialize};
 
-use crate::error::EvalError;
-use crate::novel::ExtractedView;
+use super::view::ExtractedView;
+use crate::error::OpsError;
 
 /// Which ground truth replaces the pipeline's own output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -54,9 +54,9 @@ impl GroundTruth {
     ///
     /// # Errors
     /// When the scene is not a synthetic one.
-    pub fn of(scene: &Scene, oracle: NovelOracle) -> Result<Self, EvalError> {
+    pub fn of(scene: &Scene, oracle: NovelOracle) -> Result<Self, OpsError> {
         let SceneSource::Synthetic { seed, size, .. } = &scene.source else {
-            return Err(EvalError::Invalid(format!(
+            return Err(OpsError::Invalid(format!(
                 "the novel-view oracle `{}` needs a synthetic scene (its ground truth); scene {} is read from disk",
                 oracle.name(),
                 scene.name
@@ -79,7 +79,7 @@ impl GroundTruth {
         &self,
         camera: &Camera,
         extractor: &dyn FeatureExtractor,
-    ) -> Result<ExtractedView, EvalError> {
+    ) -> Result<ExtractedView, OpsError> {
         let r = render::render_view(&self.room, &self.palette, camera);
         let (width, height) = (r.rgb.width, r.rgb.height);
         let features = match self.oracle {
@@ -109,7 +109,7 @@ pub fn label_features(
     (width, height): (u32, u32),
     (map_w, map_h): (u32, u32),
     embeddings: &TextEmbeddings,
-) -> Result<FeatureMap, EvalError> {
+) -> Result<FeatureMap, OpsError> {
     let dim = embeddings.dim;
     let mut data = Vec::with_capacity((map_w * map_h) as usize * dim);
     for y in 0..map_h {
@@ -117,7 +117,7 @@ pub fn label_features(
             let (px, py) = nearest_pixel(x as f64, y as f64, (map_w, map_h), (width, height));
             let label = labels[(py * width + px) as usize] as usize;
             if label >= embeddings.len() {
-                return Err(EvalError::Invalid(format!(
+                return Err(OpsError::Invalid(format!(
                     "label {label} at pixel ({px}, {py}) has no class embedding ({} classes)",
                     embeddings.len()
                 )));

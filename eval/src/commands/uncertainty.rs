@@ -10,14 +10,19 @@ use datasets::points::{PointCloud, write_ply};
 use model::geometry::Vec3;
 use serde::Serialize;
 
-use super::{UncertaintyMap, UncertaintyOptions, pearson, uncertainty_map, voxel_downsample};
-use crate::colormap::{to_u8, turbo};
-use crate::error::EvalError;
-use crate::project::ProjectOptions;
-use crate::run::{RunDir, Split, read_json, write_json};
+use field_ops::colormap::{to_u8, turbo};
+use field_ops::uncertainty::coarse::coarse_points;
+
+use super::proposals::ProposalRequest;
 use crate::segment::EvalPoints;
 use crate::similarity::ClassScorer;
 use datasets::points::IGNORE_LABEL;
+use field_ops::OpsError;
+use field_ops::json::{read_json, write_json};
+use field_ops::project::ProjectOptions;
+use field_ops::run_dir::{RunDir, Split};
+use field_ops::uncertainty::scatter::scatter;
+use field_ops::uncertainty::{UncertaintyMap, UncertaintyOptions, pearson, uncertainty_map};
 
 /// Arguments of `uncertainty`.
 #[derive(Debug, Clone, clap::Args)]
@@ -54,8 +59,8 @@ pub struct UncertaintyArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Compute backend (for the proposals' field checks and previews).
-    #[arg(long, value_enum, default_value_t = crate::backend::BackendKind::Flex)]
-    pub backend: crate::backend::BackendKind,
+    #[arg(long, value_enum, default_value_t = field_ops::backend::BackendKind::Flex)]
+    pub backend: field_ops::backend::BackendKind,
 }
 
 /// What `uncertainty.json` records.
@@ -84,72 +89,46 @@ pub struct UncertaintySummary {
     pub correlated_points: usize,
 }
 
-/// The coarse cloud: the scene's point cloud when it has one, else the
-/// training views' depth back-projected; thinned to `voxel`. Returns the
-/// positions and, when the scene has a labelled cloud and classes, labels
-/// and the class scorer input.
-pub(crate) fn coarse_points(
+/// The coarse cloud of the uncertainty map (see
+/// [`field_ops::uncertainty::coarse::coarse_points`]) and, when it is the
+/// scene's labelled cloud with class embeddings, its labels.
+fn labelled_coarse_points(
     scene: &Scene,
-    split: &Split,
+    train: &[usize],
     voxel: f64,
-) -> Result<(Vec<Vec3>, Option<EvalPoints>), EvalError> {
-    if scene.points.is_some() {
-        let labelled = if scene.classes.is_some() {
-            Some(EvalPoints::from_scene(scene)?)
-        } else {
-            None
-        };
-        let all: Vec<Vec3> = scene
-            .points
-            .as_ref()
-            .map(|p| p.positions.clone())
-            .unwrap_or_default();
-        let keep = voxel_downsample(&all, voxel);
-        let positions = keep.iter().map(|&i| all[i]).collect();
-        let labelled = labelled.map(|mut e| {
+) -> Result<(Vec<Vec3>, Option<EvalPoints>), OpsError> {
+    let cloud = coarse_points(scene, train, voxel)?;
+    let labelled = match (&cloud.scene_indices, &scene.classes) {
+        (Some(keep), Some(_)) => {
+            let mut e = EvalPoints::from_scene(scene)?;
             e.positions = keep.iter().map(|&i| e.positions[i]).collect();
             e.labels = keep.iter().map(|&i| e.labels[i]).collect();
-            e
-        });
-        return Ok((positions, labelled));
-    }
-    let mut all = Vec::new();
-    for &i in &split.train {
-        let f = &scene.frames[i];
-        if let Some(d) = &f.depth {
-            let step = (d.width.max(d.height) / 64).max(1);
-            all.extend(datasets::poses::backproject(&f.camera, d, step));
+            Some(e)
         }
-    }
-    if all.is_empty() {
-        return Err(EvalError::Invalid(format!(
-            "scene {} has no point cloud and no depth to back-project",
-            scene.name
-        )));
-    }
-    let keep = voxel_downsample(&all, voxel);
-    Ok((keep.iter().map(|&i| all[i]).collect(), None))
+        _ => None,
+    };
+    Ok((cloud.positions, labelled))
 }
 
 /// Runs `eval uncertainty` and returns the files written.
-pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalError> {
+pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsError> {
     if args.k == 0 {
-        return Err(EvalError::Invalid("--k must be at least 1".into()));
+        return Err(OpsError::Invalid("--k must be at least 1".into()));
     }
     if !(args.eps.is_finite() && args.eps > 0.0) {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "--eps must be positive and finite, got {}",
             args.eps
         )));
     }
     if !(args.prior_weight.is_finite() && args.prior_weight >= 0.0) {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "--prior-weight must be a non-negative number of pseudo-observations, got {}",
             args.prior_weight
         )));
     }
     if !(args.voxel.is_finite() && args.voxel >= 0.0) {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "--voxel must be a size in metres (0 keeps every point), got {}",
             args.voxel
         )));
@@ -157,8 +136,8 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
     let dir = RunDir::new(&args.run);
     let meta: datasets::SceneMeta = read_json(&dir.scene())?;
     let mut split: Split = read_json(&dir.split())?;
-    let scene = crate::run::load_run_scene(&dir, &meta, &mut split)?;
-    let (points, labelled) = coarse_points(&scene, &split, args.voxel)?;
+    let scene = field_ops::run_dir::load_run_scene(&dir, &meta, &mut split)?;
+    let (points, labelled) = labelled_coarse_points(&scene, &split.train, args.voxel)?;
     let opts = UncertaintyOptions {
         k: args.k,
         eps: args.eps,
@@ -166,7 +145,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
         of_mean: args.of_mean,
         project: ProjectOptions::default(),
     };
-    let bar = crate::visual::progress(split.train.len(), "projecting feature maps");
+    let bar = field_ops::progress::progress(split.train.len(), "projecting feature maps");
     let map = uncertainty_map(&scene, &split.train, &points, &opts, |d, _| {
         bar.set_position(d as u64)
     })?;
@@ -180,7 +159,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
         .out
         .clone()
         .unwrap_or_else(|| dir.dir.join("uncertainty"));
-    std::fs::create_dir_all(&out).map_err(|e| EvalError::io(&out, e))?;
+    std::fs::create_dir_all(&out).map_err(|e| OpsError::io(&out, e))?;
     let mut written = Vec::new();
     let json = out.join("uncertainty.json");
     write_json(&json, &summary)?;
@@ -194,7 +173,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
     if let Some(e) = &errors {
         let png = out.join("uncertainty_scatter.png");
         // The numbers are in the CSV: a missing font costs the picture only.
-        match super::plot::scatter(&png, &map, e, summary.pearson_r) {
+        match scatter(&png, &map, e, summary.pearson_r) {
             Ok(()) => written.push(png),
             Err(e) => eprintln!("warning: {e}"),
         }
@@ -210,8 +189,18 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
         summary.log_det_median
     );
     if args.views > 0 {
-        written.extend(super::propose::write_proposals(
-            args, &dir, &scene, &split, &points, &map, &out,
+        written.extend(super::proposals::write_proposals(
+            ProposalRequest {
+                views: args.views,
+                seed: args.seed,
+                backend: args.backend,
+            },
+            &dir,
+            &scene,
+            &split,
+            &points,
+            &map,
+            &out,
         )?);
     }
     match summary.pearson_r {
@@ -232,7 +221,7 @@ pub fn feature_errors(
     map: &UncertaintyMap,
     points: &EvalPoints,
     pca: Option<&datasets::features::Pca>,
-) -> Result<Vec<f64>, EvalError> {
+) -> Result<Vec<f64>, OpsError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
     let mut cos = vec![0.0; scorer.classes];
     Ok(map
@@ -293,8 +282,8 @@ fn write_csv(
     points: &[Vec3],
     map: &UncertaintyMap,
     errors: Option<&[f64]>,
-) -> Result<(), EvalError> {
-    let io = |e| EvalError::io(path, e);
+) -> Result<(), OpsError> {
+    let io = |e| OpsError::io(path, e);
     let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
     writeln!(w, "x,y,z,views,log_det,uncertainty,feature_error").map_err(io)?;
     for (i, p) in points.iter().enumerate() {
@@ -323,7 +312,7 @@ fn write_uncertainty_ply(
     path: &Path,
     points: &[Vec3],
     map: &UncertaintyMap,
-) -> Result<(), EvalError> {
+) -> Result<(), OpsError> {
     let colors = map
         .normalised
         .iter()
@@ -336,5 +325,5 @@ fn write_uncertainty_ply(
     };
     let u: Vec<f32> = map.normalised.iter().map(|&u| u as f32).collect();
     let views: Vec<f32> = map.counts.iter().map(|&c| c as f32).collect();
-    write_ply(path, &cloud, &[("uncertainty", &u), ("views", &views)]).map_err(EvalError::from)
+    write_ply(path, &cloud, &[("uncertainty", &u), ("views", &views)]).map_err(OpsError::from)
 }

@@ -7,19 +7,23 @@ use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use datasets::features::{FeatureSet, Pca};
 use datasets::points::{IGNORE_LABEL, PointCloud, write_ply};
 use datasets::{DepthImage, FeatureMap, Scene};
 use model::OpenNerf;
 use model::geometry::{Camera, SceneBox, Vec3};
 
-use crate::colormap::class_color;
-use crate::error::EvalError;
-use crate::metrics::{ClassSplit, ConfusionMatrix, NO_PREDICTION, SegmentationScores, score};
-use crate::project::{DepthRef, FeatureAccumulator, Hit, ProjectOptions};
-use crate::render::{render_view, tensor_to_vec};
+use crate::metrics::{ClassSplit, ConfusionMatrix, NO_PREDICTION, score};
 use crate::similarity::ClassScorer;
+use field_ops::OpsError;
+use field_ops::colormap::class_color;
+use field_ops::project::ProjectOptions;
+use field_ops::scores::SegmentationScores;
+
+pub mod features;
+
+pub use features::{projected_2d_features, projected_features, sampled_features, scaled_index};
 
 /// How per-point features are obtained from the field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,14 +47,14 @@ impl fmt::Display for SegmentMode {
 }
 
 impl FromStr for SegmentMode {
-    type Err = EvalError;
+    type Err = OpsError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "sampled" => Ok(Self::Sampled),
             "project" => Ok(Self::Project),
             "hybrid" => Ok(Self::Hybrid),
-            o => Err(EvalError::Invalid(format!(
+            o => Err(OpsError::Invalid(format!(
                 "unknown mode {o:?} (expected sampled, project or hybrid)"
             ))),
         }
@@ -113,15 +117,16 @@ pub struct EvalPoints {
 impl EvalPoints {
     /// The labelled point cloud and class embeddings a scene carries (the
     /// synthetic scene's defaults). Negative labels become [`IGNORE_LABEL`].
-    pub fn from_scene(scene: &Scene) -> Result<Self, EvalError> {
-        let points = scene.points.as_ref().ok_or_else(|| {
-            EvalError::Invalid(format!("scene {} has no point cloud", scene.name))
-        })?;
+    pub fn from_scene(scene: &Scene) -> Result<Self, OpsError> {
+        let points = scene
+            .points
+            .as_ref()
+            .ok_or_else(|| OpsError::Invalid(format!("scene {} has no point cloud", scene.name)))?;
         let classes = scene.classes.as_ref().ok_or_else(|| {
-            EvalError::Invalid(format!("scene {} has no class embeddings", scene.name))
+            OpsError::Invalid(format!("scene {} has no class embeddings", scene.name))
         })?;
         let labels = points.labels.as_ref().ok_or_else(|| {
-            EvalError::Invalid(format!("scene {}'s points have no labels", scene.name))
+            OpsError::Invalid(format!("scene {}'s points have no labels", scene.name))
         })?;
         let c = classes.names.len() as i64;
         Ok(Self {
@@ -148,135 +153,6 @@ impl EvalPoints {
     }
 }
 
-/// Field features at world points, `[n, k]` row-major: points are
-/// normalised into `scene_box` and encoded as isotropic Gaussians of
-/// standard deviation `radius` metres.
-pub fn sampled_features(
-    model: &OpenNerf,
-    points: &[Vec3],
-    scene_box: &SceneBox,
-    radius: f64,
-    chunk: usize,
-    device: &Device,
-) -> Vec<f32> {
-    let r = (radius * scene_box.scale()) as f32;
-    let mut out = Vec::new();
-    for part in points.chunks(chunk.max(1)) {
-        let flat: Vec<f32> = part
-            .iter()
-            .flat_map(|&p| scene_box.normalize_point(p).map(|x| x as f32))
-            .collect();
-        let t = Tensor::<2>::from_data(TensorData::new(flat, [part.len(), 3]), device);
-        out.extend(tensor_to_vec(model.query_features(t, r)));
-    }
-    out
-}
-
-/// Index of the pixel of a `fw x fh` image at image point `(u, v)` of a
-/// `w x h` camera (pixel centres at integers; nearest after scaling).
-pub fn scaled_index(u: f64, v: f64, w: u32, h: u32, fw: u32, fh: u32) -> usize {
-    let x = (((u + 0.5) * fw as f64 / w as f64).floor().max(0.0) as usize).min(fw as usize - 1);
-    let y = (((v + 0.5) * fh as f64 / h as f64).floor().max(0.0) as usize).min(fh as usize - 1);
-    y * fw as usize + x
-}
-
-/// Averages rendered feature images over `views`: each view is rendered at
-/// `render_scale` of its resolution; a point takes the feature of the pixel
-/// it lands on when it passes the occlusion test against the view's sensor
-/// depth (or the rendered depth without one). Sums stay in the field's
-/// output space (k channels), so memory is `points * k` floats.
-#[allow(clippy::too_many_arguments)]
-pub fn projected_features(
-    model: &OpenNerf,
-    points: &[Vec3],
-    views: &[View<'_>],
-    scene_box: &SceneBox,
-    background: Option<[f32; 3]>,
-    opts: &SegmentOptions,
-    device: &Device,
-    mut progress: impl FnMut(usize, usize),
-) -> Result<FeatureAccumulator, EvalError> {
-    let mut acc: Option<FeatureAccumulator> = None;
-    for (vi, view) in views.iter().enumerate() {
-        let k = &view.camera.intrinsics;
-        let (rw, rh) = (
-            ((k.width as f64 * opts.render_scale).round() as u32).max(1),
-            ((k.height as f64 * opts.render_scale).round() as u32).max(1),
-        );
-        let cam = view.camera.scaled(rw, rh);
-        let r = render_view(model, &cam, scene_box, background, opts.chunk, true, device);
-        if r.feature_dim == 0 {
-            return Err(EvalError::Invalid("the model renders no features".into()));
-        }
-        let a = acc.get_or_insert_with(|| FeatureAccumulator::new(points.len(), r.feature_dim));
-        let depth = match view.depth {
-            Some(d) => DepthRef {
-                width: d.width,
-                height: d.height,
-                data: &d.data,
-            },
-            None => DepthRef {
-                width: rw,
-                height: rh,
-                data: &r.depth,
-            },
-        };
-        let dim = r.feature_dim;
-        a.add_view(
-            points,
-            &view.camera,
-            Some(depth),
-            &opts.project,
-            |h: &Hit, out| {
-                let i = scaled_index(h.u, h.v, k.width, k.height, rw, rh);
-                out.copy_from_slice(&r.feature[i * dim..(i + 1) * dim]);
-                true
-            },
-        );
-        progress(vi + 1, views.len());
-    }
-    acc.ok_or_else(|| EvalError::Invalid("no views to project into".into()))
-}
-
-/// The upper bound without a field: the scene's own 2D feature maps
-/// projected onto the points (sensor depth for the occlusion test) and
-/// averaged, in the maps' (possibly PCA) space. Map pixels without a target
-/// (see [`datasets::features::FeatureSet::is_target`]) are skipped.
-pub fn projected_2d_features(
-    set: &FeatureSet,
-    maps: &[&FeatureMap],
-    views: &[View<'_>],
-    points: &[Vec3],
-    opts: &ProjectOptions,
-) -> Result<FeatureAccumulator, EvalError> {
-    let dim = maps.first().map_or(0, |m| m.dim);
-    if maps.len() != views.len() || dim == 0 {
-        return Err(EvalError::Invalid(format!(
-            "{} feature maps for {} views",
-            maps.len(),
-            views.len()
-        )));
-    }
-    let mut acc = FeatureAccumulator::new(points.len(), dim);
-    for (m, view) in maps.iter().zip(views) {
-        let k = &view.camera.intrinsics;
-        let depth = view.depth.map(|d| DepthRef {
-            width: d.width,
-            height: d.height,
-            data: &d.data,
-        });
-        acc.add_view(points, &view.camera, depth, opts, |h, out| {
-            let f = m.lookup(h.u, h.v, k.width, k.height);
-            if !set.is_target(f) {
-                return false;
-            }
-            out.iter_mut().zip(f).for_each(|(o, x)| *o = x.to_f32());
-            true
-        });
-    }
-    Ok(acc)
-}
-
 /// Class of every point from features `[n, k]` (`None` rows get
 /// [`NO_PREDICTION`]).
 pub fn predict<'a>(
@@ -301,7 +177,7 @@ pub fn segment_with_field(
     background: Option<[f32; 3]>,
     opts: &SegmentOptions,
     device: &Device,
-) -> Result<(Vec<u32>, usize), EvalError> {
+) -> Result<(Vec<u32>, usize), OpsError> {
     let mut all = segment_with_field_modes(
         model,
         pca,
@@ -332,12 +208,12 @@ pub fn segment_with_field_modes(
     opts: &SegmentOptions,
     modes: &[SegmentMode],
     device: &Device,
-) -> Result<Vec<(SegmentMode, Vec<u32>, usize)>, EvalError> {
+) -> Result<Vec<(SegmentMode, Vec<u32>, usize)>, OpsError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
     let pos = &points.positions;
     let check_dim = |k: usize| {
         if k != scorer.dim {
-            Err(EvalError::Invalid(format!(
+            Err(OpsError::Invalid(format!(
                 "the field predicts {k} channels but the class embeddings give {} (PCA mismatch?)",
                 scorer.dim
             )))
@@ -345,7 +221,7 @@ pub fn segment_with_field_modes(
             Ok(())
         }
     };
-    let sample = |idx: &[usize]| -> Result<Vec<u32>, EvalError> {
+    let sample = |idx: &[usize]| -> Result<Vec<u32>, OpsError> {
         let p: Vec<Vec3> = idx.iter().map(|&i| pos[i]).collect();
         let f = sampled_features(model, &p, scene_box, opts.sample_radius, opts.chunk, device);
         let k = f.len() / idx.len().max(1);
@@ -405,8 +281,8 @@ pub fn segment_with_field_modes(
 
 /// Every mode's inputs are computed above; this keeps the match total
 /// without a panic.
-fn unreachable_mode<T>(mode: SegmentMode) -> Result<T, EvalError> {
-    Err(EvalError::Invalid(format!(
+fn unreachable_mode<T>(mode: SegmentMode) -> Result<T, OpsError> {
+    Err(OpsError::Invalid(format!(
         "internal: inputs of mode {mode} were not computed"
     )))
 }
@@ -419,7 +295,7 @@ pub fn segment_with_2d_features(
     points: &EvalPoints,
     views: &[View<'_>],
     opts: &ProjectOptions,
-) -> Result<Vec<u32>, EvalError> {
+) -> Result<Vec<u32>, OpsError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, set.pca.as_ref())?;
     let acc = projected_2d_features(set, maps, views, &points.positions, opts)?;
     let means: Vec<Option<Vec<f32>>> = (0..acc.len()).map(|i| acc.mean(i)).collect();
@@ -428,7 +304,7 @@ pub fn segment_with_2d_features(
 
 /// The oracle: every point gets its own class's text embedding as feature.
 /// Scores 1 unless two classes share an embedding.
-pub fn segment_oracle(points: &EvalPoints) -> Result<Vec<u32>, EvalError> {
+pub fn segment_oracle(points: &EvalPoints) -> Result<Vec<u32>, OpsError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, None)?;
     let d = points.dim;
     Ok(points
@@ -461,8 +337,8 @@ pub fn write_prediction_plys(
     stem: &str,
     points: &EvalPoints,
     pred: &[u32],
-) -> Result<(), EvalError> {
-    std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+) -> Result<(), OpsError> {
+    std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
     let colors = pred
         .iter()
         .map(|&p| {
@@ -517,7 +393,7 @@ pub fn scene_views<'a>(
     scene: &'a Scene,
     indices: &[usize],
     sensor_depth: bool,
-) -> Result<Vec<View<'a>>, EvalError> {
+) -> Result<Vec<View<'a>>, OpsError> {
     let all: Vec<usize> = (0..scene.frames.len()).collect();
     let idx = if indices.is_empty() {
         &all[..]
@@ -527,7 +403,7 @@ pub fn scene_views<'a>(
     idx.iter()
         .map(|&i| {
             let f = scene.frames.get(i).ok_or_else(|| {
-                EvalError::Invalid(format!(
+                OpsError::Invalid(format!(
                     "frame index {i} but the scene has {} frames",
                     scene.frames.len()
                 ))

@@ -1,4 +1,4 @@
-//! Novel cameras aimed at uncertain points: targets drawn with probability
+//! Novel cameras aimed at uncertain points (the guided mode): targets drawn with probability
 //! equal to their normalised uncertainty and spread apart, a position on the
 //! free side of each target, and checks against the field that the camera is
 //! in empty space, sees its target, and renders it with the colour the
@@ -9,7 +9,8 @@ use model::OpenNerf;
 use model::geometry::{Camera, Intrinsics, SceneBox, Vec3, add_scaled, look_at, norm, sub};
 use rand::Rng;
 
-use super::UncertaintyMap;
+use crate::render::{RENDER_MIN_NEAR, render_rays, tensor_to_vec};
+use crate::uncertainty::UncertaintyMap;
 
 /// Targets drawn per view wanted: a partly trained field rejects many
 /// positions (fog in free space hides the target), so spare targets are
@@ -83,7 +84,7 @@ pub fn target_chances(map: &UncertaintyMap) -> Vec<f64> {
         .collect()
 }
 
-/// Targets drawn as SPEC'd: point `i` is a candidate when `x < u_i` for
+/// Targets drawn as in the paper (Sec. 3.3): point `i` is a candidate when `x < u_i` for
 /// `x ~ U[0, 1]`; candidates are visited in random order and kept when no
 /// kept target is within `min_separation`. Returns at most `max` indices.
 pub fn select_targets(
@@ -155,7 +156,7 @@ impl FieldProbe<'_> {
             .collect();
         let t = Tensor::<2>::from_data(TensorData::new(flat, [points.len(), 3]), self.device);
         let d = self.model.query_density(t, 1e-3 * scale as f32);
-        crate::render::tensor_to_vec(d)
+        tensor_to_vec(d)
             .into_iter()
             .map(|x| x as f64 * scale)
             .collect()
@@ -190,11 +191,10 @@ impl FieldProbe<'_> {
             .flat_map(|j| (-r..=r).map(move |i| (i, j)))
             .map(|(i, j)| {
                 let ray = camera.ray(k.cx + i as f64, k.cy + j as f64);
-                self.scene_box
-                    .normalize_ray(&ray, crate::render::RENDER_MIN_NEAR)
+                self.scene_box.normalize_ray(&ray, RENDER_MIN_NEAR)
             })
             .collect();
-        let out = crate::render::render_rays(
+        let out = render_rays(
             self.model,
             &rays,
             self.background,
@@ -210,7 +210,7 @@ impl FieldProbe<'_> {
         mean
     }
 
-    /// The SPEC's checks of `camera` for target `t`: its centre inside the
+    /// The paper's checks (Sec. 3.3) of `camera` for target `t`: its centre inside the
     /// scene box, density there at most `max_density` per metre,
     /// transmittance to `t` at least `min_transmittance`; and, where the
     /// target's observed colour `seen` is known, the field's render of the
@@ -321,8 +321,56 @@ pub fn propose_cameras(
     out
 }
 
+/// Guided cameras and the number of targets they were drawn from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuidedProposals {
+    /// Targets drawn (spares included, see [`SPARE_TARGETS`]).
+    pub targets_drawn: usize,
+    /// The accepted cameras, at most `opts.max_views`.
+    pub proposals: Vec<Proposal>,
+}
+
+/// Draws targets by uncertainty ([`select_targets`] over
+/// [`target_chances`], [`SPARE_TARGETS`] per view wanted) and proposes a
+/// camera for each until `opts.max_views` pass the field's checks.
+/// `centre` is where the capture stood (the fallback free side).
+#[allow(clippy::too_many_arguments)]
+pub fn guided_proposals(
+    map: &UncertaintyMap,
+    points: &[Vec3],
+    intrinsics: Intrinsics,
+    up: Vec3,
+    centre: Vec3,
+    probe: &FieldProbe<'_>,
+    opts: &ProposalOptions,
+    rng: &mut impl Rng,
+) -> GuidedProposals {
+    let targets = select_targets(
+        &target_chances(map),
+        points,
+        opts.max_views.saturating_mul(SPARE_TARGETS),
+        opts.min_separation,
+        rng,
+    );
+    let proposals = propose_cameras(
+        map,
+        points,
+        &targets,
+        intrinsics,
+        up,
+        centre,
+        |camera, t| probe.accept(camera, points[t], map.mean_colors[t], opts),
+        opts,
+        rng,
+    );
+    GuidedProposals {
+        targets_drawn: targets.len(),
+        proposals,
+    }
+}
+
 /// A standard normal draw (Box-Muller).
-fn gaussian(rng: &mut impl Rng) -> f64 {
+pub(crate) fn gaussian(rng: &mut impl Rng) -> f64 {
     let u1: f64 = rng.random::<f64>().max(1e-300);
     let u2: f64 = rng.random();
     (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()

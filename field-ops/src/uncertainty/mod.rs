@@ -17,17 +17,15 @@
 //! det r = 0.77); shrunk with 4 / 16 / 64 pseudo-observations, r = 0.40 /
 //! 0.46 / 0.41.
 
-pub mod plot;
-pub mod proposals;
-pub mod propose;
-pub mod report;
+pub mod coarse;
+pub mod scatter;
 pub mod welford;
 
 use datasets::Scene;
 use datasets::features::{FeatureSet, Pca, PcaTarget};
 use model::geometry::Vec3;
 
-use crate::error::EvalError;
+use crate::error::OpsError;
 use crate::project::{DepthRef, ProjectOptions, visible_pixel};
 use welford::{Welford, log_det_regularised, pooled_covariance};
 
@@ -93,7 +91,7 @@ enum Subspace {
 }
 
 impl Subspace {
-    fn of(set: &FeatureSet, k: usize) -> Result<Self, EvalError> {
+    fn of(set: &FeatureSet, k: usize) -> Result<Self, OpsError> {
         let dim = set.dim();
         if set.pca.is_some() || dim <= k {
             return Ok(Self::Leading(k.min(dim)));
@@ -112,7 +110,7 @@ impl Subspace {
             }
         }
         let pca = Pca::fit(&samples, dim, PcaTarget::Components(k))
-            .map_err(|e| EvalError::Invalid(format!("fitting the uncertainty subspace: {e}")))?;
+            .map_err(|e| OpsError::Invalid(format!("fitting the uncertainty subspace: {e}")))?;
         Ok(Self::Fitted(pca))
     }
 
@@ -141,9 +139,9 @@ pub fn uncertainty_map(
     points: &[Vec3],
     opts: &UncertaintyOptions,
     mut progress: impl FnMut(usize, usize),
-) -> Result<UncertaintyMap, EvalError> {
+) -> Result<UncertaintyMap, OpsError> {
     let set = scene.features.as_ref().ok_or_else(|| {
-        EvalError::Invalid(format!(
+        OpsError::Invalid(format!(
             "scene {} has no feature maps to measure uncertainty on",
             scene.name
         ))
@@ -152,7 +150,7 @@ pub fn uncertainty_map(
         || !(opts.eps.is_finite() && opts.eps > 0.0)
         || !(opts.prior_weight.is_finite() && opts.prior_weight >= 0.0)
     {
-        return Err(EvalError::Invalid(format!(
+        return Err(OpsError::Invalid(format!(
             "the subspace size must be at least 1, eps positive and the prior weight non-negative, got k = {}, eps = {}, prior weight = {}",
             opts.k, opts.eps, opts.prior_weight
         )));
@@ -167,7 +165,7 @@ pub fn uncertainty_map(
     let mut feature = vec![0f32; dim];
     for (n, &fi) in frames.iter().enumerate() {
         let frame = scene.frames.get(fi).ok_or_else(|| {
-            EvalError::Invalid(format!("frame {fi} is not in scene {}", scene.name))
+            OpsError::Invalid(format!("frame {fi} is not in scene {}", scene.name))
         })?;
         let intr = &frame.camera.intrinsics;
         let centre = frame.camera.pose.center();
@@ -202,35 +200,7 @@ pub fn uncertainty_map(
         }
         progress(n + 1, frames.len());
     }
-    let pooled = pooled_covariance(&stats, k).unwrap_or_else(|| vec![0.0; k * k]);
-    let raw: Vec<Option<f64>> = stats
-        .iter()
-        .map(|w| {
-            let mut c = w.shrunk_covariance(&pooled, opts.prior_weight)?;
-            if opts.of_mean {
-                c.iter_mut().for_each(|v| *v /= w.count as f64);
-            }
-            log_det_regularised(&c, k, opts.eps)
-        })
-        .collect();
-    let max = raw
-        .iter()
-        .flatten()
-        .copied()
-        .fold(f64::NEG_INFINITY, f64::max);
-    let min = raw.iter().flatten().copied().fold(f64::INFINITY, f64::min);
-    // With no point seen twice there is nothing to compare: all maximal.
-    let (max, min) = if max.is_finite() {
-        (max, min)
-    } else {
-        (0.0, 0.0)
-    };
-    let log_det: Vec<f64> = raw.iter().map(|u| u.unwrap_or(max)).collect();
-    let span = max - min;
-    let normalised = log_det
-        .iter()
-        .map(|&u| if span > 0.0 { (u - min) / span } else { 1.0 })
-        .collect();
+    let (log_det, normalised) = log_dets(&stats, k, opts);
     let counts: Vec<u64> = stats.iter().map(|w| w.count).collect();
     let mean_features = counts
         .iter()
@@ -262,6 +232,42 @@ pub fn uncertainty_map(
         mean_features,
         k,
     })
+}
+
+/// Each point's `log det(Sigma + eps I)` of its shrunk covariance (points
+/// seen fewer than twice get the largest value) and the same normalised to
+/// `[0, 1]` over the cloud.
+fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>, Vec<f64>) {
+    let pooled = pooled_covariance(stats, k).unwrap_or_else(|| vec![0.0; k * k]);
+    let raw: Vec<Option<f64>> = stats
+        .iter()
+        .map(|w| {
+            let mut c = w.shrunk_covariance(&pooled, opts.prior_weight)?;
+            if opts.of_mean {
+                c.iter_mut().for_each(|v| *v /= w.count as f64);
+            }
+            log_det_regularised(&c, k, opts.eps)
+        })
+        .collect();
+    let max = raw
+        .iter()
+        .flatten()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let min = raw.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+    // With no point seen twice there is nothing to compare: all maximal.
+    let (max, min) = if max.is_finite() {
+        (max, min)
+    } else {
+        (0.0, 0.0)
+    };
+    let log_det: Vec<f64> = raw.iter().map(|u| u.unwrap_or(max)).collect();
+    let span = max - min;
+    let normalised = log_det
+        .iter()
+        .map(|&u| if span > 0.0 { (u - min) / span } else { 1.0 })
+        .collect();
+    (log_det, normalised)
 }
 
 /// Points on a grid of `voxel` metres: the first point of every occupied

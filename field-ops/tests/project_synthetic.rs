@@ -2,7 +2,7 @@
 //! ground-truth depth, checked against the ray tracer that made the scene.
 
 use datasets::synthetic::{SceneSize, build_room, generate};
-use eval::project::{DepthRef, ProjectOptions, visible_pixel};
+use field_ops::project::{DepthRef, ProjectOptions, visible_pixel};
 use model::geometry::{norm, sub};
 
 const SEED: u64 = 3;

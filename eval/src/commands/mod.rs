@@ -1,0 +1,9 @@
+//! The command-line subcommands as library functions: one module per
+//! subcommand with its arguments (clap), their checks and what it does.
+
+pub mod common;
+pub mod proposals;
+pub mod query;
+pub mod render;
+pub mod segment;
+pub mod uncertainty;

@@ -1,0 +1,163 @@
+//! `eval render`: colour, depth and feature images of a run from scene
+//! frames, camera files or a smooth camera path.
+
+use std::path::PathBuf;
+
+use super::common::{Context, device_of, evenly, select_cameras};
+use crate::checks::{at_least_one, invalid, max_views};
+use field_ops::backend::check_device_flag;
+
+use crate::cameras::{NamedCamera, camera_path, resized};
+use datasets::imageio::save_rgb8;
+use field_ops::OpsError;
+use field_ops::backend::{BackendKind, parse_device_index};
+use field_ops::images::save_view_pngs;
+use field_ops::render::render_view;
+
+/// Arguments of `render` and the camera part of `query`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RenderArgs {
+    /// Run directory.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Cameras: heldout (default), train, all, or a transforms.json / traj.txt.
+    #[arg(long, default_value = "heldout")]
+    pub cameras: String,
+    /// cam_params.json for a traj.txt (default: next to it or its parent).
+    #[arg(long)]
+    pub cam_params: Option<PathBuf>,
+    /// Output width (height follows the aspect ratio unless given).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Output height.
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Render a smooth path of this many cameras through the selected poses instead.
+    #[arg(long)]
+    pub camera_path: Option<usize>,
+    /// Use at most this many cameras (evenly spaced).
+    #[arg(long)]
+    pub max_views: Option<usize>,
+    /// Rays per forward pass.
+    #[arg(long, default_value_t = 4096)]
+    pub chunk: usize,
+    /// Output directory (default: `renders/eval` in the run directory).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Compute backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
+    pub backend: BackendKind,
+    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
+    #[arg(long, value_parser = parse_device_index)]
+    pub device: Option<usize>,
+}
+
+/// The cameras `render` (and `query`) render at: `--cameras` by name or
+/// file, resized by `--width`/`--height`, or a path through them.
+pub fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamera>, OpsError> {
+    let (cams, _) = select_cameras(
+        &args.cameras,
+        &ctx.run,
+        ctx.scene.as_ref(),
+        args.cam_params.as_deref(),
+    )?;
+    let cams = evenly(&cams, args.max_views);
+    let cams = match args.camera_path {
+        Some(n) => camera_path(&cams, n)?,
+        None => cams,
+    };
+    let Some(first) = cams.first() else {
+        return Err(OpsError::Invalid(format!(
+            "no cameras selected by {:?}",
+            args.cameras
+        )));
+    };
+    let k = first.camera.intrinsics;
+    Ok(match (args.width, args.height) {
+        (None, None) => cams,
+        (w, h) => {
+            let w = w.unwrap_or_else(|| {
+                (h.unwrap_or(k.height) as f64 * k.width as f64 / k.height as f64).round() as u32
+            });
+            let h =
+                h.unwrap_or_else(|| (w as f64 * k.height as f64 / k.width as f64).round() as u32);
+            resized(&cams, w.max(1), h.max(1))
+        }
+    })
+}
+
+/// Runs `render`: colour, depth and feature-PCA PNGs per camera. Returns the written files.
+pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
+    check(args)?;
+    let device = device_of(args.backend, args.device);
+    let ctx = Context::load(&args.run, &device)?;
+    let cams = render_cameras(args, &ctx)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| ctx.run.dir.renders().join("eval"));
+    let mut written = Vec::new();
+    let mut animation = Vec::new();
+    let bar = field_ops::progress::progress(cams.len(), "rendering");
+    for c in &cams {
+        let m = &ctx.run.meta;
+        let v = render_view(
+            &ctx.run.model,
+            &c.camera,
+            &m.scene_box,
+            m.background,
+            args.chunk,
+            m.feature_dim.is_some(),
+            &device,
+        );
+        written.extend(save_view_pngs(&v, &out, &c.name)?);
+        // A scene frame rendered at its own size is shown next to its
+        // ground truth and the error between them.
+        let truth = ctx
+            .scene
+            .as_ref()
+            .and_then(|s| s.frames.iter().find(|f| f.name == c.name));
+        if let Some((w, h, px)) = truth.and_then(|f| crate::figures::comparison(&f.rgb, &v)) {
+            let path = out.join(format!("{}_compare.png", c.name));
+            save_rgb8(&path, w, h, &px)?;
+            written.push(path);
+        }
+        if args.camera_path.is_some() {
+            animation.push(
+                v.rgb
+                    .iter()
+                    .map(|&x| field_ops::colormap::to_u8(x))
+                    .collect(),
+            );
+        }
+        bar.inc(1);
+        field_ops::progress::note(&bar, format!("rendered {}", c.name));
+    }
+    bar.finish_and_clear();
+    if let Some(first) = cams.first().filter(|_| !animation.is_empty()) {
+        let k = first.camera.intrinsics;
+        let path = out.join("path.gif");
+        crate::figures::write_gif(&path, k.width, k.height, &animation, 10)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// Checks `render` (and the camera part of `query`).
+pub fn check(a: &RenderArgs) -> Result<(), OpsError> {
+    for (flag, value) in [("width", a.width), ("height", a.height)] {
+        if value == Some(0) {
+            return Err(invalid(format!(
+                "--{flag} 0: an image needs at least 1 pixel"
+            )));
+        }
+    }
+    max_views(a.max_views)?;
+    at_least_one(
+        "camera-path",
+        a.camera_path,
+        " (the number of cameras along the path)",
+    )?;
+    at_least_one("chunk", Some(a.chunk), "")?;
+    check_device_flag(a.backend, a.device).map_err(invalid)
+}

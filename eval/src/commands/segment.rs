@@ -1,0 +1,326 @@
+//! `eval segment`: zero-shot 3D semantic segmentation of a point cloud
+//! with its scores and prediction PLYs.
+
+use std::path::{Path, PathBuf};
+
+use datasets::features::FeatureSet;
+
+use super::common::{Context, PointArgs, device_of, evenly, load_points_with, select_cameras};
+use crate::checks::{at_least_one, invalid, max_views, radius};
+use field_ops::backend::check_device_flag;
+
+use burn::tensor::Device;
+use datasets::Scene;
+use datasets::text::TextEmbeddings;
+
+use crate::cameras::NamedCamera;
+use crate::metrics::{ClassSplit, format_per_class, format_table};
+use crate::segment::{
+    EvalPoints, SegmentMode, SegmentOptions, View, segment_oracle, segment_with_2d_features,
+    segment_with_field_modes, write_prediction_plys,
+};
+use field_ops::OpsError;
+use field_ops::backend::{BackendKind, parse_device_index};
+use field_ops::json::{read_json, write_json};
+use field_ops::project::ProjectOptions;
+use field_ops::scores::SegmentationScores;
+
+/// Arguments of `segment`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SegmentArgs {
+    /// Run directory.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// Feature mode: sampled, project or hybrid.
+    #[arg(long, default_value = "hybrid")]
+    pub mode: String,
+    /// Points and classes.
+    #[command(flatten)]
+    pub data: PointArgs,
+    /// Cameras to project into: train (the training frames, novel views
+    /// included), captured (the captured training frames only: the same
+    /// cameras whether or not a run added novel views), heldout, all, or a
+    /// transforms.json / traj.txt.
+    #[arg(long, default_value = "train")]
+    pub cameras: String,
+    /// cam_params.json for a traj.txt (default: next to it or its parent).
+    #[arg(long)]
+    pub cam_params: Option<PathBuf>,
+    /// Use the rendered depth for the occlusion test even where sensor depth exists.
+    #[arg(long)]
+    pub rendered_depth: bool,
+    /// Render feature images at this fraction of the camera resolution.
+    #[arg(long, default_value_t = 1.0)]
+    pub render_scale: f64,
+    /// Use at most this many cameras (evenly spaced).
+    #[arg(long)]
+    pub max_views: Option<usize>,
+    /// Radius (metres) of the Gaussian a point is queried with.
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
+    pub radius: f64,
+    /// Rays or points per forward pass.
+    #[arg(long, default_value_t = 4096)]
+    pub chunk: usize,
+    /// Head / common / tail split (JSON `{"head": [...], "common": [...], "tail": [...]}`).
+    #[arg(long)]
+    pub split: Option<PathBuf>,
+    /// Output directory for `segmentation.json`, the prediction and error
+    /// point clouds and, with `--compare`, `segmentation_compare.json`
+    /// [default: the run directory].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Compute backend.
+    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
+    pub backend: BackendKind,
+    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
+    #[arg(long, value_parser = parse_device_index)]
+    pub device: Option<usize>,
+    /// Also score the other field modes, the projection of the scene's own 2D
+    /// feature maps (no field: the bound the field is measured against) and
+    /// the ground-truth-feature oracle, in one table (`segmentation_compare.json`).
+    #[arg(long)]
+    pub compare: bool,
+    /// Classes to segment into, in free text, comma-separated (e.g. "chair,
+    /// wooden table, something to sit on"); embedded by --text-model instead
+    /// of --embeddings/--names. Points of other classes are not scored.
+    #[arg(long, requires = "text_model", conflicts_with_all = ["embeddings", "names"])]
+    pub classes: Option<String>,
+    /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
+    /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
+    /// vocabulary) that embeds --classes. It must be the CLIP model whose image
+    /// features the field was trained on. Embeddings are cached in the run
+    /// directory (text_embeddings_cache.json).
+    #[arg(long, value_name = "DIR", requires = "classes")]
+    pub text_model: Option<PathBuf>,
+}
+
+/// Runs `segment`: predictions, scores (printed and written as JSON) and the
+/// prediction / error PLYs next to the JSON.
+pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, OpsError> {
+    check(args)?;
+    let device = device_of(args.backend, args.device);
+    let mode: SegmentMode = args.mode.parse()?;
+    let ctx = Context::load(&args.run, &device)?;
+    let scene = ctx.scene.as_ref();
+    let given = asked_classes(args, &ctx, &device)?;
+    let asked = given.as_ref().map(|t| t.names.clone()).unwrap_or_default();
+    let points = load_points_with(&args.data, scene, given)?;
+    crate::text_query::note_unscored(&asked, &points.names);
+    let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
+    let views = scene_views_of(&cams, idx.as_deref(), scene, !args.rendered_depth);
+    let views = evenly(&views, args.max_views);
+    let view_frames = idx.as_ref().map(|i| evenly(i, args.max_views));
+    let opts = SegmentOptions {
+        mode,
+        sample_radius: args.radius,
+        chunk: args.chunk,
+        render_scale: args.render_scale,
+        project: ProjectOptions::default(),
+    };
+    let run = &ctx.run;
+    let busy = field_ops::progress::spinner(format!(
+        "segmenting {} points ({mode}, {} views)",
+        points.positions.len(),
+        views.len()
+    ));
+    // With --compare every field mode comes from one pass: the views are
+    // rendered once for project and hybrid, the points sampled once.
+    let all_modes = [
+        SegmentMode::Sampled,
+        SegmentMode::Project,
+        SegmentMode::Hybrid,
+    ];
+    let computed = segment_with_field_modes(
+        &run.model,
+        run.meta.pca.as_ref(),
+        &points,
+        &views,
+        &run.meta.scene_box,
+        run.meta.background,
+        &opts,
+        if args.compare {
+            &all_modes
+        } else {
+            std::slice::from_ref(&mode)
+        },
+        &device,
+    )?;
+    let (pred, seen) = computed
+        .iter()
+        .find(|(m, _, _)| *m == mode)
+        .map(|(_, p, s)| (p.clone(), *s))
+        .ok_or_else(|| OpsError::Invalid(format!("mode {mode} was not computed")))?;
+    busy.finish_and_clear();
+    let split = match &args.split {
+        Some(p) => Some(read_json::<ClassSplit>(p)?),
+        None => points.split(),
+    };
+    let score_of = |name: &str, pred: &[u32]| {
+        let mut cm = crate::metrics::ConfusionMatrix::new(points.names.len());
+        cm.add_all(&points.labels, pred);
+        crate::metrics::score(name, &cm, &points.names, split.as_ref())
+    };
+    let scores = score_of(&mode.to_string(), &pred);
+    println!(
+        "{} points, {} classes, {} views; {} points seen by a view",
+        points.positions.len(),
+        points.names.len(),
+        views.len(),
+        seen
+    );
+    print!("{}", format_table(&[(&mode.to_string(), &scores)]));
+    print!("{}", format_per_class(&scores, split.as_ref()));
+    let dir = args.out.clone().unwrap_or_else(|| run.dir.dir.clone());
+    write_scores(&dir, mode, &scores, &points, &pred)?;
+    if args.compare {
+        let features = scene.and_then(|s| s.features.as_ref());
+        let mut rows: Vec<SegmentationScores> = computed
+            .iter()
+            .map(|(m, p, _)| score_of(&m.to_string(), p))
+            .collect();
+        rows.extend(bounds(
+            features,
+            view_frames.as_deref(),
+            &points,
+            &views,
+            &opts,
+            &score_of,
+        )?);
+        let table: Vec<(&str, &SegmentationScores)> =
+            rows.iter().map(|r| (r.mode.as_str(), r)).collect();
+        print!("{}", format_table(&table));
+        let compare = dir.join("segmentation_compare.json");
+        write_json(&compare, &rows)?;
+        println!("wrote {}", compare.display());
+    }
+    Ok(scores)
+}
+
+/// The class names of `--classes` embedded by `--text-model` (`None`
+/// without them: the points' own classes are used).
+fn asked_classes(
+    args: &SegmentArgs,
+    ctx: &Context,
+    device: &Device,
+) -> Result<Option<TextEmbeddings>, OpsError> {
+    match (&args.classes, &args.text_model) {
+        (Some(list), Some(dir)) => {
+            let names = crate::text_query::parse_classes(list)?;
+            Ok(Some(crate::text_query::embed(
+                dir,
+                &names,
+                &args.run,
+                &ctx.run.meta,
+                device,
+            )?))
+        }
+        _ => Ok(None),
+    }
+}
+
+/// The views to segment from: scene frames with their sensor depth (when
+/// `sensor`), else the cameras alone.
+fn scene_views_of<'a>(
+    cams: &[NamedCamera],
+    frames: Option<&[usize]>,
+    scene: Option<&'a Scene>,
+    sensor: bool,
+) -> Vec<View<'a>> {
+    match (frames, scene) {
+        (Some(idx), Some(s)) => idx
+            .iter()
+            .map(|&i| View {
+                camera: s.frames[i].camera,
+                depth: if sensor {
+                    s.frames[i].depth.as_ref()
+                } else {
+                    None
+                },
+            })
+            .collect(),
+        _ => cams
+            .iter()
+            .map(|c| View {
+                camera: c.camera,
+                depth: None,
+            })
+            .collect(),
+    }
+}
+
+/// Writes `segmentation.json` and the prediction / error PLYs into `dir`.
+fn write_scores(
+    dir: &Path,
+    mode: SegmentMode,
+    scores: &SegmentationScores,
+    points: &EvalPoints,
+    pred: &[u32],
+) -> Result<(), OpsError> {
+    std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
+    let out = dir.join("segmentation.json");
+    write_json(&out, scores)?;
+    let stem = format!("segmentation_{mode}");
+    write_prediction_plys(dir, &stem, points, pred)?;
+    for path in [
+        out,
+        dir.join(format!("{stem}_pred.ply")),
+        dir.join(format!("{stem}_error.ply")),
+    ] {
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// The comparison's bounds: the 2D feature maps projected without the
+/// field (when the views are scene frames with maps) and the oracle.
+fn bounds(
+    features: Option<&FeatureSet>,
+    view_frames: Option<&[usize]>,
+    points: &EvalPoints,
+    views: &[View<'_>],
+    opts: &SegmentOptions,
+    score_of: &dyn Fn(&str, &[u32]) -> SegmentationScores,
+) -> Result<Vec<SegmentationScores>, OpsError> {
+    let mut rows = Vec::new();
+    let maps = match (view_frames, features) {
+        (Some(frames), Some(set)) => frames
+            .iter()
+            .map(|&i| set.maps.get(i))
+            .collect::<Option<Vec<_>>>(),
+        _ => None,
+    };
+    match (maps, features) {
+        (Some(maps), Some(set)) => {
+            let pred = segment_with_2d_features(set, &maps, points, views, &opts.project)?;
+            rows.push(score_of("2D-feature projection", &pred));
+        }
+        _ => {
+            eprintln!("note: no 2D feature maps for these cameras; the 2D-feature bound is skipped")
+        }
+    }
+    rows.push(score_of("oracle (GT features)", &segment_oracle(points)?));
+    Ok(rows)
+}
+
+/// Checks `segment`.
+pub fn check(a: &SegmentArgs) -> Result<(), OpsError> {
+    radius(a.radius)?;
+    if !(a.render_scale.is_finite() && a.render_scale > 0.0 && a.render_scale <= 4.0) {
+        return Err(invalid(format!(
+            "--render-scale {}: must be in (0, 4] (a fraction of the camera resolution)",
+            a.render_scale
+        )));
+    }
+    max_views(a.max_views)?;
+    at_least_one("chunk", Some(a.chunk), "")?;
+    crate::text_query::check_flags(None, a.classes.as_deref(), a.text_model.as_deref())?;
+    if let Some(out) = &a.out
+        && out.is_file()
+    {
+        return Err(invalid(format!(
+            "--out {}: is a file; segment writes several files and takes a directory",
+            out.display()
+        )));
+    }
+    check_device_flag(a.backend, a.device).map_err(invalid)
+}

@@ -1,0 +1,23 @@
+//! What a trained OpenNeRF run can do, shared by the `train` and `eval`
+//! crates: the run directory and its reloading (including recorded novel
+//! views), backend choice, rendering views, projecting points into views
+//! with an occlusion test, the uncertainty map of the 2D feature maps,
+//! novel cameras with their rendering and re-extraction (and the
+//! ground-truth oracle), images and plots.
+#![warn(missing_docs)]
+
+pub mod backend;
+pub mod colormap;
+pub mod error;
+pub mod images;
+pub mod json;
+pub mod novel;
+pub mod plot;
+pub mod progress;
+pub mod project;
+pub mod render;
+pub mod run_dir;
+pub mod scores;
+pub mod uncertainty;
+
+pub use error::OpsError;

@@ -1,0 +1,165 @@
+//! Rendering novel cameras with the field and reading their features with
+//! the scene's 2D extractor (or the oracle's ground truth).
+
+use burn::tensor::Device;
+use datasets::extractor::{CommandExtractor, FeatureExtractor};
+use datasets::features::compress_map;
+use datasets::novel::NovelView;
+use datasets::{DepthImage, RgbImage, Scene, SceneSource};
+use model::OpenNerf;
+use model::geometry::Camera;
+
+use super::cameras::AimedCamera;
+use super::config::NovelViewConfig;
+use super::oracle::GroundTruth;
+use super::view::ExtractedView;
+use crate::error::OpsError;
+use crate::render::render_view;
+
+/// The scene's 2D feature extractor: the simulated one of a synthetic scene,
+/// the configured command for a scene on disk. Also refuses an oracle on a
+/// scene without ground truth.
+pub fn scene_extractor(
+    scene: &Scene,
+    config: &NovelViewConfig,
+) -> Result<Box<dyn FeatureExtractor>, OpsError> {
+    let set = scene.features.as_ref().ok_or_else(|| {
+        OpsError::Invalid(format!(
+            "scene {} has no feature maps: novel views need a feature extractor and a feature head",
+            scene.name
+        ))
+    })?;
+    if let Some(oracle) = config.oracle {
+        // Refused here, before training, rather than half-way through it.
+        GroundTruth::of(scene, oracle)?;
+    }
+    match (&scene.source, &config.extractor) {
+        (_, Some(cmd)) => {
+            let (program, args) = cmd
+                .split_first()
+                .ok_or_else(|| OpsError::Invalid("the extractor command is empty".into()))?;
+            Ok(Box::new(CommandExtractor::new(
+                program,
+                args.to_vec(),
+                set.full_dim,
+            )))
+        }
+        (SceneSource::Synthetic { seed, size, .. }, None) => {
+            let size: datasets::synthetic::SceneSize = size.parse()?;
+            Ok(Box::new(datasets::synthetic::extractor_for(*seed, size)))
+        }
+        (SceneSource::Disk { .. }, None) => Err(OpsError::Invalid(format!(
+            "novel views of scene {} need the 2D feature extractor that made its feature maps: give --extractor-command",
+            scene.name
+        ))),
+    }
+}
+
+/// Renders each camera, runs `extractor` on the rendered colour and
+/// compresses the map with the scene's basis. Rendered depth is kept where
+/// the accumulated opacity reaches `config.min_acc` (0 elsewhere: no target).
+/// With `config.oracle`, a synthetic scene's ground truth stands in for the
+/// field's render (and for the extractor's reading with
+/// [`NovelOracle::Labels`]). `progress(done, total)` is called per view.
+#[allow(clippy::too_many_arguments)]
+pub fn render_views(
+    model: &OpenNerf,
+    cameras: &[AimedCamera],
+    scene: &Scene,
+    extractor: &dyn FeatureExtractor,
+    config: &NovelViewConfig,
+    chunk: usize,
+    device: &Device,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Vec<NovelView>, OpsError> {
+    let pca = scene.features.as_ref().and_then(|f| f.pca.as_ref());
+    let truth = config
+        .oracle
+        .map(|o| GroundTruth::of(scene, o))
+        .transpose()?;
+    let mut out = Vec::with_capacity(cameras.len());
+    for (i, aimed) in cameras.iter().enumerate() {
+        let ExtractedView {
+            rgb,
+            depth,
+            features: full,
+        } = match &truth {
+            Some(truth) => truth.view(&aimed.camera, extractor)?,
+            None => field_view(
+                model,
+                &aimed.camera,
+                scene,
+                extractor,
+                config,
+                chunk,
+                device,
+            )?,
+        };
+        let features = match pca {
+            Some(basis) => compress_map(&full, basis),
+            None => full,
+        };
+        out.push(NovelView {
+            name: format!("novel_{i:03}"),
+            camera: aimed.camera,
+            rgb,
+            depth,
+            features,
+            depth_weight: config.depth_weight,
+            target: aimed.target,
+            uncertainty: aimed.uncertainty,
+        });
+        progress(i + 1, cameras.len());
+    }
+    Ok(out)
+}
+
+/// The field's render of `camera` (colour clamped to [0, 1], depth kept
+/// where the opacity reaches `config.min_acc`) and the extractor's reading
+/// of it, before compression.
+fn field_view(
+    model: &OpenNerf,
+    camera: &Camera,
+    scene: &Scene,
+    extractor: &dyn FeatureExtractor,
+    config: &NovelViewConfig,
+    chunk: usize,
+    device: &Device,
+) -> Result<ExtractedView, OpsError> {
+    let view = render_view(
+        model,
+        camera,
+        &scene.scene_box,
+        scene.background,
+        chunk,
+        false,
+        device,
+    );
+    let rgb = RgbImage {
+        width: view.width,
+        height: view.height,
+        data: view.rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect(),
+    };
+    let depth = DepthImage {
+        width: view.width,
+        height: view.height,
+        data: view
+            .depth
+            .iter()
+            .zip(&view.acc)
+            .map(|(&d, &a)| {
+                if a >= config.min_acc && d.is_finite() && d > 0.0 {
+                    d
+                } else {
+                    0.0
+                }
+            })
+            .collect(),
+    };
+    let features = extractor.extract(&rgb)?;
+    Ok(ExtractedView {
+        rgb,
+        depth,
+        features,
+    })
+}

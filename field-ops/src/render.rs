@@ -1,0 +1,172 @@
+//! Rendering a trained field at a camera: colour, depth, opacity and feature
+//! images (written as pictures by [`crate::images`]).
+
+use burn::tensor::{Device, Tensor};
+use model::geometry::{Camera, NormalizedRay, SceneBox};
+use model::{FeatureMode, OpenNerf, Rays};
+
+/// Lower bound on the ray parameter (metres) of rendered rays; the same as
+/// the training ray sampler's default, so views render as they were trained.
+pub const RENDER_MIN_NEAR: f64 = 0.05;
+
+/// One rendered view, row-major images of `height x width` pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderedView {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `height * width * 3` colours in `[0, 1]`.
+    pub rgb: Vec<f32>,
+    /// `height * width` expected z-depths in metres.
+    pub depth: Vec<f32>,
+    /// `height * width` accumulated opacities in `[0, 1]`.
+    pub acc: Vec<f32>,
+    /// `height * width * feature_dim` composited features (empty without a head).
+    pub feature: Vec<f32>,
+    /// Channels per pixel of `feature` (0 without a feature head).
+    pub feature_dim: usize,
+}
+
+impl RenderedView {
+    /// Number of pixels.
+    pub fn pixels(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Feature vector of pixel `(x, y)` (empty without a feature head).
+    pub fn feature_at(&self, x: u32, y: u32) -> &[f32] {
+        let i = (y as usize * self.width as usize + x as usize) * self.feature_dim;
+        &self.feature[i..i + self.feature_dim]
+    }
+
+    /// Rendered depth of pixel `(x, y)`.
+    pub fn depth_at(&self, x: u32, y: u32) -> f32 {
+        self.depth[y as usize * self.width as usize + x as usize]
+    }
+}
+
+/// The normalised rays of every pixel of `camera`, row-major.
+pub fn camera_rays(camera: &Camera, scene_box: &SceneBox) -> Vec<NormalizedRay> {
+    let k = &camera.intrinsics;
+    let mut rays = Vec::with_capacity(k.width as usize * k.height as usize);
+    for j in 0..k.height {
+        for i in 0..k.width {
+            let ray = camera.ray(i as f64, j as f64);
+            rays.push(scene_box.normalize_ray(&ray, RENDER_MIN_NEAR));
+        }
+    }
+    rays
+}
+
+/// Values of a float tensor as `f32`, whatever the backend's float type.
+pub fn tensor_to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .try_into_vec_as::<f32>()
+        .expect("a float tensor converts to f32")
+}
+
+/// Renders every pixel of `camera` with the fine level of `model`, `chunk`
+/// rays at a time (the peak memory is that of one chunk). The feature image
+/// is rendered only when `features` is set (runs trained without feature
+/// targets have no meaningful head, and skipping it saves its cost).
+pub fn render_view(
+    model: &OpenNerf,
+    camera: &Camera,
+    scene_box: &SceneBox,
+    background: Option<[f32; 3]>,
+    chunk: usize,
+    features: bool,
+    device: &Device,
+) -> RenderedView {
+    let mode = if features {
+        FeatureMode::Composited
+    } else {
+        FeatureMode::None
+    };
+    let rays = camera_rays(camera, scene_box);
+    let r = render_rays(model, &rays, background, chunk, mode, device);
+    RenderedView {
+        width: camera.intrinsics.width,
+        height: camera.intrinsics.height,
+        rgb: r.rgb,
+        depth: r.depth,
+        acc: r.acc,
+        feature: r.feature,
+        feature_dim: r.feature_dim,
+    }
+}
+
+/// Fine-level outputs of a list of rays, on the host.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RenderedRays {
+    /// `3 n` colours.
+    pub rgb: Vec<f32>,
+    /// `n` expected depths along the ray (metres of `t`).
+    pub depth: Vec<f32>,
+    /// `n` accumulated opacities.
+    pub acc: Vec<f32>,
+    /// `n * feature_dim` features (empty when not rendered).
+    pub feature: Vec<f32>,
+    /// Channels per ray of `feature`.
+    pub feature_dim: usize,
+}
+
+/// Renders `rays` with the fine level of `model`, `chunk` rays at a time.
+/// With an occupancy grid on the model, each ray is first clipped to its
+/// occupied cells and rays that cross none are not evaluated: they get the
+/// background (black without one), zero opacity, depth and feature — what
+/// the field renders for a ray that meets no density.
+pub fn render_rays(
+    model: &OpenNerf,
+    rays: &[NormalizedRay],
+    background: Option<[f32; 3]>,
+    chunk: usize,
+    mode: FeatureMode,
+    device: &Device,
+) -> RenderedRays {
+    let clipped = model.occupancy().map(|g| g.clip(rays));
+    let to_render: &[NormalizedRay] = clipped.as_ref().map_or(rays, |c| &c.rays);
+    let chunk = chunk.max(1);
+    let mut out = RenderedRays::default();
+    for part in to_render.chunks(chunk) {
+        let batch = Rays::from_normalized(part, device);
+        let fine = model.render_inference(&batch, chunk, background, mode).fine;
+        out.rgb.extend(tensor_to_vec(fine.rgb));
+        out.depth.extend(tensor_to_vec(fine.depth));
+        out.acc.extend(tensor_to_vec(fine.acc));
+        if let Some(f) = fine.feature {
+            out.feature_dim = f.dims()[1];
+            out.feature.extend(tensor_to_vec(f));
+        }
+    }
+    let Some(clipped) = clipped else {
+        return out;
+    };
+    if clipped.kept.len() == rays.len() {
+        return out;
+    }
+    let dim = match mode {
+        FeatureMode::None => 0,
+        _ => model.head.output.weight.dims()[1],
+    };
+    let n = rays.len();
+    let bg = background.unwrap_or([0.0; 3]);
+    let mut full = RenderedRays {
+        rgb: bg.repeat(n),
+        depth: vec![0.0; n],
+        acc: vec![0.0; n],
+        feature: vec![0.0; n * dim],
+        feature_dim: dim,
+    };
+    for (j, &i) in clipped.kept.iter().enumerate() {
+        full.rgb[3 * i..3 * i + 3].copy_from_slice(&out.rgb[3 * j..3 * j + 3]);
+        full.depth[i] = out.depth[j];
+        full.acc[i] = out.acc[j];
+        if dim > 0 {
+            full.feature[i * dim..(i + 1) * dim]
+                .copy_from_slice(&out.feature[j * dim..(j + 1) * dim]);
+        }
+    }
+    full
+}
