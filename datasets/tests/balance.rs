@@ -2,7 +2,7 @@
 //! with one common and one rare feature.
 
 use datasets::balance::{BalanceConfig, BalancedSampler};
-use datasets::features::FeatureSet;
+use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::SamplerConfig;
 use datasets::{FeatureMap, Frame, RgbImage, Scene, SceneSource};
 use half::f16;
@@ -46,7 +46,7 @@ fn scene() -> Scene {
     Scene {
         name: "balance".into(),
         frames: vec![frame],
-        features: Some(FeatureSet::from_maps(vec![map], None, 0).expect("maps")),
+        features: Some(FeatureSet::from_maps(vec![map], PcaSetting::Off, 0).expect("maps")),
         scene_box: SceneBox {
             min: [-1.0; 3],
             max: [1.0; 3],

@@ -1,6 +1,6 @@
 //! Ray sampler: determinism, resume, border margin, targets and rays.
 
-use datasets::features::{FeatureSet, PcaTarget};
+use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::{
     RaySampler, SamplerConfig, frame_rays, sample_batch, sample_batch_from, scaled_margin,
 };
@@ -72,7 +72,7 @@ fn scene(with_features: bool) -> Scene {
                 }
             })
             .collect();
-        FeatureSet::from_maps(maps, None, 0).expect("maps")
+        FeatureSet::from_maps(maps, PcaSetting::Off, 0).expect("maps")
     });
     Scene {
         name: "test".into(),
@@ -178,7 +178,7 @@ fn pixels_without_a_feature_target_are_masked() {
         fs.maps[0].data.iter_mut().for_each(|v| *v = f16::ZERO);
         let maps = fs.maps.clone();
         if compress {
-            fs = FeatureSet::from_maps(maps.clone(), Some(PcaTarget::Components(1)), 0)
+            fs = FeatureSet::from_maps(maps.clone(), PcaSetting::Components(1), 0)
                 .expect("pca");
             // The fit saw every pixel of frames 1 and 2 and none of frame 0.
             let mut mean = [0f64; 2];

@@ -24,7 +24,7 @@ pub mod report;
 pub mod welford;
 
 use datasets::Scene;
-use datasets::features::{FeatureSet, Pca, PcaTarget};
+use datasets::features::{FeatureSet, PcaBasis, PcaSetting};
 use model::geometry::Vec3;
 
 use crate::error::EvalError;
@@ -89,7 +89,7 @@ pub struct UncertaintyMap {
 /// variance), else a basis fitted to a sample of the maps.
 enum Subspace {
     Leading(usize),
-    Fitted(Pca),
+    Fitted(PcaBasis),
 }
 
 impl Subspace {
@@ -111,7 +111,7 @@ impl Subspace {
                 }
             }
         }
-        let pca = Pca::fit(&samples, dim, PcaTarget::Components(k))
+        let pca = PcaBasis::fit(&samples, dim, PcaSetting::Components(k))
             .map_err(|e| EvalError::Invalid(format!("fitting the uncertainty subspace: {e}")))?;
         Ok(Self::Fitted(pca))
     }

@@ -231,7 +231,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, EvalE
 pub fn feature_errors(
     map: &UncertaintyMap,
     points: &EvalPoints,
-    pca: Option<&datasets::features::Pca>,
+    pca: Option<&datasets::features::PcaBasis>,
 ) -> Result<Vec<f64>, EvalError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
     let mut cos = vec![0.0; scorer.classes];
