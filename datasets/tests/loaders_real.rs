@@ -246,8 +246,7 @@ fn load_scene_dispatches_on_the_source() {
         "path": dir,
         "options": null,
     }))
-    .err()
-    .expect("unknown format");
+    .expect_err("unknown format");
     assert!(
         err.to_string().contains("unknown variant `colmap`"),
         "{err}"
