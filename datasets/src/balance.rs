@@ -34,6 +34,17 @@ pub struct BalanceConfig {
     pub power: f64,
 }
 
+impl BalanceConfig {
+    /// The balance `config` asks for (its `balance_clusters` and
+    /// `feature_balance`), `None` when it samples uniformly.
+    pub fn of(config: &SamplerConfig) -> Option<Self> {
+        (config.feature_balance > 0.0).then_some(Self {
+            clusters: config.balance_clusters,
+            power: config.feature_balance,
+        })
+    }
+}
+
 /// A block of image pixels that share one map pixel (so one target).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Cell {
@@ -193,10 +204,10 @@ impl BalancedSampler {
         }))
     }
 
-    /// Batch number `index` (a pure function of `config.seed` and `index`,
-    /// so training resumes exactly).
-    pub fn batch(&self, config: &SamplerConfig, scene: &Scene, index: u64) -> RayBatch {
-        let mut rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x0b5e_55ed);
+    /// Batch number `index` (a pure function of `seed` and `index`, so
+    /// training resumes exactly).
+    pub fn batch(&self, config: &SamplerConfig, seed: u64, scene: &Scene, index: u64) -> RayBatch {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0b5e_55ed);
         rng.set_stream(index);
         let total = self.cdf.last().copied().unwrap_or(0.0);
         let picks: Vec<(usize, u32, u32)> = (0..config.rays_per_batch)

@@ -18,38 +18,10 @@ use model::geometry::{Camera, Intrinsics, SceneBox, Vec3};
 
 use crate::error::DatasetError;
 use crate::imageio;
+pub use crate::options::BlenderOptions;
+use crate::options::LoaderOptions;
 use crate::poses::checked_pose;
 use crate::scene::{Frame, Scene, SceneSource};
-
-/// Loader options (stored in the scene's [`SceneSource`]).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
-pub struct BlenderOptions {
-    /// Transforms file name inside the scene directory; `None` tries
-    /// `transforms.json`, then `transforms_train.json`.
-    pub transforms: Option<String>,
-    /// Integer downscale factor of the images (1 = full size).
-    pub downscale: u32,
-    /// Colour transparent pixels are composited over; also the scene's
-    /// background.
-    pub background: [f32; 3],
-    /// Keep at most this many frames (in file order).
-    pub max_frames: Option<usize>,
-    /// Box margin, as a fraction of its extent.
-    pub box_margin: f64,
-}
-
-impl Default for BlenderOptions {
-    fn default() -> Self {
-        Self {
-            transforms: None,
-            downscale: 1,
-            background: [1.0; 3],
-            max_frames: None,
-            box_margin: 0.05,
-        }
-    }
-}
 
 /// Camera keys that may appear at the top level or per frame.
 #[derive(Debug, Clone, Default, serde::Deserialize)]
@@ -229,9 +201,8 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
         points: None,
         classes: None,
         source: SceneSource::Disk {
-            format: "blender".into(),
+            loader: LoaderOptions::Blender(options.clone()),
             path: dir.to_path_buf(),
-            options: serde_json::to_value(options).unwrap_or(serde_json::Value::Null),
         },
     })
 }

@@ -9,9 +9,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use half::f16;
 
 use crate::error::DatasetError;
+use crate::features::FeatureMap;
 use crate::npy::NpyInfo;
-use crate::scene::{FeatureMap, RgbImage};
-use crate::synthetic::render::hash01;
+use crate::numeric::{hash01, normalized};
+use crate::scene::RgbImage;
 use crate::text::TextEmbeddings;
 
 /// A pixel-aligned open-vocabulary feature extractor.
@@ -100,7 +101,7 @@ impl SimulatedExtractor {
         let data = embeddings
             .data
             .chunks_exact(dim)
-            .flat_map(crate::synthetic::classes::normalized)
+            .flat_map(normalized)
             .collect();
         let embeddings = TextEmbeddings { data, ..embeddings };
         let noise_basis = (0..NOISE_DIRS)
@@ -108,7 +109,7 @@ impl SimulatedExtractor {
                 let v: Vec<f32> = (0..dim)
                     .map(|k| (hash01(seed ^ (((j * dim + k) as u64) << 8) ^ 0xfea7) - 0.5) as f32)
                     .collect();
-                crate::synthetic::classes::normalized(&v)
+                normalized(&v)
             })
             .collect();
         Ok(Self {

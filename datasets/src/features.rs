@@ -3,7 +3,6 @@
 //! optional PCA compression applied while the maps are read, so that never
 //! all maps are held at full dimension at once.
 
-mod eigen;
 mod pca;
 
 use std::path::{Path, PathBuf};
@@ -12,11 +11,11 @@ use half::f16;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-pub use pca::{AUTO_EXPLAINED_VARIANCE, Pca, PcaSetting, PcaTarget};
+pub use pca::{AUTO_EXPLAINED_VARIANCE, PcaBasis, PcaSetting};
 
 use crate::error::DatasetError;
+use crate::grid::nearest_pixel;
 use crate::npy::NpyInfo;
-use crate::scene::FeatureMap;
 
 /// Pixels sampled (over all maps) to fit a PCA basis.
 const PCA_SAMPLES: usize = 8192;
@@ -24,6 +23,35 @@ const PCA_SAMPLES: usize = 8192;
 /// A full-dimensional feature vector with a norm below this carries no
 /// target (extractors write zeros where they have no prediction).
 pub const ZERO_FEATURE_NORM: f32 = 1e-6;
+
+/// A pixel-aligned feature map of one frame, row-major `[height, width, dim]`,
+/// stored as `f16`. Its resolution may be lower than the frame's image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeatureMap {
+    /// Map width.
+    pub width: u32,
+    /// Map height.
+    pub height: u32,
+    /// Channels per pixel (D, or k PCA coefficients).
+    pub dim: usize,
+    /// `height * width * dim` values.
+    pub data: Vec<f16>,
+}
+
+impl FeatureMap {
+    /// Feature vector at map pixel `(x, y)`.
+    pub fn pixel(&self, x: u32, y: u32) -> &[f16] {
+        let i = (y as usize * self.width as usize + x as usize) * self.dim;
+        &self.data[i..i + self.dim]
+    }
+
+    /// Feature at image point `(u, v)` of an `image_width x image_height`
+    /// image (pixel centres at integers): nearest map pixel after scaling.
+    pub fn lookup(&self, u: f64, v: f64, image_width: u32, image_height: u32) -> &[f16] {
+        let (x, y) = nearest_pixel(u, v, (image_width, image_height), (self.width, self.height));
+        self.pixel(x, y)
+    }
+}
 
 /// Whether a full-dimensional feature vector is a target: finite and not
 /// (numerically) zero.
@@ -45,17 +73,17 @@ pub struct FeatureSet {
     /// One map per frame; `dim` is `k` when compressed.
     pub maps: Vec<FeatureMap>,
     /// The basis the maps were compressed with.
-    pub pca: Option<Pca>,
+    pub pca: Option<PcaBasis>,
     /// Dimension of the original features (D).
     pub full_dim: usize,
 }
 
 impl FeatureSet {
     /// Wraps in-memory maps, fitting PCA on a seeded sample of their pixels
-    /// and compressing them when `pca` is given. All maps must share `dim`.
+    /// and compressing them unless `pca` is off. All maps must share `dim`.
     pub fn from_maps(
         maps: Vec<FeatureMap>,
-        pca: Option<PcaTarget>,
+        pca: PcaSetting,
         seed: u64,
     ) -> Result<Self, DatasetError> {
         let full_dim = maps.first().map_or(0, |m| m.dim);
@@ -65,20 +93,20 @@ impl FeatureSet {
                 format!("map {i} has dim {} but map 0 has {full_dim}", maps[i].dim),
             ));
         }
-        let Some(target) = pca else {
+        if !pca.is_on() {
             return Ok(Self {
                 maps,
                 pca: None,
                 full_dim,
             });
-        };
+        }
         let sizes: Vec<usize> = maps.iter().map(|m| (m.width * m.height) as usize).collect();
         let picks = sample_plan(&sizes, seed);
         let mut samples = Vec::new();
         for (m, idx) in maps.iter().zip(&picks) {
             gather_pixels(m, idx, &mut samples);
         }
-        let basis = Pca::fit(&samples, full_dim, target)?;
+        let basis = PcaBasis::fit(&samples, full_dim, pca)?;
         let maps = maps.iter().map(|m| compress_map(m, &basis)).collect();
         Ok(Self {
             maps,
@@ -146,7 +174,7 @@ fn gather_pixels(map: &FeatureMap, pixels: &[usize], out: &mut Vec<f32>) {
 /// A map projected onto `pca`'s `k` components (stored as f16 coefficients).
 /// Pixels without a target (zero or non-finite vectors) get NaN
 /// coefficients, which [`FeatureSet::is_target`] reads as "no target".
-pub fn compress_map(map: &FeatureMap, pca: &Pca) -> FeatureMap {
+pub fn compress_map(map: &FeatureMap, pca: &PcaBasis) -> FeatureMap {
     let d = map.dim;
     let mut data = Vec::with_capacity((map.width * map.height) as usize * pca.k);
     let mut full = vec![0f32; d];
@@ -324,31 +352,31 @@ fn plan(source: &FeatureSource, image_sizes: &[(u32, u32)]) -> Result<Vec<MapSlo
 }
 
 /// Loads the maps of `source` for frames of `image_sizes` (`(width, height)`),
-/// one map at a time. With `pca`, a first pass samples pixels to fit the
-/// basis and a second pass compresses each map as it is read.
+/// one map at a time. Unless `pca` is off, a first pass samples pixels to
+/// fit the basis and a second pass compresses each map as it is read.
 pub fn load_features(
     source: &FeatureSource,
     image_sizes: &[(u32, u32)],
-    pca: Option<PcaTarget>,
+    pca: PcaSetting,
     seed: u64,
 ) -> Result<FeatureSet, DatasetError> {
     let slots = plan(source, image_sizes)?;
     let full_dim = slots.first().map_or(0, |s| s.d);
-    let Some(target) = pca else {
+    if !pca.is_on() {
         let maps = slots.iter().map(MapSlot::read).collect::<Result<_, _>>()?;
         return Ok(FeatureSet {
             maps,
             pca: None,
             full_dim,
         });
-    };
+    }
     let sizes: Vec<usize> = slots.iter().map(|s| s.h * s.w).collect();
     let picks = sample_plan(&sizes, seed);
     let mut samples = Vec::new();
     for (s, idx) in slots.iter().zip(&picks) {
         gather_pixels(&s.read()?, idx, &mut samples);
     }
-    let basis = Pca::fit(&samples, full_dim, target)?;
+    let basis = PcaBasis::fit(&samples, full_dim, pca)?;
     let maps = slots
         .iter()
         .map(|s| s.read().map(|m| compress_map(&m, &basis)))
@@ -366,7 +394,7 @@ pub fn load_features(
 pub fn load_features_with_basis(
     source: &FeatureSource,
     image_sizes: &[(u32, u32)],
-    basis: &Pca,
+    basis: &PcaBasis,
 ) -> Result<FeatureSet, DatasetError> {
     let slots = plan(source, image_sizes)?;
     let full_dim = slots.first().map_or(0, |s| s.d);

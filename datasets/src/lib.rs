@@ -10,10 +10,13 @@ pub mod blender;
 pub mod error;
 pub mod extractor;
 pub mod features;
+pub mod grid;
 pub mod imageio;
 pub mod llff;
 pub mod novel;
 pub mod npy;
+mod numeric;
+pub mod options;
 pub mod points;
 pub mod poses;
 pub mod replica;
@@ -24,12 +27,13 @@ pub mod text;
 pub mod writer;
 
 pub use error::DatasetError;
-pub use scene::{DepthImage, FeatureMap, Frame, RgbImage, Scene, SceneMeta, SceneSource};
+pub use features::FeatureMap;
+pub use options::LoaderOptions;
+pub use scene::{DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource};
 
 use std::path::PathBuf;
 
-/// Loads (or generates) the scene `source` describes. Disk formats read
-/// their options from `options` (missing fields take their defaults).
+/// Loads (or generates) the scene `source` describes.
 pub fn load_scene(source: &SceneSource) -> Result<Scene, DatasetError> {
     load_scene_with_basis(source, None)
 }
@@ -39,51 +43,27 @@ pub fn load_scene(source: &SceneSource) -> Result<Scene, DatasetError> {
 /// exactly the targets its field was trained on.
 pub fn load_scene_with_basis(
     source: &SceneSource,
-    basis: Option<&features::Pca>,
+    basis: Option<&features::PcaBasis>,
 ) -> Result<Scene, DatasetError> {
     match source {
         SceneSource::Synthetic { seed, size, pca } => {
             let size: synthetic::SceneSize = size.parse()?;
-            let target = pca.map_or(size.pca_target(), |p| p.target());
-            let mut scene = synthetic::generate_with(*seed, size, target, basis)?;
+            let pca = pca.unwrap_or(size.default_pca());
+            let mut scene = synthetic::generate_with(*seed, size, pca, basis)?;
             scene.source = source.clone();
             Ok(scene)
         }
-        SceneSource::Disk {
-            format,
-            path,
-            options,
-        } => {
-            let opts = |o: &serde_json::Value| -> serde_json::Value {
-                if o.is_null() {
-                    serde_json::json!({})
-                } else {
-                    o.clone()
-                }
-            };
-            let bad = |e: serde_json::Error| {
-                DatasetError::invalid(path, format!("bad {format} loader options: {e}"))
-            };
-            match format.as_str() {
-                "replica" => {
-                    let mut o: replica::ReplicaOptions =
-                        serde_json::from_value(opts(options)).map_err(bad)?;
-                    o.basis = basis.cloned();
-                    replica::load_replica(path, &o)
-                }
-                "blender" => blender::load_blender(
-                    path,
-                    &serde_json::from_value(opts(options)).map_err(bad)?,
-                ),
-                "llff" => {
-                    llff::load_llff(path, &serde_json::from_value(opts(options)).map_err(bad)?)
-                }
-                other => Err(DatasetError::invalid(
-                    path,
-                    format!("unknown scene format {other:?} (expected replica, blender or llff)"),
-                )),
-            }
-        }
+        SceneSource::Disk { loader, path } => match loader {
+            LoaderOptions::Replica(o) => replica::load_replica(
+                path,
+                &replica::ReplicaOptions {
+                    basis: basis.cloned(),
+                    ..o.clone()
+                },
+            ),
+            LoaderOptions::Blender(o) => blender::load_blender(path, o),
+            LoaderOptions::Llff(o) => llff::load_llff(path, o),
+        },
     }
 }
 

@@ -15,31 +15,10 @@ use model::geometry::{Camera, Intrinsics, Vec3};
 use crate::error::DatasetError;
 use crate::imageio;
 use crate::npy::NpyInfo;
+pub use crate::options::LlffOptions;
+use crate::options::LoaderOptions;
 use crate::poses::{box_of, checked_pose};
 use crate::scene::{Frame, Scene, SceneSource};
-
-/// Loader options (stored in the scene's [`SceneSource`]).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
-pub struct LlffOptions {
-    /// Image folder (`images_8`, `images_16`, `images`); `None` picks
-    /// `images_8` if present, else the most downsampled `images_F`.
-    pub images: Option<String>,
-    /// Keep at most this many views.
-    pub max_frames: Option<usize>,
-    /// Box margin, as a fraction of its extent.
-    pub box_margin: f64,
-}
-
-impl Default for LlffOptions {
-    fn default() -> Self {
-        Self {
-            images: None,
-            max_frames: None,
-            box_margin: 0.05,
-        }
-    }
-}
 
 /// One row of `poses_bounds.npy`, converted.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -255,9 +234,8 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
         points: None,
         classes: None,
         source: SceneSource::Disk {
-            format: "llff".into(),
+            loader: LoaderOptions::Llff(options.clone()),
             path: dir.to_path_buf(),
-            options: serde_json::to_value(options).unwrap_or(serde_json::Value::Null),
         },
     })
 }

@@ -16,8 +16,9 @@ use model::geometry::Camera;
 use serde::{Deserialize, Serialize};
 
 use crate::error::DatasetError;
+use crate::features::FeatureMap;
 use crate::npy::{NpyInfo, write_npy_f16, write_npy_f32};
-use crate::scene::{DepthImage, FeatureMap, Frame, RgbImage, Scene};
+use crate::scene::{DepthImage, Frame, RgbImage, Scene};
 
 /// Name of the record's index file.
 pub const INDEX: &str = "views.json";

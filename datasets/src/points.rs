@@ -1,9 +1,16 @@
-//! Point clouds: PLY reading (ascii and binary little endian) and writing,
-//! per-point label files and class-id maps.
+//! Point clouds: PLY reading (ascii and binary) and writing through
+//! `ply-rs-bw`, per-point label files and class-id maps.
 
 use std::collections::HashMap;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
+
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{
+    Addable, ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult,
+    PropertyDef, PropertyType, ScalarType,
+};
+use ply_rs_bw::writer::Writer;
 
 use crate::error::DatasetError;
 
@@ -33,262 +40,256 @@ pub struct PointCloud {
     pub labels: Option<Vec<i64>>,
 }
 
-/// Scalar types a PLY property may have.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Scalar {
-    I8,
-    U8,
-    I16,
-    U16,
-    I32,
-    U32,
-    F32,
-    F64,
-}
+/// Header lines read ahead of the crate's parser to check for repeated
+/// element or property names (see [`check_header_names`]).
+const MAX_HEADER_LINES: usize = 10_000;
 
-impl Scalar {
-    fn parse(name: &str) -> Option<Self> {
-        Some(match name {
-            "char" | "int8" => Self::I8,
-            "uchar" | "uint8" => Self::U8,
-            "short" | "int16" => Self::I16,
-            "ushort" | "uint16" => Self::U16,
-            "int" | "int32" => Self::I32,
-            "uint" | "uint32" => Self::U32,
-            "float" | "float32" => Self::F32,
-            "double" | "float64" => Self::F64,
-            _ => return None,
-        })
-    }
+/// Points preallocated before the file's data has been seen (a header may
+/// claim any count).
+const MAX_PREALLOCATED_POINTS: usize = 1 << 20;
 
-    fn size(self) -> usize {
-        match self {
-            Self::I8 | Self::U8 => 1,
-            Self::I16 | Self::U16 => 2,
-            Self::I32 | Self::U32 | Self::F32 => 4,
-            Self::F64 => 8,
-        }
-    }
-
-    fn is_float(self) -> bool {
-        matches!(self, Self::F32 | Self::F64)
-    }
-
-    /// Decodes one little-endian value (`b.len() == self.size()`).
-    fn decode_le(self, b: &[u8]) -> f64 {
-        match self {
-            Self::I8 => b[0] as i8 as f64,
-            Self::U8 => b[0] as f64,
-            Self::I16 => i16::from_le_bytes([b[0], b[1]]) as f64,
-            Self::U16 => u16::from_le_bytes([b[0], b[1]]) as f64,
-            Self::I32 => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
-            Self::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
-            Self::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
-            Self::F64 => {
-                let mut a = [0u8; 8];
-                a.copy_from_slice(b);
-                f64::from_le_bytes(a)
-            }
-        }
-    }
-}
-
-/// One element declaration of a PLY header.
-struct Element {
-    name: String,
-    count: usize,
-    /// Scalar properties; `None` type marks a list property.
-    props: Vec<(String, Option<Scalar>)>,
-}
-
-#[derive(PartialEq)]
-enum Format {
-    Ascii,
-    BinaryLe,
-}
-
-fn parse_header(path: &Path, r: &mut impl BufRead) -> Result<(Format, Vec<Element>), DatasetError> {
-    let bad = |m: String| DatasetError::invalid(path, m);
-    let mut line = String::new();
-    let mut next = |line: &mut String| -> Result<bool, DatasetError> {
+/// Rejects a header that names an element twice, or a property twice within
+/// an element. `ply-rs-bw` keeps such declarations in a map, so a repeated
+/// name silently replaces the earlier declaration (or moves a property to
+/// another element) and the rows are then misread; this reads the header
+/// lines (up to `end_header`) ahead of it to refuse such files.
+fn check_header_names(path: &Path) -> Result<(), DatasetError> {
+    let file = std::fs::File::open(path).map_err(|e| DatasetError::io(path, e))?;
+    let mut elements: Vec<(String, Vec<String>)> = Vec::new();
+    let mut line = Vec::new();
+    let mut r = BufReader::new(file);
+    for _ in 0..MAX_HEADER_LINES {
         line.clear();
-        let n = r.read_line(line).map_err(|e| DatasetError::io(path, e))?;
-        Ok(n > 0)
-    };
-    if !next(&mut line)? || line.trim() != "ply" {
-        return Err(bad("not a PLY file (missing 'ply' magic)".into()));
-    }
-    let mut format = None;
-    let mut elements: Vec<Element> = Vec::new();
-    loop {
-        if !next(&mut line)? {
-            return Err(bad("PLY header has no end_header".into()));
+        if r.read_until(b'\n', &mut line)
+            .map_err(|e| DatasetError::io(path, e))?
+            == 0
+        {
+            break;
         }
-        let words: Vec<&str> = line.split_whitespace().collect();
+        let text = String::from_utf8_lossy(&line);
+        let words: Vec<&str> = text.split_whitespace().collect();
+        let dup = |what: &str, name: &str| {
+            Err(DatasetError::invalid(
+                path,
+                format!("PLY header declares {what} '{name}' twice"),
+            ))
+        };
         match words.as_slice() {
             ["end_header"] => break,
-            ["format", "ascii", _] => format = Some(Format::Ascii),
-            ["format", "binary_little_endian", _] => format = Some(Format::BinaryLe),
-            ["format", other, ..] => return Err(bad(format!("unsupported PLY format '{other}'"))),
-            ["comment", ..] | ["obj_info", ..] | [] => {}
-            ["element", name, count] => elements.push(Element {
-                name: name.to_string(),
-                count: count
-                    .parse()
-                    .map_err(|_| bad(format!("bad element count '{count}'")))?,
-                props: Vec::new(),
-            }),
-            ["property", "list", _, _, name] => match elements.last_mut() {
-                Some(e) => e.props.push((name.to_string(), None)),
-                None => return Err(bad("property before any element".into())),
-            },
-            ["property", ty, name] => {
-                let s = Scalar::parse(ty)
-                    .ok_or_else(|| bad(format!("unknown property type '{ty}'")))?;
-                match elements.last_mut() {
-                    Some(e) => e.props.push((name.to_string(), Some(s))),
-                    None => return Err(bad("property before any element".into())),
+            ["element", name, ..] => {
+                if elements.iter().any(|(e, _)| e == name) {
+                    return dup("element", name);
+                }
+                elements.push((name.to_string(), Vec::new()));
+            }
+            ["property", .., name] => {
+                if let Some((element, props)) = elements.last_mut() {
+                    if props.iter().any(|p| p == name) {
+                        return dup(&format!("{element} property"), name);
+                    }
+                    props.push(name.to_string());
                 }
             }
-            _ => {
-                return Err(bad(format!(
-                    "unrecognised PLY header line '{}'",
-                    line.trim()
-                )));
-            }
+            _ => {}
         }
     }
-    let format = format.ok_or_else(|| bad("PLY header has no format line".into()))?;
-    Ok((format, elements))
+    Ok(())
 }
 
-/// Reads the vertex element of a PLY file: `x`, `y`, `z` (required), `red`,
-/// `green`, `blue` (optional) and a label property (`label`, `class`,
-/// `semantic`, `object_id`, ...; optional).
-pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
-    let file = std::fs::File::open(path).map_err(|e| DatasetError::io(path, e))?;
-    let mut r = BufReader::new(file);
-    let (format, elements) = parse_header(path, &mut r)?;
-    let bad = |m: String| DatasetError::invalid(path, m);
-    let vi = elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or_else(|| bad("PLY file has no vertex element".into()))?;
-    // Skip elements stored before the vertices.
-    for e in &elements[..vi] {
-        skip_element(path, &mut r, e, &format)?;
+/// One vertex as read: every scalar property is widened to `f64`; list
+/// properties and unknown names are ignored.
+#[derive(Debug, Default)]
+struct VertexIn {
+    xyz: [f64; 3],
+    /// Colour channels, already scaled to `[0, 255]` (float channels are
+    /// given in `[0, 1]`).
+    rgb: [f64; 3],
+    /// Value of the preferred label property seen so far, with its rank in
+    /// [`LABEL_NAMES`].
+    label: Option<(usize, f64)>,
+}
+
+impl PropertyAccess for VertexIn {
+    fn new() -> Self {
+        Self::default()
     }
-    let v = &elements[vi];
-    if v.props.iter().any(|(_, t)| t.is_none()) {
+
+    fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
+        let (v, is_float) = match property {
+            Property::Char(v) => (v as f64, false),
+            Property::UChar(v) => (v as f64, false),
+            Property::Short(v) => (v as f64, false),
+            Property::UShort(v) => (v as f64, false),
+            Property::Int(v) => (v as f64, false),
+            Property::UInt(v) => (v as f64, false),
+            Property::Float(v) => (v as f64, true),
+            Property::Double(v) => (v, true),
+            _ => return PropertyAccessResult::Ignored,
+        };
+        let colour = if is_float { v * 255.0 } else { v };
+        match name {
+            "x" => self.xyz[0] = v,
+            "y" => self.xyz[1] = v,
+            "z" => self.xyz[2] = v,
+            "red" => self.rgb[0] = colour,
+            "green" => self.rgb[1] = colour,
+            "blue" => self.rgb[2] = colour,
+            _ => match LABEL_NAMES.iter().position(|&n| n == name) {
+                Some(rank) if self.label.is_none_or(|(r, _)| rank < r) => {
+                    self.label = Some((rank, v));
+                }
+                _ => return PropertyAccessResult::Ignored,
+            },
+        }
+        PropertyAccessResult::Set
+    }
+}
+
+/// An element read only to move past it.
+struct Skipped;
+
+impl PropertyAccess for Skipped {
+    fn new() -> Self {
+        Self
+    }
+}
+
+/// Reads the vertex element of a PLY file (ascii, binary little or big
+/// endian): `x`, `y`, `z` (required), `red`, `green`, `blue` (optional) and
+/// a label property (`label`, `class`, `semantic`, `object_id`, ...;
+/// optional).
+pub fn read_ply(path: &Path) -> Result<PointCloud, DatasetError> {
+    let bad = |m: String| DatasetError::invalid(path, m);
+    check_header_names(path)?;
+    let file = std::fs::File::open(path).map_err(|e| DatasetError::io(path, e))?;
+    let mut reader = Reader::new(BufReader::new(file));
+    let parser = Parser::<VertexIn>::new();
+    let header = parser
+        .read_header(&mut reader)
+        .map_err(|e| bad(format!("bad PLY header: {e}")))?;
+    let Some(vi) = header.elements.get_index_of("vertex") else {
+        return Err(bad("PLY file has no vertex element".into()));
+    };
+    // Skip elements stored before the vertices.
+    let skip = Parser::<Skipped>::new();
+    for (name, e) in header.elements.iter().take(vi) {
+        skip.read_payload_for_element(&mut reader, e, &header)
+            .map_err(|err| bad(format!("cannot read element '{name}': {err}")))?;
+    }
+    let v = &header.elements[vi];
+    if v.properties
+        .values()
+        .any(|p| matches!(p.data_type, PropertyType::List(..)))
+    {
         return Err(bad(
             "vertex element has a list property (unsupported)".into()
         ));
     }
-    let find = |n: &str| v.props.iter().position(|(p, _)| p.as_str() == n);
-    let xyz = ["x", "y", "z"].map(find);
-    if let Some(k) = xyz.iter().position(|i| i.is_none()) {
-        return Err(bad(format!(
-            "vertex element has no '{}' property",
-            ["x", "y", "z"][k]
-        )));
+    let has = |n: &str| v.properties.contains_key(n);
+    if let Some(k) = ["x", "y", "z"].into_iter().find(|&n| !has(n)) {
+        return Err(bad(format!("vertex element has no '{k}' property")));
     }
-    let rgb = ["red", "green", "blue"].map(find);
-    let has_rgb = rgb.iter().all(|i| i.is_some());
-    let label = LABEL_NAMES.iter().find_map(|n| find(n));
-    let types: Vec<Scalar> = v.props.iter().filter_map(|(_, t)| *t).collect();
-    let mut values = vec![0f64; types.len()];
+    let has_rgb = ["red", "green", "blue"].into_iter().all(has);
+    let has_label = LABEL_NAMES.into_iter().any(has);
+    let capacity = v.count.min(MAX_PREALLOCATED_POINTS);
     let mut cloud = PointCloud {
-        positions: Vec::with_capacity(v.count),
-        colors: has_rgb.then(|| Vec::with_capacity(v.count)),
-        labels: label.map(|_| Vec::with_capacity(v.count)),
+        positions: Vec::with_capacity(capacity),
+        colors: has_rgb.then(|| Vec::with_capacity(capacity)),
+        labels: has_label.then(|| Vec::with_capacity(capacity)),
     };
     let mut line = String::new();
-    let row_size: usize = types.iter().map(|t| t.size()).sum();
-    let mut buf = vec![0u8; row_size];
     for row in 0..v.count {
-        if format == Format::Ascii {
-            line.clear();
-            let n = r
-                .read_line(&mut line)
-                .map_err(|e| DatasetError::io(path, e))?;
-            let words: Vec<&str> = line.split_whitespace().collect();
-            if n == 0 || words.len() < types.len() {
-                return Err(bad(format!(
-                    "vertex {row}: expected {} values, file ends or line is short",
-                    types.len()
-                )));
+        let r = reader.get_mut();
+        let vertex = match header.encoding {
+            Encoding::Ascii => {
+                line.clear();
+                let n = r
+                    .read_line(&mut line)
+                    .map_err(|e| DatasetError::io(path, e))?;
+                if n == 0 {
+                    return Err(bad(format!(
+                        "vertex {row}: expected {} values, file ends",
+                        v.properties.len()
+                    )));
+                }
+                parser.read_ascii_element(&line, v)
             }
-            for (k, w) in words.iter().take(types.len()).enumerate() {
-                values[k] = w
-                    .parse()
-                    .map_err(|_| bad(format!("vertex {row}: '{w}' is not a number")))?;
-            }
-        } else {
-            r.read_exact(&mut buf)
-                .map_err(|_| bad(format!("file is truncated at vertex {row} of {}", v.count)))?;
-            let mut off = 0;
-            for (k, t) in types.iter().enumerate() {
-                values[k] = t.decode_le(&buf[off..off + t.size()]);
-                off += t.size();
-            }
+            Encoding::BinaryLittleEndian => parser.read_little_endian_element(r, v),
+            Encoding::BinaryBigEndian => parser.read_big_endian_element(r, v),
         }
-        let p = xyz.map(|i| values[i.unwrap_or(0)]);
-        if p.iter().any(|c| !c.is_finite()) {
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => {
+                bad(format!("file is truncated at vertex {row} of {}", v.count))
+            }
+            _ => bad(format!("vertex {row}: {e}")),
+        })?;
+        if vertex.xyz.iter().any(|c| !c.is_finite()) {
             return Err(bad(format!("vertex {row} has a non-finite coordinate")));
         }
-        cloud.positions.push(p);
+        cloud.positions.push(vertex.xyz);
         if let Some(colors) = cloud.colors.as_mut() {
-            colors.push(rgb.map(|i| {
-                let i = i.unwrap_or(0);
-                let c = if types[i].is_float() {
-                    values[i] * 255.0
-                } else {
-                    values[i]
-                };
-                c.round().clamp(0.0, 255.0) as u8
-            }));
+            colors.push(vertex.rgb.map(|c| c.round().clamp(0.0, 255.0) as u8));
         }
-        if let (Some(labels), Some(i)) = (cloud.labels.as_mut(), label) {
-            labels.push(values[i] as i64);
+        if let Some(labels) = cloud.labels.as_mut() {
+            labels.push(vertex.label.map_or(0, |(_, l)| l as i64));
         }
     }
     Ok(cloud)
 }
 
-fn skip_element(
-    path: &Path,
-    r: &mut impl BufRead,
-    e: &Element,
-    format: &Format,
-) -> Result<(), DatasetError> {
-    if *format == Format::Ascii {
-        let mut line = String::new();
-        for _ in 0..e.count {
-            line.clear();
-            r.read_line(&mut line)
-                .map_err(|err| DatasetError::io(path, err))?;
-        }
-        return Ok(());
-    }
-    let mut size = 0usize;
-    for (name, t) in &e.props {
-        match t {
-            Some(t) => size += t.size(),
-            None => {
-                return Err(DatasetError::invalid(
-                    path,
-                    format!("cannot skip list property '{name}' stored before the vertices"),
-                ));
-            }
+/// One vertex of `cloud` as written: a view of point `index` and its
+/// `scalars`.
+struct VertexOut<'a> {
+    cloud: Option<&'a PointCloud>,
+    scalars: &'a [(&'a str, &'a [f32])],
+    index: usize,
+}
+
+impl PropertyAccess for VertexOut<'_> {
+    fn new() -> Self {
+        Self {
+            cloud: None,
+            scalars: &[],
+            index: 0,
         }
     }
-    let n = (size * e.count) as u64;
-    let copied = std::io::copy(&mut r.take(n), &mut std::io::sink())
-        .map_err(|err| DatasetError::io(path, err))?;
-    if copied != n {
-        return Err(DatasetError::invalid(path, "file is truncated"));
+
+    fn get_float(&self, name: &str) -> Option<f32> {
+        let i = self.index;
+        match name {
+            "x" => self.cloud.map(|c| c.positions[i][0] as f32),
+            "y" => self.cloud.map(|c| c.positions[i][1] as f32),
+            "z" => self.cloud.map(|c| c.positions[i][2] as f32),
+            _ => self
+                .scalars
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, s)| s[i]),
+        }
     }
-    Ok(())
+
+    fn get_uchar(&self, name: &str) -> Option<u8> {
+        let k = ["red", "green", "blue"].iter().position(|&n| n == name)?;
+        Some(self.cloud?.colors.as_ref()?[self.index][k])
+    }
+
+    fn get_int(&self, name: &str) -> Option<i32> {
+        if name != "label" {
+            return None;
+        }
+        Some(self.cloud?.labels.as_ref()?[self.index] as i32)
+    }
+}
+
+/// Whether `name` can be read back as a property name by [`read_ply`]
+/// (`ply-rs-bw`'s header grammar: a letter or `_`, then letters, digits,
+/// `_` or `-`).
+fn is_property_name(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
 /// Writes a binary little-endian PLY with `x y z` (float), `red green blue`
@@ -300,9 +301,8 @@ pub fn write_ply(
     scalars: &[(&str, &[f32])],
 ) -> Result<(), DatasetError> {
     let n = cloud.positions.len();
-    let bad_len = |what: &str, len: usize| {
-        DatasetError::invalid(path, format!("{what} has {len} values for {n} points"))
-    };
+    let bad = |m: String| DatasetError::invalid(path, m);
+    let bad_len = |what: &str, len: usize| bad(format!("{what} has {len} values for {n} points"));
     if let Some(c) = &cloud.colors
         && c.len() != n
     {
@@ -318,36 +318,54 @@ pub fn write_ply(
             return Err(bad_len(name, s.len()));
         }
     }
-    let mut header = format!("ply\nformat binary_little_endian 1.0\nelement vertex {n}\n");
-    header.push_str("property float x\nproperty float y\nproperty float z\n");
+    let scalar = |name: &str, t: ScalarType| PropertyDef::new(name.into(), PropertyType::Scalar(t));
+    let mut vertex = ElementDef::new("vertex".into());
+    vertex.count = n;
+    let mut props = vec![
+        scalar("x", ScalarType::Float),
+        scalar("y", ScalarType::Float),
+        scalar("z", ScalarType::Float),
+    ];
     if cloud.colors.is_some() {
-        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+        for c in ["red", "green", "blue"] {
+            props.push(scalar(c, ScalarType::UChar));
+        }
     }
     if cloud.labels.is_some() {
-        header.push_str("property int label\n");
+        props.push(scalar("label", ScalarType::Int));
     }
     for (name, _) in scalars {
-        header.push_str(&format!("property float {name}\n"));
+        if !is_property_name(name) {
+            return Err(bad(format!("'{name}' is not a valid PLY property name")));
+        }
+        if props.iter().any(|p| p.name == *name) {
+            return Err(bad(format!("property '{name}' is given twice")));
+        }
+        props.push(scalar(name, ScalarType::Float));
     }
-    header.push_str("end_header\n");
-    let mut out = Vec::with_capacity(header.len() + n * (16 + 4 * scalars.len()));
-    out.extend_from_slice(header.as_bytes());
+    for p in props {
+        vertex.properties.add(p);
+    }
+    let mut header = Header::new();
+    header.encoding = Encoding::BinaryLittleEndian;
+    header.elements.add(vertex.clone());
+    let io = |e: std::io::Error| DatasetError::io(path, e);
+    let file = std::fs::File::create(path).map_err(io)?;
+    let mut out = std::io::BufWriter::new(file);
+    let writer = Writer::<VertexOut<'_>>::new();
+    writer.write_header(&mut out, &header).map_err(io)?;
+    let mut row = VertexOut {
+        cloud: Some(cloud),
+        scalars,
+        index: 0,
+    };
     for i in 0..n {
-        for c in cloud.positions[i] {
-            out.extend_from_slice(&(c as f32).to_le_bytes());
-        }
-        if let Some(c) = &cloud.colors {
-            out.extend_from_slice(&c[i]);
-        }
-        if let Some(l) = &cloud.labels {
-            out.extend_from_slice(&(l[i] as i32).to_le_bytes());
-        }
-        for (_, s) in scalars {
-            out.extend_from_slice(&s[i].to_le_bytes());
-        }
+        row.index = i;
+        writer
+            .write_little_endian_element(&mut out, &row, &vertex)
+            .map_err(io)?;
     }
-    let mut f = std::fs::File::create(path).map_err(|e| DatasetError::io(path, e))?;
-    f.write_all(&out).map_err(|e| DatasetError::io(path, e))
+    out.flush().map_err(io)
 }
 
 /// Reads one integer label per line (blank lines skipped); the count must be

@@ -8,53 +8,12 @@ use std::path::{Path, PathBuf};
 use model::geometry::{Camera, Intrinsics, Pose};
 
 use crate::error::DatasetError;
-use crate::features::{FeatureSource, Pca, PcaTarget, load_features, load_features_with_basis};
+use crate::features::{FeatureSource, load_features, load_features_with_basis};
+use crate::options::LoaderOptions;
+pub use crate::options::ReplicaOptions;
 use crate::poses::{backproject, box_of, checked_pose};
 use crate::scene::{Frame, Scene, SceneSource};
 use crate::{DepthImage, imageio};
-
-/// Loader options (stored in the scene's [`SceneSource`]).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
-pub struct ReplicaOptions {
-    /// Keep every `stride`-th frame (the paper uses 10).
-    pub stride: usize,
-    /// Keep at most this many frames (after the stride).
-    pub max_frames: Option<usize>,
-    /// Resample images to `(width, height)` (the paper uses 640x360).
-    pub resolution: Option<(u32, u32)>,
-    /// Feature maps: a stacked `.npy` or a directory of per-frame `.npy`
-    /// (indexed over the frames kept).
-    pub features: Option<PathBuf>,
-    /// PCA compression of the feature maps.
-    pub pca: Option<PcaTarget>,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<Pca>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
-    /// Scene-box margin, as a fraction of the largest extent.
-    pub box_margin: f64,
-    /// Depth pixels used for the box: every `box_pixel_step`-th in each axis.
-    pub box_pixel_step: u32,
-}
-
-impl Default for ReplicaOptions {
-    fn default() -> Self {
-        Self {
-            stride: 1,
-            max_frames: None,
-            resolution: None,
-            features: None,
-            pca: None,
-            basis: None,
-            seed: 0,
-            box_margin: 0.05,
-            box_pixel_step: 8,
-        }
-    }
-}
 
 /// `cam_params.json` contents.
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
@@ -256,9 +215,11 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         points: None,
         classes: None,
         source: SceneSource::Disk {
-            format: "replica".into(),
+            loader: LoaderOptions::Replica(ReplicaOptions {
+                basis: None,
+                ..options.clone()
+            }),
             path: dir.to_path_buf(),
-            options: serde_json::to_value(options).unwrap_or(serde_json::Value::Null),
         },
     })
 }

@@ -1,7 +1,9 @@
 //! The common scene type every loader returns, and the frames it holds.
 
-use half::f16;
 use model::geometry::{Camera, SceneBox};
+
+pub use crate::grid::nearest_pixel;
+use crate::options::LoaderOptions;
 
 /// An RGB image with values in `[0, 1]`, row-major `[height, width, 3]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -12,23 +14,6 @@ pub struct RgbImage {
     pub height: u32,
     /// `height * width * 3` values in `[0, 1]`.
     pub data: Vec<f32>,
-}
-
-/// The pixel of a `to_width x to_height` grid nearest to point `(u, v)` of
-/// a `from_width x from_height` grid covering the same image (pixel centres
-/// at integers in both), clamped to the grid. With `(u, v)` a pixel of the
-/// first grid, it is the pixel of the second under that pixel's centre.
-pub fn nearest_pixel(
-    u: f64,
-    v: f64,
-    (from_width, from_height): (u32, u32),
-    (to_width, to_height): (u32, u32),
-) -> (u32, u32) {
-    let sx = to_width as f64 / from_width as f64;
-    let sy = to_height as f64 / from_height as f64;
-    let x = (((u + 0.5) * sx).floor().max(0.0) as u32).min(to_width.saturating_sub(1));
-    let y = (((v + 0.5) * sy).floor().max(0.0) as u32).min(to_height.saturating_sub(1));
-    (x, y)
 }
 
 impl RgbImage {
@@ -84,35 +69,6 @@ pub struct Frame {
     pub labels: Option<Vec<u16>>,
 }
 
-/// A pixel-aligned feature map of one frame, row-major `[height, width, dim]`,
-/// stored as `f16`. Its resolution may be lower than the frame's image.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FeatureMap {
-    /// Map width.
-    pub width: u32,
-    /// Map height.
-    pub height: u32,
-    /// Channels per pixel (D, or k PCA coefficients).
-    pub dim: usize,
-    /// `height * width * dim` values.
-    pub data: Vec<f16>,
-}
-
-impl FeatureMap {
-    /// Feature vector at map pixel `(x, y)`.
-    pub fn pixel(&self, x: u32, y: u32) -> &[f16] {
-        let i = (y as usize * self.width as usize + x as usize) * self.dim;
-        &self.data[i..i + self.dim]
-    }
-
-    /// Feature at image point `(u, v)` of an `image_width x image_height`
-    /// image (pixel centres at integers): nearest map pixel after scaling.
-    pub fn lookup(&self, u: f64, v: f64, image_width: u32, image_height: u32) -> &[f16] {
-        let (x, y) = nearest_pixel(u, v, (image_width, image_height), (self.width, self.height));
-        self.pixel(x, y)
-    }
-}
-
 /// How a scene can be rebuilt (saved in a run directory as `scene.json`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -127,15 +83,26 @@ pub enum SceneSource {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         pca: Option<crate::features::PcaSetting>,
     },
-    /// A dataset on disk.
+    /// A dataset on disk: `{"kind": "disk", "format": ..., "options": ...,
+    /// "path": ...}`.
     Disk {
-        /// Format: `replica`, `blender` or `llff`.
-        format: String,
+        /// The format and its loader options (stride, resolution, ...).
+        #[serde(flatten)]
+        loader: LoaderOptions,
         /// Scene directory.
         path: std::path::PathBuf,
-        /// Loader options as given (stride, resolution, ...), format-specific.
-        options: serde_json::Value,
     },
+}
+
+impl SceneSource {
+    /// The scene's kind for names and messages: `synthetic` or the format
+    /// on disk (`replica`, `blender`, `llff`).
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Self::Synthetic { .. } => "synthetic",
+            Self::Disk { loader, .. } => loader.format(),
+        }
+    }
 }
 
 /// A loaded scene: posed frames, optional feature maps (one per frame, in the
@@ -173,7 +140,7 @@ pub struct SceneMeta {
     pub background: Option<[f32; 3]>,
     /// PCA basis when the feature targets were compressed (the head then
     /// predicts `k` coefficients; lift with it before comparing with text).
-    pub pca: Option<crate::features::Pca>,
+    pub pca: Option<crate::features::PcaBasis>,
     /// Dimension of the original feature space (D).
     pub feature_dim: Option<usize>,
 }

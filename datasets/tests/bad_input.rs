@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use datasets::DatasetError;
 use datasets::blender::{BlenderOptions, load_blender};
-use datasets::features::{FeatureSource, load_features};
+use datasets::features::{FeatureSource, PcaSetting, load_features};
 use datasets::llff::{LlffOptions, load_llff};
 use datasets::npy::{NpyInfo, write_npy_f16, write_npy_f32};
 use datasets::points::{read_labels_txt, read_ply};
@@ -157,7 +157,7 @@ fn feature_map_aspect_ratio_mismatch() {
     write_npy_f32(&bad, &[8, 8, 2], &[0.5; 128]).expect("npy");
     let src = FeatureSource::PerFrame(vec![good, bad]);
     assert_err(
-        load_features(&src, &[(80, 60), (80, 60)], None, 0),
+        load_features(&src, &[(80, 60), (80, 60)], PcaSetting::Off, 0),
         "b.npy",
         &["aspect ratio"],
     );

@@ -6,7 +6,7 @@ use std::io::Write;
 use std::path::Path;
 
 use datasets::DatasetError;
-use datasets::features::{FeatureSource, load_features};
+use datasets::features::{FeatureSource, PcaSetting, load_features};
 use datasets::imageio::{jpeg_truncation, load_rgb};
 use datasets::replica::{ReplicaOptions, load_replica};
 
@@ -60,7 +60,7 @@ fn per_frame_npy_whose_shape_overflows_is_refused() {
     npy_with_shape(&b, &WRAPPING_MAP, &[0; 64], None);
     let src = FeatureSource::PerFrame(vec![a, b]);
     assert_err(
-        load_features(&src, &[(80, 60), (80, 60)], None, 0),
+        load_features(&src, &[(80, 60), (80, 60)], PcaSetting::Off, 0),
         "a.npy",
         &["more elements than can be addressed"],
     );
@@ -75,7 +75,7 @@ fn stacked_npy_whose_shape_overflows_is_refused() {
     npy_with_shape(&p, &shape, &[0; 64], None);
     let src = FeatureSource::Stacked(p);
     assert_err(
-        load_features(&src, &[(80, 60), (80, 60)], None, 0),
+        load_features(&src, &[(80, 60), (80, 60)], PcaSetting::Off, 0),
         "stacked.npy",
         &["more elements than can be addressed"],
     );
@@ -93,7 +93,7 @@ fn feature_map_larger_than_memory_is_an_error_not_an_abort() {
     assert!(datasets::npy::NpyInfo::open(dir.path().join("huge.npy").as_path()).is_ok());
     let src = FeatureSource::PerFrame(vec![p]);
     assert_err(
-        load_features(&src, &[(80, 60)], None, 0),
+        load_features(&src, &[(80, 60)], PcaSetting::Off, 0),
         "huge.npy",
         &["GB of memory"],
     );

@@ -2,7 +2,7 @@
 //! with one common and one rare feature.
 
 use datasets::balance::{BalanceConfig, BalancedSampler};
-use datasets::features::FeatureSet;
+use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::SamplerConfig;
 use datasets::{FeatureMap, Frame, RgbImage, Scene, SceneSource};
 use half::f16;
@@ -46,7 +46,7 @@ fn scene() -> Scene {
     Scene {
         name: "balance".into(),
         frames: vec![frame],
-        features: Some(FeatureSet::from_maps(vec![map], None, 0).expect("maps")),
+        features: Some(FeatureSet::from_maps(vec![map], PcaSetting::Off, 0).expect("maps")),
         scene_box: SceneBox {
             min: [-1.0; 3],
             max: [1.0; 3],
@@ -76,9 +76,10 @@ fn rare_features_get_their_closed_form_share_of_rays() {
     let config = SamplerConfig {
         rays_per_batch: 20_000,
         border_margin: 0,
-        seed: 3,
         min_near: 0.05,
+        ..SamplerConfig::default()
     };
+    let seed = 3;
     for power in [0.0, 0.5, 1.0] {
         let balance = BalanceConfig { clusters: 2, power };
         let sampler = BalancedSampler::new(&s, &[0], 0, &balance, 1)
@@ -87,10 +88,10 @@ fn rare_features_get_their_closed_form_share_of_rays() {
         let fr = &sampler.cluster_fractions;
         assert_eq!(fr.len(), 3, "two clusters and 'no target'");
         assert!(fr.iter().any(|&f| (f - 0.05).abs() < 1e-9), "{fr:?}");
-        let b = sampler.batch(&config, &s, 7);
+        let b = sampler.batch(&config, seed, &s, 7);
         assert_eq!(
             b,
-            sampler.batch(&config, &s, 7),
+            sampler.batch(&config, seed, &s, 7),
             "a pure function of the index"
         );
         let feats = b.features.as_ref().expect("targets");

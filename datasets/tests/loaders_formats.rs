@@ -2,7 +2,7 @@
 //! feature maps.
 
 use datasets::FeatureMap;
-use datasets::features::{FeatureSet, FeatureSource, Pca, PcaTarget, load_features};
+use datasets::features::{FeatureSet, FeatureSource, PcaBasis, PcaSetting, load_features};
 use datasets::npy::{NpyDtype, NpyInfo, read_npy_f32, write_npy_f16, write_npy_f32};
 use datasets::points::{PointCloud, read_labels_txt, read_ply, write_ply};
 use datasets::text::TextEmbeddings;
@@ -134,7 +134,7 @@ fn known_samples(n: usize) -> (Vec<f32>, [[f32; 6]; 3], Vec<f32>) {
 #[test]
 fn pca_recovers_known_axes() {
     let (x, axes, mean) = known_samples(20000);
-    let pca = Pca::fit(&x, 6, PcaTarget::Components(3)).expect("fit");
+    let pca = PcaBasis::fit(&x, 6, PcaSetting::Components(3)).expect("fit");
     for (a, b) in pca.mean.iter().zip(&mean) {
         assert!((a - b).abs() < 0.08, "mean {:?}", pca.mean);
     }
@@ -146,19 +146,19 @@ fn pca_recovers_known_axes() {
     assert!(pca.explained_variance_ratio > 0.9999);
     // Variance target: 9 / 14 = 0.64, 13 / 14 = 0.93.
     assert_eq!(
-        Pca::fit(&x, 6, PcaTarget::ExplainedVariance(0.6))
+        PcaBasis::fit(&x, 6, PcaSetting::ExplainedVariance(0.6))
             .expect("fit")
             .k,
         1
     );
     assert_eq!(
-        Pca::fit(&x, 6, PcaTarget::ExplainedVariance(0.9))
+        PcaBasis::fit(&x, 6, PcaSetting::ExplainedVariance(0.9))
             .expect("fit")
             .k,
         2
     );
     assert_eq!(
-        Pca::fit(&x, 6, PcaTarget::ExplainedVariance(0.99))
+        PcaBasis::fit(&x, 6, PcaSetting::ExplainedVariance(0.99))
             .expect("fit")
             .k,
         3
@@ -172,8 +172,8 @@ fn pca_recovers_known_axes() {
     for (a, b) in pca.lift(&c).iter().zip(&v) {
         assert!((a - b).abs() < 1e-3);
     }
-    assert!(Pca::fit(&x, 6, PcaTarget::Components(7)).is_err());
-    assert!(Pca::fit(&x[..6], 6, PcaTarget::Components(1)).is_err());
+    assert!(PcaBasis::fit(&x, 6, PcaSetting::Components(7)).is_err());
+    assert!(PcaBasis::fit(&x[..6], 6, PcaSetting::Components(1)).is_err());
 }
 
 fn random_maps(n: usize, w: u32, h: u32, dim: usize) -> Vec<FeatureMap> {
@@ -221,10 +221,10 @@ fn lazy_features_match_in_memory_ones() {
     let src_stacked = FeatureSource::discover(&stacked, &names).expect("stacked");
     let src_per = FeatureSource::discover(&per_dir, &names).expect("per frame");
     assert!(matches!(src_per, FeatureSource::PerFrame(ref v) if v.len() == 3));
-    let full = load_features(&src_stacked, &sizes, None, 0).expect("load");
+    let full = load_features(&src_stacked, &sizes, PcaSetting::Off, 0).expect("load");
     assert_eq!(full.maps, maps);
     assert_eq!((full.dim(), full.full_dim), (8, 8));
-    let target = Some(PcaTarget::Components(3));
+    let target = PcaSetting::Components(3);
     let lazy = load_features(&src_per, &sizes, target, 5).expect("pca load");
     let memory = FeatureSet::from_maps(maps.clone(), target, 5).expect("pca");
     assert_eq!(lazy, memory);

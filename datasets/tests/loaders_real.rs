@@ -212,11 +212,14 @@ fn load_scene_dispatches_on_the_source() {
     let Some(dir) = dataset("lego_train") else {
         return;
     };
-    let source = datasets::SceneSource::Disk {
-        format: "blender".into(),
-        path: dir.clone(),
-        options: serde_json::json!({"downscale": 16, "max_frames": 3}),
-    };
+    // A source as `scene.json` records it, options as JSON.
+    let source: datasets::SceneSource = serde_json::from_value(serde_json::json!({
+        "kind": "disk",
+        "format": "blender",
+        "path": dir.clone(),
+        "options": {"downscale": 16, "max_frames": 3},
+    }))
+    .expect("source");
     let s = datasets::load_scene(&source).expect("loads");
     let opts = BlenderOptions {
         downscale: 16,
@@ -226,14 +229,26 @@ fn load_scene_dispatches_on_the_source() {
     let direct = load_blender(&dir, &opts).expect("loads");
     assert_eq!(s.frames, direct.frames);
     assert_eq!(s.scene_box, direct.scene_box);
+    assert_eq!(
+        s.source,
+        datasets::SceneSource::Disk {
+            loader: datasets::LoaderOptions::Blender(opts),
+            path: dir.clone(),
+        }
+    );
     // The recorded source rebuilds the same scene.
     let again = datasets::load_scene(&s.source).expect("reloads");
     assert_eq!(again.frames, s.frames);
-    let bad = datasets::SceneSource::Disk {
-        format: "colmap".into(),
-        path: dir,
-        options: serde_json::Value::Null,
-    };
-    let err = datasets::load_scene(&bad).err().expect("unknown format");
-    assert!(err.to_string().contains("unknown scene format"));
+    // A format no loader reads is refused when the source is read.
+    let err = serde_json::from_value::<datasets::SceneSource>(serde_json::json!({
+        "kind": "disk",
+        "format": "colmap",
+        "path": dir,
+        "options": null,
+    }))
+    .expect_err("unknown format");
+    assert!(
+        err.to_string().contains("unknown variant `colmap`"),
+        "{err}"
+    );
 }

@@ -98,7 +98,7 @@ fn compressed_features_can_be_written_as_coefficients_or_lifted() {
     let maps = scene.features.take().unwrap().maps;
     let compressed = datasets::features::FeatureSet::from_maps(
         maps,
-        Some(datasets::features::PcaTarget::Components(8)),
+        datasets::features::PcaSetting::Components(8),
         1,
     )
     .unwrap();
@@ -134,7 +134,7 @@ fn compressed_features_can_be_written_as_coefficients_or_lifted() {
                 );
                 assert_eq!(data, coeffs);
                 let text = std::fs::read_to_string(dir.join("features/pca.json")).unwrap();
-                let back: datasets::features::Pca = serde_json::from_str(&text).unwrap();
+                let back: datasets::features::PcaBasis = serde_json::from_str(&text).unwrap();
                 assert_eq!(back, pca);
             }
         }

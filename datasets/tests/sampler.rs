@@ -1,6 +1,6 @@
 //! Ray sampler: determinism, resume, border margin, targets and rays.
 
-use datasets::features::{FeatureSet, PcaTarget};
+use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::{
     RaySampler, SamplerConfig, frame_rays, sample_batch, sample_batch_from, scaled_margin,
 };
@@ -72,7 +72,7 @@ fn scene(with_features: bool) -> Scene {
                 }
             })
             .collect();
-        FeatureSet::from_maps(maps, None, 0).expect("maps")
+        FeatureSet::from_maps(maps, PcaSetting::Off, 0).expect("maps")
     });
     Scene {
         name: "test".into(),
@@ -93,27 +93,30 @@ fn scene(with_features: bool) -> Scene {
     }
 }
 
-fn config(seed: u64) -> SamplerConfig {
+fn config() -> SamplerConfig {
     SamplerConfig {
         rays_per_batch: 512,
         border_margin: 10,
-        seed,
         min_near: 0.05,
+        ..SamplerConfig::default()
     }
 }
 
 #[test]
 fn batches_are_deterministic_and_resumable() {
     let s = scene(true);
-    let mut a = RaySampler::new(config(7));
+    let mut a = RaySampler::new(config(), 7);
     let batches: Vec<_> = (0..3).map(|_| a.next_batch(&s).expect("batch")).collect();
     assert_eq!(a.batches_drawn(), 3);
     assert_ne!(batches[0].pixels, batches[1].pixels);
-    let mut b = RaySampler::new(config(7));
+    let mut b = RaySampler::new(config(), 7);
     b.set_batches_drawn(2);
     assert_eq!(b.next_batch(&s).expect("batch"), batches[2]);
-    assert_eq!(sample_batch(&config(7), &s, 1).expect("batch"), batches[1]);
-    let other = RaySampler::new(config(8)).next_batch(&s).expect("batch");
+    assert_eq!(
+        sample_batch(&config(), 7, &s, 1).expect("batch"),
+        batches[1]
+    );
+    let other = RaySampler::new(config(), 8).next_batch(&s).expect("batch");
     assert_ne!(other.pixels, batches[0].pixels);
 }
 
@@ -121,11 +124,14 @@ fn batches_are_deterministic_and_resumable() {
 fn pixels_respect_border_and_cover_frames_evenly() {
     let s = scene(false);
     // 60 px at a 360-px side: 5 px on the 40x30 frames, 4 px on the 24x24 one.
-    let mut sampler = RaySampler::new(SamplerConfig {
-        rays_per_batch: 6000,
-        border_margin: 60,
-        ..config(1)
-    });
+    let mut sampler = RaySampler::new(
+        SamplerConfig {
+            rays_per_batch: 6000,
+            border_margin: 60,
+            ..config()
+        },
+        1,
+    );
     let b = sampler.next_batch(&s).expect("batch");
     let mut counts = [0usize; 3];
     let (mut xmin, mut xmax) = (u32::MAX, 0);
@@ -178,8 +184,7 @@ fn pixels_without_a_feature_target_are_masked() {
         fs.maps[0].data.iter_mut().for_each(|v| *v = f16::ZERO);
         let maps = fs.maps.clone();
         if compress {
-            fs = FeatureSet::from_maps(maps.clone(), Some(PcaTarget::Components(1)), 0)
-                .expect("pca");
+            fs = FeatureSet::from_maps(maps.clone(), PcaSetting::Components(1), 0).expect("pca");
             // The fit saw every pixel of frames 1 and 2 and none of frame 0.
             let mut mean = [0f64; 2];
             let mut n = 0.0;
@@ -200,7 +205,7 @@ fn pixels_without_a_feature_target_are_masked() {
             }
         }
         s.features = Some(fs);
-        let b = RaySampler::new(config(4)).next_batch(&s).expect("batch");
+        let b = RaySampler::new(config(), 4).next_batch(&s).expect("batch");
         let mask = b.feature_mask.as_ref().expect("mask");
         let feats = b.features.as_ref().expect("features");
         let dim = b.feature_dim;
@@ -221,7 +226,7 @@ fn pixels_without_a_feature_target_are_masked() {
 #[test]
 fn targets_and_rays_match_their_pixels() {
     let s = scene(true);
-    let b = RaySampler::new(config(3)).next_batch(&s).expect("batch");
+    let b = RaySampler::new(config(), 3).next_batch(&s).expect("batch");
     let depth = b.depth.as_ref().expect("depth");
     let weight = b.depth_weight.as_ref().expect("weights");
     let feats = b.features.as_ref().expect("features");
@@ -269,10 +274,13 @@ fn frame_rays_are_row_major() {
 fn tiny_images_keep_pixels_to_draw() {
     let mut s = scene(false);
     s.frames = vec![frame(0, 3, 2, false)];
-    let b = RaySampler::new(SamplerConfig {
-        border_margin: 10_000,
-        ..config(0)
-    })
+    let b = RaySampler::new(
+        SamplerConfig {
+            border_margin: 10_000,
+            ..config()
+        },
+        0,
+    )
     .next_batch(&s)
     .expect("batch");
     // The margin is capped at a quarter of the shorter side (0 here), so
@@ -283,7 +291,7 @@ fn tiny_images_keep_pixels_to_draw() {
         }
     }
     s.frames.clear();
-    let err = RaySampler::new(config(0))
+    let err = RaySampler::new(config(), 0)
         .next_batch(&s)
         .expect_err("no frames");
     assert!(err.to_string().contains("no frames"));
@@ -294,7 +302,7 @@ fn a_frame_subset_is_respected_and_deterministic() {
     let s = scene(true);
     let subset = [0usize, 2];
     let batch = |seed: u64, index: u64| {
-        sample_batch_from(&config(seed), &s, &subset, index).expect("batch")
+        sample_batch_from(&config(), seed, &s, &subset, index).expect("batch")
     };
     let b = batch(5, 3);
     assert_eq!(b.len(), 512);
@@ -313,20 +321,20 @@ fn a_frame_subset_is_respected_and_deterministic() {
     assert_eq!(batch(5, 3), b);
     assert_ne!(batch(5, 4).pixels, b.pixels);
     assert_ne!(batch(6, 3).pixels, b.pixels);
-    let mut sampler = RaySampler::new(config(5)).with_frames(subset.to_vec());
+    let mut sampler = RaySampler::new(config(), 5).with_frames(subset.to_vec());
     sampler.set_batches_drawn(3);
     assert_eq!(sampler.next_batch(&s).expect("batch"), b);
     // Listing every frame gives the unrestricted batch.
     assert_eq!(
-        sample_batch_from(&config(5), &s, &[0, 1, 2], 3).expect("batch"),
-        sample_batch(&config(5), &s, 3).expect("batch")
+        sample_batch_from(&config(), 5, &s, &[0, 1, 2], 3).expect("batch"),
+        sample_batch(&config(), 5, &s, 3).expect("batch")
     );
     // Frames without depth leave no depth targets even if others have some.
-    let no_depth = sample_batch_from(&config(5), &s, &[1], 0).expect("batch");
+    let no_depth = sample_batch_from(&config(), 5, &s, &[1], 0).expect("batch");
     assert!(no_depth.depth.is_none() && no_depth.depth_weight.is_none());
     // Bad subsets are errors, not panics.
-    let err = sample_batch_from(&config(5), &s, &[0, 3], 0).expect_err("out of range");
+    let err = sample_batch_from(&config(), 5, &s, &[0, 3], 0).expect_err("out of range");
     assert!(err.to_string().contains("out of range"), "{err}");
-    let err = sample_batch_from(&config(5), &s, &[], 0).expect_err("empty");
+    let err = sample_batch_from(&config(), 5, &s, &[], 0).expect_err("empty");
     assert!(err.to_string().contains("no frames"), "{err}");
 }

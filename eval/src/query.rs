@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use datasets::features::Pca;
+use datasets::features::PcaBasis;
 use datasets::npy::read_npy_f32;
 use datasets::text::TextEmbeddings;
 
@@ -47,7 +47,7 @@ pub fn embedding_from_npy(path: &Path) -> Result<Vec<f32>, OpsError> {
 pub fn cosine_scores(
     features: &[f32],
     query: &[f32],
-    pca: Option<&Pca>,
+    pca: Option<&PcaBasis>,
 ) -> Result<Vec<f64>, OpsError> {
     let scorer = ClassScorer::new(query, query.len(), pca)?;
     let k = scorer.dim;
@@ -133,7 +133,7 @@ impl RelevancyScale {
 pub fn view_cosines(
     view: &RenderedView,
     query: &[f32],
-    pca: Option<&Pca>,
+    pca: Option<&PcaBasis>,
 ) -> Result<Vec<f64>, OpsError> {
     if view.feature_dim == 0 {
         return Err(OpsError::Invalid("the view has no feature image".into()));
@@ -146,7 +146,7 @@ pub fn view_cosines(
 pub fn relevancy_image(
     view: &RenderedView,
     query: &[f32],
-    pca: Option<&Pca>,
+    pca: Option<&PcaBasis>,
 ) -> Result<Vec<f32>, OpsError> {
     if view.feature_dim == 0 {
         return Err(OpsError::Invalid("the view has no feature image".into()));

@@ -13,7 +13,7 @@
 //! `O(D (k + C))`, and equals lifting then comparing up to rounding (a test
 //! checks this against the explicit lift).
 
-use datasets::features::Pca;
+use datasets::features::PcaBasis;
 
 use field_ops::OpsError;
 
@@ -39,7 +39,11 @@ pub struct ClassScorer {
 impl ClassScorer {
     /// A scorer for `classes` embeddings (`C x D` row-major) and the run's
     /// PCA basis (`None` when the field predicts D-dimensional features).
-    pub fn new(embeddings: &[f32], embed_dim: usize, pca: Option<&Pca>) -> Result<Self, OpsError> {
+    pub fn new(
+        embeddings: &[f32],
+        embed_dim: usize,
+        pca: Option<&PcaBasis>,
+    ) -> Result<Self, OpsError> {
         if embed_dim == 0 || !embeddings.len().is_multiple_of(embed_dim) {
             return Err(OpsError::Invalid(format!(
                 "embeddings of {} values do not split into rows of {embed_dim}",
@@ -153,7 +157,7 @@ pub fn argmax(v: &[f64]) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use datasets::features::PcaTarget;
+    use datasets::features::PcaSetting;
 
     fn lcg(seed: &mut u64) -> f32 {
         *seed = seed
@@ -171,7 +175,7 @@ mod tests {
         let samples: Vec<f32> = (0..n * d)
             .map(|i| lcg(&mut s) + 0.3 * (i % d) as f32 / d as f32)
             .collect();
-        let pca = Pca::fit(&samples, d, PcaTarget::Components(4)).unwrap();
+        let pca = PcaBasis::fit(&samples, d, PcaSetting::Components(4)).unwrap();
         let text: Vec<f32> = (0..classes * d).map(|_| lcg(&mut s)).collect();
         let scorer = ClassScorer::new(&text, d, Some(&pca)).unwrap();
         assert_eq!(scorer.dim, 4);

@@ -143,9 +143,8 @@ fn label_features_refuse_a_label_without_embedding_and_disk_scenes_have_no_oracl
 
     let mut scene = ci_scene();
     scene.source = SceneSource::Disk {
-        format: "replica".into(),
+        loader: datasets::LoaderOptions::Replica(Default::default()),
         path: "/data/room0".into(),
-        options: serde_json::Value::Null,
     };
     let err = GroundTruth::of(&scene, NovelOracle::Labels)
         .err()

@@ -11,7 +11,6 @@ use datasets::balance::{BalanceConfig, BalancedSampler};
 use datasets::sampler::{RayBatch, SamplerConfig, sample_batch_from};
 use model::{FeatureSpace, Rays};
 
-use crate::config::SamplerSettings;
 use crate::error::TrainError;
 
 /// The batch as device tensors.
@@ -98,6 +97,7 @@ pub fn iteration_seed(seed: u64, iteration: usize) -> u64 {
 #[derive(Debug, Clone)]
 pub struct TrainSampler {
     config: SamplerConfig,
+    seed: u64,
     frames: Vec<usize>,
     balanced: Option<BalancedSampler>,
 }
@@ -108,26 +108,18 @@ impl TrainSampler {
     pub fn new(
         scene: &Scene,
         frames: &[usize],
-        settings: &SamplerSettings,
+        config: &SamplerConfig,
         seed: u64,
     ) -> Result<Self, TrainError> {
-        let config = SamplerConfig {
-            rays_per_batch: settings.rays_per_batch,
-            border_margin: settings.border_margin,
-            seed,
-            min_near: settings.min_near,
-        };
-        let balanced = if settings.feature_balance > 0.0 {
-            let balance = BalanceConfig {
-                clusters: settings.balance_clusters,
-                power: settings.feature_balance,
-            };
-            BalancedSampler::new(scene, frames, settings.border_margin, &balance, seed)?
-        } else {
-            None
+        let balanced = match BalanceConfig::of(config) {
+            Some(balance) => {
+                BalancedSampler::new(scene, frames, config.border_margin, &balance, seed)?
+            }
+            None => None,
         };
         Ok(Self {
-            config,
+            config: *config,
+            seed,
             frames: frames.to_vec(),
             balanced,
         })
@@ -136,8 +128,14 @@ impl TrainSampler {
     /// The batch of `iteration`.
     pub fn batch(&self, scene: &Scene, iteration: usize) -> Result<RayBatch, TrainError> {
         Ok(match &self.balanced {
-            Some(b) => b.batch(&self.config, scene, iteration as u64),
-            None => sample_batch_from(&self.config, scene, &self.frames, iteration as u64)?,
+            Some(b) => b.batch(&self.config, self.seed, scene, iteration as u64),
+            None => sample_batch_from(
+                &self.config,
+                self.seed,
+                scene,
+                &self.frames,
+                iteration as u64,
+            )?,
         })
     }
 }

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use datasets::sampler::SamplerConfig;
 use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 use serde::{Deserialize, Serialize};
 
@@ -10,43 +11,6 @@ pub use field_ops::novel::{NovelMode, NovelViewConfig};
 
 use crate::error::TrainError;
 use crate::schedule::ScheduleConfig;
-
-/// How training rays are drawn.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
-pub struct SamplerSettings {
-    /// Rays per batch.
-    pub rays_per_batch: usize,
-    /// Pixels within this distance of the image border are never drawn
-    /// (feature maps are least reliable there). Given in pixels of an image
-    /// whose shorter side is 360 (the paper's 640x360 Replica frames) and
-    /// scaled with each image: 10 means 5 px at 320x180 and 2 px at 96x54.
-    pub border_margin: u32,
-    /// Lower bound on the ray parameter (metres), keeping samples off the lens.
-    pub min_near: f64,
-    /// Feature-balanced sampling: pixels are drawn with weight `f^-power`,
-    /// `f` the share of pixels whose feature target falls in the same
-    /// cluster (0 = uniform; see `datasets::balance`). Rare features (small
-    /// objects) get more rays; scenes without feature maps sample uniformly.
-    pub feature_balance: f64,
-    /// Feature clusters the balance is computed over.
-    pub balance_clusters: usize,
-}
-
-impl Default for SamplerSettings {
-    fn default() -> Self {
-        Self {
-            rays_per_batch: 256,
-            border_margin: 10,
-            min_near: 0.05,
-            // 1 = every feature cluster receives the same share of rays. On
-            // three bench rooms it beat 0.5 on the tail (book 14.3 vs 0.4 IoU
-            // on seed 22) and overall (hybrid mIoU 21.5 vs 20.4 there).
-            feature_balance: 1.0,
-            balance_clusters: 32,
-        }
-    }
-}
 
 /// Weights of the loss terms (SPEC 4).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -141,7 +105,7 @@ pub struct TrainConfig {
     pub model: OpenNerfConfig,
     /// Ray batches.
     #[serde(default)]
-    pub sampler: SamplerSettings,
+    pub sampler: SamplerConfig,
     /// Loss weights.
     #[serde(default)]
     pub losses: LossConfig,
@@ -202,7 +166,7 @@ impl TrainConfig {
             model: OpenNerfConfig::new(head_config(feature_dim, 64))
                 .with_mlp(mlp)
                 .with_num_samples(32),
-            sampler: SamplerSettings {
+            sampler: SamplerConfig {
                 rays_per_batch: 256,
                 ..Default::default()
             },
@@ -250,7 +214,7 @@ impl TrainConfig {
     pub fn paper(feature_dim: usize) -> Self {
         Self {
             model: OpenNerfConfig::new(head_config(feature_dim, 256)),
-            sampler: SamplerSettings {
+            sampler: SamplerConfig {
                 rays_per_batch: 1024,
                 ..Default::default()
             },
@@ -433,6 +397,22 @@ mod tests {
             TrainConfig::merged(&c, serde_json::json!({"model": {"mlp": {"width": "wide"}}}))
                 .is_err()
         );
+    }
+
+    /// The `sampler` section of a run's `config.json` keeps its keys and
+    /// the training defaults (256 rays, balanced over 32 clusters).
+    #[test]
+    fn sampler_section_keeps_its_keys_and_defaults() {
+        let want = r#"{"rays_per_batch":256,"border_margin":10,"min_near":0.05,"feature_balance":1.0,"balance_clusters":32}"#;
+        for c in [TrainConfig::tiny(16), TrainConfig::default_run(0)] {
+            assert_eq!(serde_json::to_string(&c.sampler).unwrap(), want);
+        }
+        assert_eq!(
+            serde_json::to_string(&SamplerConfig::default()).unwrap(),
+            want
+        );
+        let paper = serde_json::to_value(TrainConfig::paper(512)).unwrap();
+        assert_eq!(paper["sampler"]["rays_per_batch"], 1024);
     }
 
     #[test]

@@ -3,8 +3,11 @@
 
 use std::path::PathBuf;
 
+use datasets::blender::BlenderOptions;
 use datasets::features::PcaSetting;
-use datasets::{Scene, SceneMeta, SceneSource};
+use datasets::llff::LlffOptions;
+use datasets::replica::ReplicaOptions;
+use datasets::{LoaderOptions, Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
 use crate::error::TrainError;
@@ -39,34 +42,30 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             "--{flag} is not supported for --dataset {format}"
         )))
     };
-    let mut options = serde_json::Map::new();
-    match cli.dataset {
+    let loader = match cli.dataset {
         DatasetKind::Replica => {
-            if let Some(s) = cli.stride {
-                options.insert("stride".into(), s.into());
-            }
-            if let Some(r) = cli.resolution {
-                options.insert("resolution".into(), serde_json::json!([r.width, r.height]));
-            }
             if cli.downscale.is_some() {
                 return unsupported("downscale (use --resolution WxH)");
             }
-            if let Some(f) = &cli.features {
-                options.insert("features".into(), f.display().to_string().into());
-                let setting = cli.pca.unwrap_or(PcaSetting::Auto);
-                let target = serde_json::to_value(setting.target())
-                    .map_err(|e| TrainError::Config(format!("--pca {setting}: {e}")))?;
-                options.insert("pca".into(), target);
-            } else if cli.pca.is_some() {
+            if cli.features.is_none() && cli.pca.is_some() {
                 return Err(TrainError::Config(
                     "--pca needs --features (there are no feature maps to compress)".into(),
                 ));
             }
+            let defaults = ReplicaOptions::default();
+            LoaderOptions::Replica(ReplicaOptions {
+                stride: cli.stride.unwrap_or(defaults.stride),
+                resolution: cli.resolution.map(|r| (r.width, r.height)),
+                features: cli.features.clone(),
+                // Feature maps on disk are compressed unless asked otherwise.
+                pca: match &cli.features {
+                    Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
+                    None => defaults.pca,
+                },
+                ..defaults
+            })
         }
         DatasetKind::Blender => {
-            if let Some(d) = cli.downscale {
-                options.insert("downscale".into(), d.into());
-            }
             if cli.stride.is_some() {
                 return unsupported("stride");
             }
@@ -79,12 +78,13 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             if cli.pca.is_some() {
                 return unsupported("pca (the scene has no feature maps)");
             }
+            let defaults = BlenderOptions::default();
+            LoaderOptions::Blender(BlenderOptions {
+                downscale: cli.downscale.unwrap_or(defaults.downscale),
+                ..defaults
+            })
         }
         DatasetKind::Llff => {
-            // LLFF ships pre-downsampled folders `images_N`.
-            if let Some(d) = cli.downscale {
-                options.insert("images".into(), format!("images_{d}").into());
-            }
             for (flag, given) in [
                 ("stride", cli.stride.is_some()),
                 ("resolution", cli.resolution.is_some()),
@@ -95,14 +95,15 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                     return unsupported(flag);
                 }
             }
+            LoaderOptions::Llff(LlffOptions {
+                // LLFF ships pre-downsampled folders `images_N`.
+                images: cli.downscale.map(|d| format!("images_{d}")),
+                ..LlffOptions::default()
+            })
         }
-        DatasetKind::Synthetic => {}
-    }
-    Ok(SceneSource::Disk {
-        format: format.into(),
-        path,
-        options: serde_json::Value::Object(options),
-    })
+        DatasetKind::Synthetic => unreachable!("handled above"),
+    };
+    Ok(SceneSource::Disk { loader, path })
 }
 
 /// Builds (generates or loads) the scene described by `source`, fitting
@@ -124,16 +125,12 @@ pub fn meta(scene: &Scene) -> SceneMeta {
 
 /// A short name for the default run directory.
 pub fn run_name(source: &SceneSource) -> String {
-    match source {
-        SceneSource::Synthetic { .. } => "synthetic".into(),
-        SceneSource::Disk { format, .. } => format.clone(),
-    }
+    source.kind_name().into()
 }
 
 #[cfg(test)]
 mod pca_flag_tests {
     use clap::Parser;
-    use datasets::features::PcaTarget;
 
     use super::*;
 
@@ -157,17 +154,16 @@ mod pca_flag_tests {
             let mut args = vec!["--dataset", "replica", "--data", &data, "--features", &data];
             args.extend_from_slice(extra);
             match source(&args).expect("replica") {
-                SceneSource::Disk { options, .. } => options["pca"].clone(),
+                SceneSource::Disk {
+                    loader: LoaderOptions::Replica(o),
+                    ..
+                } => o.pca,
                 other => panic!("{other:?}"),
             }
         };
-        let auto = serde_json::to_value(Some(PcaTarget::ExplainedVariance(0.99))).unwrap();
-        assert_eq!(replica_pca(&[]), auto);
-        assert_eq!(replica_pca(&["--pca", "off"]), serde_json::Value::Null);
-        assert_eq!(
-            replica_pca(&["--pca", "16"]),
-            serde_json::to_value(Some(PcaTarget::Components(16))).unwrap()
-        );
+        assert_eq!(replica_pca(&[]), PcaSetting::Auto);
+        assert_eq!(replica_pca(&["--pca", "off"]), PcaSetting::Off);
+        assert_eq!(replica_pca(&["--pca", "16"]), PcaSetting::Components(16));
         for fmt in ["blender", "llff"] {
             let e = source(&["--dataset", fmt, "--data", &data, "--pca", "4"])
                 .expect_err("no maps to compress");

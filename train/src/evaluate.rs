@@ -52,10 +52,10 @@ pub fn eval_pixels(
     let config = SamplerConfig {
         rays_per_batch: count,
         border_margin: margin,
-        seed: seed ^ 0xe7a1_0000,
         min_near,
+        ..SamplerConfig::default()
     };
-    let batch = sample_batch_from(&config, scene, frames, 0)?;
+    let batch = sample_batch_from(&config, seed ^ 0xe7a1_0000, scene, frames, 0)?;
     Ok(EvalPixels {
         rays: batch.rays,
         rgb: batch.rgb,

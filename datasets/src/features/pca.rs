@@ -1,59 +1,53 @@
 //! Principal component analysis of feature vectors: fit a basis on samples,
 //! project features to `k` coefficients and lift coefficients back.
 
-use super::eigen::symmetric_eigen;
+use nalgebra::{DMatrix, SymmetricEigen};
+
 use crate::error::DatasetError;
 
-/// A PCA basis: `x ~ mean + components^T coeffs`.
+/// A fitted PCA basis: `x ~ mean + components^T coeffs`.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Pca {
+pub struct PcaBasis {
     /// Input dimension D.
     pub dim: usize,
     /// Number of kept components k.
     pub k: usize,
     /// Sample mean, `[dim]`.
     pub mean: Vec<f32>,
-    /// `k x dim` row-major, orthonormal rows, by decreasing variance.
+    /// `k x dim` row-major, orthonormal rows, by decreasing variance; each
+    /// row's largest-magnitude entry is positive.
     pub components: Vec<f32>,
     /// Fraction of the sample variance the kept components explain.
     pub explained_variance_ratio: f64,
 }
 
-/// How many components to keep.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PcaTarget {
-    /// Exactly this many (at most D).
-    Components(usize),
-    /// The fewest components explaining at least this fraction of variance.
-    ExplainedVariance(f64),
-}
-
-/// How a scene's feature maps are compressed, as users choose it
-/// (`--pca auto|off|K`).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+/// How a scene's feature maps are compressed: chosen on the command line
+/// (`--pca auto|off|K`), stored with the scene and handed to the loaders.
+///
+/// Serialised as `"off"`, `"auto"`, `{"components": K}` or
+/// `{"explained_variance": F}`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PcaSetting {
     /// Full dimension D.
+    #[default]
     Off,
     /// The fewest components explaining [`AUTO_EXPLAINED_VARIANCE`] of the
     /// variance.
     Auto,
-    /// Exactly this many components.
+    /// Exactly this many components (at most D).
     Components(usize),
+    /// The fewest components explaining at least this fraction of variance.
+    ExplainedVariance(f64),
 }
 
 /// Explained-variance target of [`PcaSetting::Auto`].
 pub const AUTO_EXPLAINED_VARIANCE: f64 = 0.99;
 
 impl PcaSetting {
-    /// The fitting target, `None` for no compression.
-    pub fn target(self) -> Option<PcaTarget> {
-        match self {
-            Self::Off => None,
-            Self::Auto => Some(PcaTarget::ExplainedVariance(AUTO_EXPLAINED_VARIANCE)),
-            Self::Components(k) => Some(PcaTarget::Components(k)),
-        }
+    /// Whether the maps are compressed at all.
+    pub fn is_on(self) -> bool {
+        self != Self::Off
     }
 }
 
@@ -79,16 +73,18 @@ impl std::fmt::Display for PcaSetting {
             Self::Off => write!(f, "off"),
             Self::Auto => write!(f, "auto"),
             Self::Components(k) => write!(f, "{k}"),
+            Self::ExplainedVariance(v) => write!(f, "{v} of the variance"),
         }
     }
 }
 
-impl Pca {
-    /// Fits a basis to `samples` (`n x dim`, row-major).
+impl PcaBasis {
+    /// Fits a basis to `samples` (`n x dim`, row-major), keeping as many
+    /// components as `setting` asks for (an error for [`PcaSetting::Off`]).
     ///
     /// # Shapes
     /// `samples`: `[n, dim]` with `n >= 2`.
-    pub fn fit(samples: &[f32], dim: usize, target: PcaTarget) -> Result<Self, DatasetError> {
+    pub fn fit(samples: &[f32], dim: usize, setting: PcaSetting) -> Result<Self, DatasetError> {
         let err = |m: String| DatasetError::invalid("<pca>", m);
         if dim == 0 || !samples.len().is_multiple_of(dim) || samples.len() < 2 * dim {
             return Err(err(format!(
@@ -108,16 +104,23 @@ impl Pca {
         }
         mean.iter_mut().for_each(|m| *m /= n as f64);
         let cov = covariance(samples, dim, &mean);
-        let (values, vectors) = symmetric_eigen(&cov, dim)
+        let (values, vectors) = symmetric_eigen(cov, dim)
             .ok_or_else(|| err("eigendecomposition did not converge".into()))?;
         let values: Vec<f64> = values.iter().map(|v| v.max(0.0)).collect();
         let total: f64 = values.iter().sum();
-        let k = match target {
-            PcaTarget::Components(k) if k >= 1 && k <= dim => k,
-            PcaTarget::Components(k) => {
+        let setting = match setting {
+            PcaSetting::Auto => PcaSetting::ExplainedVariance(AUTO_EXPLAINED_VARIANCE),
+            s => s,
+        };
+        let k = match setting {
+            PcaSetting::Off | PcaSetting::Auto => {
+                return Err(err("PCA is off: there is no basis to fit".into()));
+            }
+            PcaSetting::Components(k) if k >= 1 && k <= dim => k,
+            PcaSetting::Components(k) => {
                 return Err(err(format!("cannot keep {k} components of {dim}")));
             }
-            PcaTarget::ExplainedVariance(f) if f > 0.0 && f <= 1.0 => {
+            PcaSetting::ExplainedVariance(f) if f > 0.0 && f <= 1.0 => {
                 let mut acc = 0.0;
                 let mut k = dim;
                 for (i, v) in values.iter().enumerate() {
@@ -129,7 +132,7 @@ impl Pca {
                 }
                 k
             }
-            PcaTarget::ExplainedVariance(f) => {
+            PcaSetting::ExplainedVariance(f) => {
                 return Err(err(format!("explained variance target {f} not in (0, 1]")));
             }
         };
@@ -178,6 +181,31 @@ impl Pca {
         }
         out
     }
+}
+
+/// Eigenvalues (descending) and unit eigenvectors of the symmetric
+/// `n x n` row-major matrix `a`; eigenvector `i` is
+/// `vectors[i * n..(i + 1) * n]`, its largest-magnitude entry positive (the
+/// first such entry on ties). `None` if the iteration does not converge.
+///
+/// # Shapes
+/// `a`: `[n, n]` -> (`[n]`, `[n, n]` rows = eigenvectors).
+fn symmetric_eigen(a: Vec<f64>, n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    let m = DMatrix::from_row_slice(n, n, &a);
+    let eig = SymmetricEigen::try_new(m, f64::EPSILON, 10_000)?;
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&x, &y| eig.eigenvalues[y].total_cmp(&eig.eigenvalues[x]));
+    let values = order.iter().map(|&i| eig.eigenvalues[i]).collect();
+    let mut vectors = Vec::with_capacity(n * n);
+    for &i in &order {
+        let v = eig.eigenvectors.column(i);
+        let lead = v
+            .iter()
+            .fold(0.0f64, |m, &x| if x.abs() > m.abs() { x } else { m });
+        let sign = if lead < 0.0 { -1.0 } else { 1.0 };
+        vectors.extend(v.iter().map(|&x| sign * x));
+    }
+    Some((values, vectors))
 }
 
 /// Sample covariance (divided by `n - 1`), `[dim, dim]` row-major.

@@ -8,6 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::DatasetError;
+use crate::numeric::normalized;
 use crate::text::TextEmbeddings;
 
 /// How large a class's objects are in the room; the evaluation reports
@@ -229,15 +230,5 @@ fn look_alike_group(name: &str) -> usize {
         "tv-screen" | "clock" | "picture" | "window" => 3,
         "indoor-plant" | "bottle" | "bowl" | "lamp" => 4,
         _ => 5,
-    }
-}
-
-/// `v / |v|` (unchanged when `v` is zero).
-pub(crate) fn normalized(v: &[f32]) -> Vec<f32> {
-    let n = v.iter().map(|x| x * x).sum::<f32>().sqrt();
-    if n > 0.0 {
-        v.iter().map(|x| x / n).collect()
-    } else {
-        v.to_vec()
     }
 }

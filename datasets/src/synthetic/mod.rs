@@ -22,9 +22,9 @@ pub use room::{Room, build_room};
 
 use crate::error::DatasetError;
 use crate::extractor::{FeatureExtractor, SimulatedExtractor};
-use crate::features::{FeatureSet, Pca, PcaTarget, compress_map};
+use crate::features::{FeatureMap, FeatureSet, PcaBasis, PcaSetting, compress_map};
 use crate::points::PointCloud;
-use crate::scene::{FeatureMap, Frame, Scene, SceneSource};
+use crate::scene::{Frame, Scene, SceneSource};
 
 /// Size presets of the synthetic scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -52,11 +52,12 @@ impl SceneSize {
         }
     }
 
-    /// PCA compression of the feature targets (none for the small preset).
-    pub fn pca_target(self) -> Option<PcaTarget> {
+    /// PCA compression of the feature targets when none is chosen (off for
+    /// the small preset).
+    pub fn default_pca(self) -> PcaSetting {
         match self {
-            SceneSize::Ci => None,
-            SceneSize::Bench => Some(PcaTarget::ExplainedVariance(0.99)),
+            SceneSize::Ci => PcaSetting::Off,
+            SceneSize::Bench => PcaSetting::Auto,
         }
     }
 }
@@ -188,17 +189,16 @@ pub fn surface_points(room: &Room, seed: u64, size: SceneSize) -> PointCloud {
 /// every 10th frame and applied map by map, so all maps are never held at
 /// full dimension), the labelled point cloud and the class embeddings.
 pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
-    generate_with(seed, size, size.pca_target(), None)
+    generate_with(seed, size, size.default_pca(), None)
 }
 
-/// [`generate`] with the feature compression chosen: `pca` is the fitting
-/// target (`None`: full dimension); a given `basis` is used instead of
-/// fitting one (a run's stored basis).
+/// [`generate`] with the feature compression chosen (`pca`); a given
+/// `basis` is used instead of fitting one (a run's stored basis).
 pub fn generate_with(
     seed: u64,
     size: SceneSize,
-    pca: Option<PcaTarget>,
-    basis: Option<&Pca>,
+    pca: PcaSetting,
+    basis: Option<&PcaBasis>,
 ) -> Result<Scene, DatasetError> {
     let room = build_room(seed);
     let palette = classes::palette(seed);
@@ -248,14 +248,14 @@ pub fn generate_with(
     })
 }
 
-/// Runs the extractor on every frame in parallel threads; with a PCA target,
-/// fits the basis on every 10th frame (or takes `basis`) and compresses each
+/// Runs the extractor on every frame in parallel threads; unless PCA is
+/// off, fits the basis on every 10th frame (or takes `basis`) and compresses each
 /// map right after extraction.
 fn extract_all(
     extractor: &SimulatedExtractor,
     frames: &[Frame],
-    pca: Option<PcaTarget>,
-    basis: Option<&Pca>,
+    pca: PcaSetting,
+    basis: Option<&PcaBasis>,
     seed: u64,
 ) -> Result<FeatureSet, DatasetError> {
     let full_dim = extractor.dim();
@@ -270,14 +270,14 @@ fn extract_all(
             ));
         }
         (Some(b), _) => b.clone(),
-        (None, None) => {
+        (None, PcaSetting::Off) => {
             let maps = parallel_maps(frames, |f| extractor.extract(&f.rgb))?;
-            return FeatureSet::from_maps(maps, None, seed);
+            return FeatureSet::from_maps(maps, PcaSetting::Off, seed);
         }
-        (None, Some(target)) => {
+        (None, pca) => {
             let fit_frames: Vec<Frame> = frames.iter().step_by(10).cloned().collect();
             let fit_maps = parallel_maps(&fit_frames, |f| extractor.extract(&f.rgb))?;
-            FeatureSet::from_maps(fit_maps, Some(target), seed)?
+            FeatureSet::from_maps(fit_maps, pca, seed)?
                 .pca
                 .ok_or_else(|| {
                     DatasetError::invalid("<synthetic scene>", "PCA fit returned no basis")

@@ -7,19 +7,11 @@ use rand_chacha::ChaCha8Rng;
 
 use super::classes::{CLASSES, Pattern};
 use super::room::Room;
+use crate::numeric::hash01;
 use crate::scene::{DepthImage, RgbImage};
 
 /// Rays start this far from the camera (nothing is closer).
 const T_MIN: f64 = 1e-6;
-
-/// Integer hash to `[0, 1)` (splitmix64 finaliser).
-pub(crate) fn hash01(mut x: u64) -> f64 {
-    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    x ^= x >> 31;
-    (x >> 11) as f64 / (1u64 << 53) as f64
-}
 
 /// Hash of a lattice cell and a salt.
 fn cell_hash(c: [i64; 3], salt: u64) -> f64 {

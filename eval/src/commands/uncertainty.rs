@@ -220,7 +220,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
 pub fn feature_errors(
     map: &UncertaintyMap,
     points: &EvalPoints,
-    pca: Option<&datasets::features::Pca>,
+    pca: Option<&datasets::features::PcaBasis>,
 ) -> Result<Vec<f64>, OpsError> {
     let scorer = ClassScorer::new(&points.embeddings, points.dim, pca)?;
     let mut cos = vec![0.0; scorer.classes];

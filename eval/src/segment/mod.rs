@@ -8,7 +8,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use burn::tensor::Device;
-use datasets::features::{FeatureSet, Pca};
+use datasets::features::{FeatureSet, PcaBasis};
 use datasets::points::{IGNORE_LABEL, PointCloud, write_ply};
 use datasets::{DepthImage, FeatureMap, Scene};
 use model::OpenNerf;
@@ -170,7 +170,7 @@ pub fn predict<'a>(
 #[allow(clippy::too_many_arguments)]
 pub fn segment_with_field(
     model: &OpenNerf,
-    pca: Option<&Pca>,
+    pca: Option<&PcaBasis>,
     points: &EvalPoints,
     views: &[View<'_>],
     scene_box: &SceneBox,
@@ -200,7 +200,7 @@ pub fn segment_with_field(
 #[allow(clippy::too_many_arguments)]
 pub fn segment_with_field_modes(
     model: &OpenNerf,
-    pca: Option<&Pca>,
+    pca: Option<&PcaBasis>,
     points: &EvalPoints,
     views: &[View<'_>],
     scene_box: &SceneBox,

@@ -22,7 +22,7 @@ pub mod scatter;
 pub mod welford;
 
 use datasets::Scene;
-use datasets::features::{FeatureSet, Pca, PcaTarget};
+use datasets::features::{FeatureSet, PcaBasis, PcaSetting};
 use model::geometry::Vec3;
 
 use crate::error::OpsError;
@@ -87,7 +87,7 @@ pub struct UncertaintyMap {
 /// variance), else a basis fitted to a sample of the maps.
 enum Subspace {
     Leading(usize),
-    Fitted(Pca),
+    Fitted(PcaBasis),
 }
 
 impl Subspace {
@@ -109,7 +109,7 @@ impl Subspace {
                 }
             }
         }
-        let pca = Pca::fit(&samples, dim, PcaTarget::Components(k))
+        let pca = PcaBasis::fit(&samples, dim, PcaSetting::Components(k))
             .map_err(|e| OpsError::Invalid(format!("fitting the uncertainty subspace: {e}")))?;
         Ok(Self::Fitted(pca))
     }

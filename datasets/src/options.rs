@@ -1,0 +1,142 @@
+//! Loader options of the scene formats on disk, one type per format, and
+//! [`LoaderOptions`]: a format with its options, as the
+//! [`SceneSource`](crate::SceneSource) of a scene on disk records them.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Deserializer, Serialize};
+
+use crate::features::{PcaBasis, PcaSetting};
+
+/// A scene format with its loader options. Serialised adjacently tagged,
+/// as the `format` and `options` keys of a disk scene's source
+/// (`{"format": "replica", "options": {...}}`); `options` may be `null` or
+/// leave fields out, which then take their defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "format", content = "options", rename_all = "snake_case")]
+pub enum LoaderOptions {
+    /// Nice-SLAM Replica ([`crate::replica`]).
+    Replica(#[serde(deserialize_with = "null_as_default")] ReplicaOptions),
+    /// Blender / nerfstudio ([`crate::blender`]).
+    Blender(#[serde(deserialize_with = "null_as_default")] BlenderOptions),
+    /// LLFF ([`crate::llff`]).
+    Llff(#[serde(deserialize_with = "null_as_default")] LlffOptions),
+}
+
+impl LoaderOptions {
+    /// The format's name (`replica`, `blender` or `llff`), as serialised.
+    pub fn format(&self) -> &'static str {
+        match self {
+            Self::Replica(_) => "replica",
+            Self::Blender(_) => "blender",
+            Self::Llff(_) => "llff",
+        }
+    }
+}
+
+/// Deserialises `null` as the type's default.
+fn null_as_default<'de, D, T>(d: D) -> Result<T, D::Error>
+where
+    D: Deserializer<'de>,
+    T: Deserialize<'de> + Default,
+{
+    Ok(Option::<T>::deserialize(d)?.unwrap_or_default())
+}
+
+/// Options of the Replica loader ([`crate::replica::load_replica`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ReplicaOptions {
+    /// Keep every `stride`-th frame (the paper uses 10).
+    pub stride: usize,
+    /// Keep at most this many frames (after the stride).
+    pub max_frames: Option<usize>,
+    /// Resample images to `(width, height)` (the paper uses 640x360).
+    pub resolution: Option<(u32, u32)>,
+    /// Feature maps: a stacked `.npy` or a directory of per-frame `.npy`
+    /// (indexed over the frames kept).
+    pub features: Option<PathBuf>,
+    /// Compression of the feature maps (`null`, as older scene files
+    /// write "none", reads as off).
+    #[serde(deserialize_with = "null_as_default")]
+    pub pca: PcaSetting,
+    /// A basis to compress with instead of fitting one (a run's stored
+    /// basis when its scene is rebuilt); not part of the saved options.
+    #[serde(skip)]
+    pub basis: Option<PcaBasis>,
+    /// Seed of the PCA pixel sample.
+    pub seed: u64,
+    /// Scene-box margin, as a fraction of the largest extent.
+    pub box_margin: f64,
+    /// Depth pixels used for the box: every `box_pixel_step`-th in each axis.
+    pub box_pixel_step: u32,
+}
+
+impl Default for ReplicaOptions {
+    fn default() -> Self {
+        Self {
+            stride: 1,
+            max_frames: None,
+            resolution: None,
+            features: None,
+            pca: PcaSetting::Off,
+            basis: None,
+            seed: 0,
+            box_margin: 0.05,
+            box_pixel_step: 8,
+        }
+    }
+}
+
+/// Options of the Blender loader ([`crate::blender::load_blender`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct BlenderOptions {
+    /// Transforms file name inside the scene directory; `None` tries
+    /// `transforms.json`, then `transforms_train.json`.
+    pub transforms: Option<String>,
+    /// Integer downscale factor of the images (1 = full size).
+    pub downscale: u32,
+    /// Colour transparent pixels are composited over; also the scene's
+    /// background.
+    pub background: [f32; 3],
+    /// Keep at most this many frames (in file order).
+    pub max_frames: Option<usize>,
+    /// Box margin, as a fraction of its extent.
+    pub box_margin: f64,
+}
+
+impl Default for BlenderOptions {
+    fn default() -> Self {
+        Self {
+            transforms: None,
+            downscale: 1,
+            background: [1.0; 3],
+            max_frames: None,
+            box_margin: 0.05,
+        }
+    }
+}
+
+/// Options of the LLFF loader ([`crate::llff::load_llff`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LlffOptions {
+    /// Image folder (`images_8`, `images_16`, `images`); `None` picks
+    /// `images_8` if present, else the most downsampled `images_F`.
+    pub images: Option<String>,
+    /// Keep at most this many views.
+    pub max_frames: Option<usize>,
+    /// Box margin, as a fraction of its extent.
+    pub box_margin: f64,
+}
+
+impl Default for LlffOptions {
+    fn default() -> Self {
+        Self {
+            images: None,
+            max_frames: None,
+            box_margin: 0.05,
+        }
+    }
+}
