@@ -13,7 +13,7 @@
 
 use datasets::extractor::FeatureExtractor;
 use datasets::scene::{RgbImage, nearest_pixel};
-use datasets::synthetic::{self, CLASSES, SceneSize, build_room, classes, render};
+use datasets::synthetic::{self, CLASSES, SceneSize, build_room, classes, raytrace};
 use model::geometry::{Camera, Intrinsics, Vec3, look_at, norm, sub};
 
 /// Distances of the close views, metres.
@@ -70,7 +70,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let cams = synthetic::trajectory(&room, size, seed)?;
     let mut captured = vec![(0usize, 0usize); nc];
     for cam in cams.iter().step_by(CAPTURE_STRIDE) {
-        let r = render::render_view(&room, &palette, cam);
+        let r = raytrace::render_view(&room, &palette, cam);
         let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
         let (mw, mh) = ex.map_size(w, h);
         let read = read_at(&ex, &r.rgb, &emb.data, emb.dim)?;
@@ -132,7 +132,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     intrinsics: k,
                     pose,
                 };
-                let r = render::render_view(&room, &palette, &cam);
+                let r = raytrace::render_view(&room, &palette, &cam);
                 let (cx, cy) = (k.width / 2, k.height / 2);
                 if r.labels[(cy * k.width + cx) as usize] as usize != c {
                     continue; // the point is hidden from here

@@ -13,7 +13,7 @@ pub mod features;
 pub mod grid;
 pub mod imageio;
 pub mod llff;
-pub mod novel;
+pub mod novel_record;
 pub mod npy;
 mod numeric;
 pub mod options;

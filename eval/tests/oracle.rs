@@ -19,7 +19,7 @@ fn oracle_views(
     scene: &Scene,
     frames: &[usize],
     oracle: NovelOracle,
-) -> Vec<datasets::novel::NovelView> {
+) -> Vec<datasets::novel_record::NovelView> {
     let config = NovelViewConfig {
         views: frames.len(),
         scale: 1.0,

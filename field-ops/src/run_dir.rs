@@ -77,7 +77,7 @@ impl RunDir {
     }
 
     /// `novel/`: novel views rendered by the field and added as training
-    /// frames (see [`datasets::novel`]).
+    /// frames (see [`datasets::novel_record`]).
     pub fn novel(&self) -> PathBuf {
         self.dir.join("novel")
     }

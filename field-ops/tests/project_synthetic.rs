@@ -141,7 +141,7 @@ fn without_depth_hidden_points_are_accepted() {
 #[test]
 fn at_high_resolution_every_visible_point_lands_on_its_own_label() {
     use datasets::synthetic::classes::palette;
-    use datasets::synthetic::render::render_view;
+    use datasets::synthetic::raytrace::render_view;
 
     let scene = generate(SEED, SceneSize::Ci).expect("synthetic scene");
     let room = build_room(SEED);

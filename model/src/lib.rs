@@ -6,17 +6,17 @@
 #![warn(missing_docs)]
 
 pub mod clip;
+pub mod composite;
 pub mod field;
 pub mod geometry;
 pub mod loss;
 pub mod mip;
 pub mod nerf;
 pub mod occupancy;
-pub mod render;
 pub mod sampling;
 
+pub use composite::Composite;
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse};
 pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, Rays, RenderOutputs};
 pub use occupancy::{ClippedRays, OccupancyConfig, OccupancyGrid};
-pub use render::Composite;

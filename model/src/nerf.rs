@@ -7,11 +7,11 @@ use burn::config::Config;
 use burn::module::Module;
 use burn::tensor::{Device, Int, Tensor, TensorData};
 
+use crate::composite::{composite, composite_features_mean};
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
 use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
 use crate::occupancy::OccupancyGrid;
-use crate::render::{composite, composite_features_mean};
 use crate::sampling::{resample_t_vals, stratified_t_vals};
 
 /// Configuration of [`OpenNerf`].

@@ -9,8 +9,8 @@ use std::f64::consts::PI;
 
 use burn::tensor::{Device, Tensor, TensorData};
 use common::vec;
+use model::composite::composite;
 use model::geometry::NormalizedRay;
-use model::render::composite;
 use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays};
 use model::{OccupancyConfig, OccupancyGrid};
 use rand::{Rng, SeedableRng};

@@ -6,7 +6,7 @@
 mod common;
 
 use common::{assert_close, devices, tensor, vec};
-use model::render::composite;
+use model::composite::composite;
 use model::sampling::{blur_weights, sample_pdf, stratified_t_vals};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

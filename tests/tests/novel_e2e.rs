@@ -39,13 +39,13 @@ fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
     // The record: three views at iteration 45, each with colour, masked
     // depth at the configured weight and compressed features.
     let run = RunDir::new(whole.path());
-    let record = datasets::novel::read_record(&run.novel())
+    let record = datasets::novel_record::read_record(&run.novel())
         .unwrap()
         .expect("views.json");
     assert_eq!((record.mode.as_str(), record.added_at), ("guided", 45));
     assert_eq!(record.views.len(), 3, "{record:?}");
     let dim = scene.features.as_ref().unwrap().dim();
-    let views = datasets::novel::load_views(&run.novel(), &record, dim).unwrap();
+    let views = datasets::novel_record::load_views(&run.novel(), &record, dim).unwrap();
     // A field this young is opaque enough in some views only: the depth is
     // kept there (within the scene) and masked to 0 elsewhere.
     let diagonal = {
@@ -100,7 +100,7 @@ fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
             weights(whole.path()) == weights(parts.path()),
             "stopped at {stop}: the resumed weights differ"
         );
-        let again = datasets::novel::read_record(&RunDir::new(parts.path()).novel())
+        let again = datasets::novel_record::read_record(&RunDir::new(parts.path()).novel())
             .unwrap()
             .unwrap();
         assert_eq!(again, record, "stopped at {stop}");

@@ -71,7 +71,7 @@ pub fn result_files(dir: &Path) -> Vec<String> {
     .filter(|(p, _)| p.exists())
     .map(|(_, name)| name.to_string())
     .collect();
-    if let Ok(Some(record)) = datasets::novel::read_record(&run.novel()) {
+    if let Ok(Some(record)) = datasets::novel_record::read_record(&run.novel()) {
         out.push(format!(
             "novel/ ({} {} views added at iteration {})",
             record.views.len(),

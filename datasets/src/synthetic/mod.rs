@@ -6,7 +6,7 @@
 //! `(seed, size)`.
 
 pub mod classes;
-pub mod render;
+pub mod raytrace;
 pub mod room;
 
 use std::f64::consts::PI;
@@ -176,7 +176,7 @@ fn unreachable_extractor() -> SimulatedExtractor {
 /// The labelled surface point cloud of a scene (labels = class indices).
 pub fn surface_points(room: &Room, seed: u64, size: SceneSize) -> PointCloud {
     let (density, min_per_face) = size.point_density();
-    let pts = render::sample_surface(room, &classes::palette(seed), density, min_per_face, seed);
+    let pts = raytrace::sample_surface(room, &classes::palette(seed), density, min_per_face, seed);
     PointCloud {
         positions: pts.iter().map(|p| p.position).collect(),
         colors: Some(pts.iter().map(|p| p.color).collect()),
@@ -203,7 +203,7 @@ pub fn generate_with(
     let room = build_room(seed);
     let palette = classes::palette(seed);
     let cameras = trajectory(&room, size, seed)?;
-    let rendered = render::render_views(&room, &palette, &cameras);
+    let rendered = raytrace::render_views(&room, &palette, &cameras);
     let extractor = extractor_for(seed, size);
     let frames: Vec<Frame> = rendered
         .into_iter()

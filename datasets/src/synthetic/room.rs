@@ -274,7 +274,35 @@ pub fn build_room(seed: u64) -> Room {
         primitives: Vec::new(),
         groups: Vec::new(),
     };
-    // Rug and table near the middle, chairs at its ends, bowl / bottle / book on it.
+    dining_corner(&mut b, &mut j);
+    sofa_wall(&mut b, &mut j, hy);
+    let by0 = bed_wall(&mut b, &mut j, hx);
+    north_wall(&mut b, &mut j, hy, h);
+    west_wall(&mut b, &mut j, hx, hy, by0);
+    // A potted plant in the south-east corner.
+    let (px, py) = (hx - 0.35, -hy + 0.35);
+    b.object(&[
+        (
+            "indoor-plant",
+            [px - 0.17, py - 0.17, 0.0],
+            [px + 0.17, py + 0.17, 0.35],
+        ),
+        (
+            "indoor-plant",
+            [px - 0.28, py - 0.28, 0.35],
+            [px + 0.28, py + 0.28, 1.2],
+        ),
+    ]);
+    Room {
+        min: [-hx, -hy, 0.0],
+        max: [hx, hy, h],
+        primitives: b.primitives,
+        groups: b.groups,
+    }
+}
+
+/// Rug and table near the middle, chairs at its ends, bowl / bottle / book on it.
+fn dining_corner(b: &mut Builder, j: &mut impl FnMut(f64) -> f64) {
     let (cx, cy) = (-0.6 + j(0.15), 0.1 + j(0.15));
     b.object(&[(
         "rug",
@@ -333,7 +361,10 @@ pub fn build_room(seed: u64) -> Room {
         }
         b.object(&chair);
     }
-    // Sofa with two pillows against the south wall, a clock above it.
+}
+
+/// Sofa with two pillows against the south wall, a clock above it.
+fn sofa_wall(b: &mut Builder, j: &mut impl FnMut(f64) -> f64, hy: f64) {
     let sx = -0.8 + j(0.2);
     let y0 = -hy + 0.02;
     b.object(&[
@@ -354,7 +385,11 @@ pub fn build_room(seed: u64) -> Room {
         b.object(&[("pillow", [px, y0 + 0.2, 0.42], [px + 0.4, y0 + 0.34, 0.78])]);
     }
     b.object(&[("clock", [sx - 0.15, -hy, 1.6], [sx + 0.15, -hy + 0.04, 1.9])]);
-    // Bed against the east wall with a pillow and headboard; nightstand with lamp.
+}
+
+/// Bed against the east wall with a pillow and headboard; nightstand with
+/// lamp and a picture. Returns where the bed starts along y.
+fn bed_wall(b: &mut Builder, j: &mut impl FnMut(f64) -> f64, hx: f64) -> f64 {
     let by0 = -0.2 + j(0.1);
     b.object(&[
         ("bed", [hx - 2.0, by0, 0.0], [hx - 0.12, by0 + 1.5, 0.5]),
@@ -385,7 +420,11 @@ pub fn build_room(seed: u64) -> Room {
         ),
     ]);
     b.object(&[("picture", [hx - 0.03, by0 + 0.3, 1.3], [hx, by0 + 1.2, 1.9])]);
-    // Cabinet and tv on the north wall, window with blinds, a vent.
+    by0
+}
+
+/// Cabinet and tv on the north wall, window with blinds, a vent.
+fn north_wall(b: &mut Builder, j: &mut impl FnMut(f64) -> f64, hy: f64, h: f64) {
     let kx = -1.5 + j(0.2);
     b.object(&[(
         "cabinet",
@@ -410,7 +449,10 @@ pub fn build_room(seed: u64) -> Room {
         [wx + 0.2, hy, h - 0.1],
     )]);
     b.object(&[("vent", [-0.2, -0.1, h - 0.02], [0.2, 0.1, h])]);
-    // West wall: door with switch, shelf with books, wall plugs.
+}
+
+/// West wall: door with switch, shelf with books; wall plugs on every wall.
+fn west_wall(b: &mut Builder, j: &mut impl FnMut(f64) -> f64, hx: f64, hy: f64, by0: f64) {
     let dy = 1.2 + j(0.1);
     b.object(&[("door", [-hx, dy - 0.45, 0.0], [-hx + 0.04, dy + 0.45, 2.05])]);
     b.object(&[(
@@ -441,26 +483,6 @@ pub fn build_room(seed: u64) -> Room {
         ([1.0, -hy, 0.27], [1.08, -hy + 0.015, 0.33]),
     ] {
         b.object(&[("wall-plug", p0, p1)]);
-    }
-    // A potted plant in the south-east corner.
-    let (px, py) = (hx - 0.35, -hy + 0.35);
-    b.object(&[
-        (
-            "indoor-plant",
-            [px - 0.17, py - 0.17, 0.0],
-            [px + 0.17, py + 0.17, 0.35],
-        ),
-        (
-            "indoor-plant",
-            [px - 0.28, py - 0.28, 0.35],
-            [px + 0.28, py + 0.28, 1.2],
-        ),
-    ]);
-    Room {
-        min: [-hx, -hy, 0.0],
-        max: [hx, hy, h],
-        primitives: b.primitives,
-        groups: b.groups,
     }
 }
 

@@ -4,7 +4,7 @@
 use burn::tensor::Device;
 use datasets::extractor::{CommandExtractor, FeatureExtractor};
 use datasets::features::compress_map;
-use datasets::novel::NovelView;
+use datasets::novel_record::NovelView;
 use datasets::{DepthImage, RgbImage, Scene, SceneSource};
 use model::OpenNerf;
 use model::geometry::Camera;

@@ -7,7 +7,7 @@
 
 use datasets::extractor::{FeatureExtractor, SimulatedExtractor};
 use datasets::scene::nearest_pixel;
-use datasets::synthetic::{self, Room, SceneSize, classes, render};
+use datasets::synthetic::{self, Room, SceneSize, classes, raytrace};
 use datasets::text::TextEmbeddings;
 use datasets::{FeatureMap, Scene, SceneSource};
 use half::f16;
@@ -80,7 +80,7 @@ impl GroundTruth {
         camera: &Camera,
         extractor: &dyn FeatureExtractor,
     ) -> Result<ExtractedView, OpsError> {
-        let r = render::render_view(&self.room, &self.palette, camera);
+        let r = raytrace::render_view(&self.room, &self.palette, camera);
         let (width, height) = (r.rgb.width, r.rgb.height);
         let features = match self.oracle {
             NovelOracle::Renders => extractor.extract(&r.rgb)?,

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::str::FromStr;
 
 use datasets::Scene;
-use datasets::novel::NovelView;
+use datasets::novel_record::NovelView;
 
 use super::config::NovelMode;
 use super::oracle::NovelOracle;
@@ -79,10 +79,10 @@ pub struct RecordedViews {
 /// Appends the views recorded in `dir` (a run's `novel/`), if any, to
 /// `scene`.
 pub fn append_recorded(scene: &mut Scene, dir: &Path) -> Result<Option<RecordedViews>, OpsError> {
-    let Some((record, frames)) = datasets::novel::append_recorded(scene, dir)? else {
+    let Some((record, frames)) = datasets::novel_record::append_recorded(scene, dir)? else {
         return Ok(None);
     };
-    let index = dir.join(datasets::novel::INDEX);
+    let index = dir.join(datasets::novel_record::INDEX);
     let choice = record
         .mode
         .parse()
@@ -101,7 +101,7 @@ pub fn write_record(
     iteration: usize,
     views: &[NovelView],
 ) -> Result<(), OpsError> {
-    datasets::novel::write_record(dir, &choice.to_string(), iteration, views)?;
+    datasets::novel_record::write_record(dir, &choice.to_string(), iteration, views)?;
     Ok(())
 }
 
