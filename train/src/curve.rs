@@ -4,8 +4,10 @@
 
 use std::path::Path;
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
-use serde_json::Value;
+
+use crate::metrics_log::{self, MetricsEvent};
 
 /// The series of one run, in log order.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -37,49 +39,50 @@ impl Curves {
     }
 }
 
-const LOSS_KEYS: [(&str, &str); 4] = [
-    ("loss", "total loss"),
-    ("rgb_mse", "colour MSE"),
-    ("open", "feature loss"),
-    ("depth", "depth loss"),
-];
+/// Names of the loss terms, in [`Curves::losses`] order.
+const LOSS_NAMES: [&str; 4] = ["total loss", "colour MSE", "feature loss", "depth loss"];
 
 /// Reads the series from the lines of `metrics.jsonl`; lines that are not
-/// JSON objects (a line cut by a kill) and non-finite values are skipped.
+/// events (a line cut by a kill) and non-finite values are skipped.
 pub fn parse(jsonl: &str) -> Curves {
+    from_events(&metrics_log::parse(jsonl))
+}
+
+/// The series of the events of a log; non-finite values are skipped.
+pub fn from_events(events: &[MetricsEvent]) -> Curves {
     let mut c = Curves {
-        losses: LOSS_KEYS.iter().map(|&(_, n)| (n, Vec::new())).collect(),
+        losses: LOSS_NAMES.iter().map(|&n| (n, Vec::new())).collect(),
         ..Curves::default()
     };
-    for line in jsonl.lines() {
-        let Ok(v) = serde_json::from_str::<Value>(line) else {
+    for event in events {
+        let Some(t) = event.wall_seconds().filter(|t| t.is_finite()) else {
             continue;
         };
-        let num = |k: &str| v.get(k).and_then(Value::as_f64).filter(|x| x.is_finite());
-        let Some(t) = num("wall_seconds") else {
-            continue;
-        };
-        match v.get("event").and_then(Value::as_str) {
-            Some("train") => {
-                if let Some(p) = num("psnr") {
-                    c.batch_psnr.push((t, p));
+        match event {
+            MetricsEvent::Train(l) => {
+                if l.psnr.is_finite() {
+                    c.batch_psnr.push((t, l.psnr));
                 }
-                for ((key, _), (_, series)) in LOSS_KEYS.iter().zip(c.losses.iter_mut()) {
-                    if let Some(x) = num(key).filter(|x| *x > 0.0) {
+                let terms = [l.loss, l.rgb_mse, l.open, l.depth];
+                for (x, (_, series)) in terms.into_iter().zip(c.losses.iter_mut()) {
+                    if x.is_finite() && x > 0.0 {
                         series.push((t, x));
                     }
                 }
-                if let (Some(r), Some(l)) = (num("rays_rendered"), num("ray_length_sampled")) {
-                    c.skipping.push((r, l));
+                if let Some(g) = l.grid
+                    && g.rays_rendered.is_finite()
+                    && g.ray_length_sampled.is_finite()
+                {
+                    c.skipping.push((g.rays_rendered, g.ray_length_sampled));
                 }
             }
-            Some("eval") | Some("final") => {
-                if let Some(p) = num("psnr_interior") {
-                    c.heldout_psnr.push((t, p));
+            MetricsEvent::Eval(l) | MetricsEvent::Final(l) => {
+                if l.interior.psnr.is_finite() {
+                    c.heldout_psnr.push((t, l.interior.psnr));
                 }
             }
-            Some("novel_views") => c.novel_views.push(t),
-            _ => {}
+            MetricsEvent::NovelViews(_) => c.novel_views.push(t),
+            MetricsEvent::Nonfinite(_) => {}
         }
     }
     c
@@ -97,113 +100,126 @@ pub fn draw(curves: &Curves, path: &Path) -> Result<(), String> {
             .chain(&curves.heldout_psnr)
             .map(|p| p.0);
         let t_max = all_t.fold(1e-9f64, f64::max) * 1.02;
-        let psnr = curves
-            .batch_psnr
-            .iter()
-            .chain(&curves.heldout_psnr)
-            .map(|p| p.1);
-        let (p0, p1) = padded(psnr, 0.0, 30.0);
-        let mut chart = ChartBuilder::on(&top)
-            .caption("PSNR (dB) against training seconds", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(35)
-            .y_label_area_size(50)
-            .build_cartesian_2d(0f64..t_max, p0..p1)
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("seconds")
-            .y_desc("PSNR (dB)")
-            .draw()
-            .map_err(|e| e.to_string())?;
-        chart
-            .draw_series(LineSeries::new(
-                curves.batch_psnr.iter().copied(),
-                BLUE.mix(0.35),
-            ))
-            .map_err(|e| e.to_string())?
-            .label("training batch")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], BLUE.mix(0.35)));
-        chart
-            .draw_series(LineSeries::new(
-                curves.heldout_psnr.iter().copied(),
-                RED.stroke_width(2),
-            ))
-            .map_err(|e| e.to_string())?
-            .label("held-out views, interior pixels")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RED.stroke_width(2)));
-        chart
-            .draw_series(
-                curves
-                    .heldout_psnr
-                    .iter()
-                    .map(|&p| Circle::new(p, 3, RED.filled())),
-            )
-            .map_err(|e| e.to_string())?;
-        for &t in &curves.novel_views {
-            chart
-                .draw_series(LineSeries::new([(t, p0), (t, p1)], BLACK.mix(0.4)))
-                .map_err(|e| e.to_string())?;
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK.mix(0.3))
-            .draw()
-            .map_err(|e| e.to_string())?;
-
-        let values = curves
-            .losses
-            .iter()
-            .flat_map(|(_, s)| s.iter().map(|p| p.1));
-        let (l0, l1) = values
-            .filter(|v| *v > 0.0)
-            .fold((f64::INFINITY, 0f64), |(a, b), v| (a.min(v), b.max(v)));
-        let (l0, l1) = if l0.is_finite() && l1 > l0 {
-            (l0 / 1.5, l1 * 1.5)
-        } else {
-            (1e-4, 1.0)
-        };
-        let mut chart = ChartBuilder::on(&bottom)
-            .caption("losses against training seconds", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(35)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0f64..t_max, (l0..l1).log_scale())
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc("seconds")
-            .y_desc("loss (log scale)")
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        let colours = [BLACK, BLUE, GREEN, MAGENTA];
-        for ((name, series), colour) in curves.losses.iter().zip(colours) {
-            if series.is_empty() {
-                continue;
-            }
-            chart
-                .draw_series(LineSeries::new(series.iter().copied(), colour))
-                .map_err(|e| e.to_string())?
-                .label(*name)
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour));
-        }
-        for &t in &curves.novel_views {
-            chart
-                .draw_series(LineSeries::new([(t, l0), (t, l1)], BLACK.mix(0.4)))
-                .map_err(|e| e.to_string())?;
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK.mix(0.3))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        Ok(())
+        draw_psnr(curves, &top, t_max)?;
+        draw_losses(curves, &bottom, t_max)
     })
+}
+
+/// One half of the picture.
+type Half<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// The PSNR chart: the training batches' and the held-out evaluations'.
+fn draw_psnr(curves: &Curves, area: &Half<'_>, t_max: f64) -> Result<(), String> {
+    let psnr = curves
+        .batch_psnr
+        .iter()
+        .chain(&curves.heldout_psnr)
+        .map(|p| p.1);
+    let (p0, p1) = padded(psnr, 0.0, 30.0);
+    let mut chart = ChartBuilder::on(area)
+        .caption("PSNR (dB) against training seconds", ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(35)
+        .y_label_area_size(50)
+        .build_cartesian_2d(0f64..t_max, p0..p1)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("seconds")
+        .y_desc("PSNR (dB)")
+        .draw()
+        .map_err(|e| e.to_string())?;
+    chart
+        .draw_series(LineSeries::new(
+            curves.batch_psnr.iter().copied(),
+            BLUE.mix(0.35),
+        ))
+        .map_err(|e| e.to_string())?
+        .label("training batch")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], BLUE.mix(0.35)));
+    chart
+        .draw_series(LineSeries::new(
+            curves.heldout_psnr.iter().copied(),
+            RED.stroke_width(2),
+        ))
+        .map_err(|e| e.to_string())?
+        .label("held-out views, interior pixels")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], RED.stroke_width(2)));
+    chart
+        .draw_series(
+            curves
+                .heldout_psnr
+                .iter()
+                .map(|&p| Circle::new(p, 3, RED.filled())),
+        )
+        .map_err(|e| e.to_string())?;
+    for &t in &curves.novel_views {
+        chart
+            .draw_series(LineSeries::new([(t, p0), (t, p1)], BLACK.mix(0.4)))
+            .map_err(|e| e.to_string())?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK.mix(0.3))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// The losses chart, log scale.
+fn draw_losses(curves: &Curves, area: &Half<'_>, t_max: f64) -> Result<(), String> {
+    let values = curves
+        .losses
+        .iter()
+        .flat_map(|(_, s)| s.iter().map(|p| p.1));
+    let (l0, l1) = values
+        .filter(|v| *v > 0.0)
+        .fold((f64::INFINITY, 0f64), |(a, b), v| (a.min(v), b.max(v)));
+    let (l0, l1) = if l0.is_finite() && l1 > l0 {
+        (l0 / 1.5, l1 * 1.5)
+    } else {
+        (1e-4, 1.0)
+    };
+    let mut chart = ChartBuilder::on(area)
+        .caption("losses against training seconds", ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(35)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0f64..t_max, (l0..l1).log_scale())
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("seconds")
+        .y_desc("loss (log scale)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let colours = [BLACK, BLUE, GREEN, MAGENTA];
+    for ((name, series), colour) in curves.losses.iter().zip(colours) {
+        if series.is_empty() {
+            continue;
+        }
+        chart
+            .draw_series(LineSeries::new(series.iter().copied(), colour))
+            .map_err(|e| e.to_string())?
+            .label(*name)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour));
+    }
+    for &t in &curves.novel_views {
+        chart
+            .draw_series(LineSeries::new([(t, l0), (t, l1)], BLACK.mix(0.4)))
+            .map_err(|e| e.to_string())?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK.mix(0.3))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    Ok(())
 }
 
 /// `[min, max]` of finite values with 5% padding (`[lo, hi]` without any).

@@ -9,8 +9,8 @@ use datasets::sampler::{SamplerConfig, sample_batch_from};
 use model::OpenNerf;
 use model::geometry::NormalizedRay;
 
+use crate::accuracy::{EvalAccumulator, EvalMetrics};
 use crate::error::TrainError;
-use crate::metrics::{EvalAccumulator, EvalMetrics};
 
 /// A fixed set of held-out pixels with their targets, drawn once per run so
 /// that every periodic evaluation (and the one at initialisation) measures

@@ -8,6 +8,7 @@
 //! and `checkpoints/`.
 #![warn(missing_docs)]
 
+pub mod accuracy;
 pub mod backend;
 pub mod batch;
 pub mod checkpoint;
@@ -17,21 +18,23 @@ pub mod curve;
 pub mod data;
 pub mod error;
 pub mod evaluate;
-pub mod metrics;
-pub mod novel;
+pub mod json;
+pub mod metrics_log;
 pub mod occupancy;
 pub mod preset;
+pub mod progress;
 pub mod report;
-pub mod run;
 pub mod schedule;
 pub mod step;
+pub mod summary;
 pub mod sweep;
+pub mod training;
 pub mod validate;
 
 pub use backend::BackendKind;
 pub use config::TrainConfig;
 pub use error::TrainError;
-pub use run::{RunOutcome, SessionOptions, resume, train_new};
+pub use training::{RunOutcome, SessionOptions, resume, train_new};
 
 use std::path::PathBuf;
 

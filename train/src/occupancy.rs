@@ -8,7 +8,6 @@ use burn::tensor::{Device, Tensor, TensorData};
 use datasets::sampler::RayBatch;
 use model::{OccupancyConfig, OccupancyGrid, OpenNerf};
 
-use crate::batch::iteration_seed;
 use crate::error::TrainError;
 
 /// Points per density query of an update (bounds the peak memory).
@@ -30,11 +29,6 @@ pub fn update_grid(grid: &mut OccupancyGrid, model: &OpenNerf, seed: u64, device
         ));
     }
     grid.update(&density);
-}
-
-/// The seed of the grid update at `iteration` of a run seeded with `seed`.
-pub fn update_seed(seed: u64, iteration: usize) -> u64 {
-    iteration_seed(seed ^ 0x0cc0_9a1d, iteration)
 }
 
 /// What clipping did to a batch.

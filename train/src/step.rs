@@ -97,7 +97,7 @@ pub struct StepReport {
 impl StepReport {
     /// PSNR of the batch's fine colour.
     pub fn psnr(&self) -> f64 {
-        crate::metrics::psnr(self.rgb_mse)
+        crate::accuracy::psnr(self.rgb_mse)
     }
 }
 

@@ -12,7 +12,6 @@ use crate::checkpoint::list_checkpoints;
 use crate::cli::{Cli, DatasetKind};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-use crate::metrics::split_frames;
 
 fn flag_error(message: String) -> TrainError {
     TrainError::Config(message)
@@ -20,6 +19,16 @@ fn flag_error(message: String) -> TrainError {
 
 /// Checks the options of `cli` against each other, before any file is read.
 pub fn cli(cli: &Cli) -> Result<(), TrainError> {
+    value_flags(cli)?;
+    novel_and_grid_flags(cli)?;
+    if cli.resume.is_some() {
+        return resume_flags(cli);
+    }
+    new_run_flags(cli)
+}
+
+/// Numbers out of their range, and the device.
+fn value_flags(cli: &Cli) -> Result<(), TrainError> {
     for (flag, value) in [
         ("iters", cli.iters),
         ("stop-at", cli.stop_at),
@@ -58,7 +67,11 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             )));
         }
     }
-    field_ops::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)?;
+    field_ops::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)
+}
+
+/// The novel-view and occupancy-grid options.
+fn novel_and_grid_flags(cli: &Cli) -> Result<(), TrainError> {
     if let Some(w) = cli.novel_depth_weight
         && !(w.is_finite() && (0.0..=1.0).contains(&w))
     {
@@ -118,9 +131,11 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
             "novel-view options are given without --novel-views N (how many views to add)".into(),
         ));
     }
-    if cli.resume.is_some() {
-        return resume_flags(cli);
-    }
+    Ok(())
+}
+
+/// The options of a new run: the held-out split and the scene.
+fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
     match cli.holdout_every {
         0 => {
             return Err(flag_error(
@@ -263,6 +278,20 @@ pub fn config_keys(path: &Path, base: &TrainConfig) -> Result<(), TrainError> {
     ))
 }
 
+/// Frames `0, n, 2n, ...` are held out (none when `n` is 0 or there are
+/// fewer than two frames); the rest are trained on.
+pub fn split_frames(frames: usize, holdout_every: usize) -> Split {
+    let mut split = Split::default();
+    for i in 0..frames {
+        if holdout_every > 0 && frames > 1 && i.is_multiple_of(holdout_every) {
+            split.heldout.push(i);
+        } else {
+            split.train.push(i);
+        }
+    }
+    split
+}
+
 /// The train / held-out split of `frames` frames holding out every
 /// `holdout_every`-th one; refused when either side would be empty, since
 /// the "held-out" figures would then be measured on training frames.
@@ -337,6 +366,15 @@ pub fn resume_iterations(requested: usize, done: usize, dir: &Path) -> Result<()
 mod tests {
     use super::*;
     use clap::Parser;
+
+    #[test]
+    fn split_holds_out_every_nth_frame() {
+        let s = split_frames(10, 4);
+        assert_eq!(s.heldout, vec![0, 4, 8]);
+        assert_eq!(s.train, vec![1, 2, 3, 5, 6, 7, 9]);
+        assert!(split_frames(10, 0).heldout.is_empty());
+        assert_eq!(split_frames(1, 1).train, vec![0]);
+    }
 
     #[test]
     fn unknown_keys_are_reported_with_their_path() {

@@ -142,8 +142,8 @@ fn matmul_ceiling(device: &Device, w: usize) -> f64 {
     reps as f64 * 2.0 * 4096.0 * (w * w) as f64 / secs / 1e9
 }
 
-fn main() {
-    let args = Args::parse();
+/// The sizes asked for by `args`.
+fn size_of(args: &Args) -> Size {
     let size = if args.quick {
         Size {
             rays: 256,
@@ -164,10 +164,101 @@ fn main() {
             feature_dim: 768,
         }
     };
-    let size = Size {
+    Size {
         samples: args.samples.unwrap_or(size.samples),
         ..size
+    }
+}
+
+/// One case: a feature path, the head's top-k, with or without the grid.
+#[derive(Debug, Clone, Copy)]
+struct Case {
+    label: &'static str,
+    path: FeatureMode,
+    top_k: usize,
+    with_grid: bool,
+}
+
+/// What one case measured.
+#[derive(Debug, Clone, Copy)]
+struct Timing {
+    /// Mean seconds of a timed step.
+    secs: f64,
+    /// Rays rendered per step (fewer than drawn behind the grid).
+    rendered: usize,
+}
+
+/// Times `steps` steps (after one untimed warm-up step) of `case` on `ad`.
+fn time_case(
+    ad: &Device,
+    size: Size,
+    mlp: &MipMlpConfig,
+    case: Case,
+    grid: &OccupancyGrid,
+    steps: usize,
+) -> Timing {
+    ad.seed(0);
+    let config =
+        OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
+            .with_mlp(mlp.clone())
+            .with_num_samples(size.samples)
+            .with_head_top_k((case.top_k > 0).then_some(case.top_k));
+    let mut model = config.init(ad);
+    let mut optim = AdamConfig::new().init();
+    let n = size.rays;
+    let host_rays = rays(n, 1);
+    let batch_of = |r: &[NormalizedRay]| {
+        let m = r.len();
+        let target =
+            |c: usize| Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), ad);
+        BatchTensors {
+            rays: Rays::from_normalized(r, ad),
+            rgb: target(3),
+            depth: None,
+            feature: Some(FeatureTargets::dense(target(size.feature_dim))),
+        }
     };
+    let mut rendered = n;
+    let rates = StepRates {
+        base: 1e-4,
+        head: 1e-4,
+    };
+    let mut times = Vec::new();
+    for step in 0..=steps {
+        let start = Instant::now();
+        // The grid path clips the host rays every step, as training does.
+        let batch = if case.with_grid {
+            let clipped = grid.clip(&host_rays);
+            rendered = clipped.kept.len();
+            batch_of(&clipped.rays)
+        } else {
+            batch_of(&host_rays)
+        };
+        let out = model.render_with(&batch.rays, true, None, case.path);
+        let (next, report) = train_step_from(
+            model,
+            &mut optim,
+            out,
+            &batch,
+            &LossConfig::default(),
+            rates,
+        );
+        model = next;
+        let secs = start.elapsed().as_secs_f64();
+        assert!(report.applied, "benchmark step produced a non-finite loss");
+        if step > 0 {
+            times.push(secs);
+        }
+    }
+    Timing {
+        secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
+        rendered,
+    }
+}
+
+fn main() {
+    let args = Args::parse();
+    let size = size_of(&args);
     let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
     let mlp = MipMlpConfig::new()
         .with_width(size.width)
@@ -188,98 +279,49 @@ fn main() {
         "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
         "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
     );
+    let cases = [
+        Case {
+            label: "composited + top-k",
+            path: FeatureMode::Composited,
+            top_k: args.top_k,
+            with_grid: false,
+        },
+        Case {
+            label: "per-sample (plain)",
+            path: FeatureMode::PerSample,
+            top_k: 0,
+            with_grid: false,
+        },
+        Case {
+            label: "composited + grid",
+            path: FeatureMode::Composited,
+            top_k: args.top_k,
+            with_grid: true,
+        },
+    ];
     for &backend in &args.backends {
         let plain = device(backend, None);
         let ceiling = matmul_ceiling(&plain, size.width);
         let ad = plain.clone().autodiff();
         let grid = object_grid();
-        for (label, path, top_k, with_grid) in [
-            (
-                "composited + top-k",
-                FeatureMode::Composited,
-                args.top_k,
-                false,
-            ),
-            ("per-sample (plain)", FeatureMode::PerSample, 0, false),
-            (
-                "composited + grid",
-                FeatureMode::Composited,
-                args.top_k,
-                true,
-            ),
-        ] {
+        for case in cases {
             reset_peak();
-            ad.seed(0);
-            let config = OpenNerfConfig::new(
-                FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width),
-            )
-            .with_mlp(mlp.clone())
-            .with_num_samples(size.samples)
-            .with_head_top_k((top_k > 0).then_some(top_k));
-            let mut model = config.init(&ad);
-            let mut optim = AdamConfig::new().init();
-            let n = size.rays;
-            let host_rays = rays(n, 1);
-            let batch_of = |r: &[NormalizedRay]| {
-                let m = r.len();
-                let target = |c: usize| {
-                    Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), &ad)
-                };
-                BatchTensors {
-                    rays: Rays::from_normalized(r, &ad),
-                    rgb: target(3),
-                    depth: None,
-                    feature: Some(FeatureTargets::dense(target(size.feature_dim))),
-                }
-            };
-            let mut rendered = n;
-            let rates = StepRates {
-                base: 1e-4,
-                head: 1e-4,
-            };
-            let mut times = Vec::new();
-            for step in 0..=args.steps {
-                let start = Instant::now();
-                // The grid path clips the host rays every step, as training does.
-                let batch = if with_grid {
-                    let clipped = grid.clip(&host_rays);
-                    rendered = clipped.kept.len();
-                    batch_of(&clipped.rays)
-                } else {
-                    batch_of(&host_rays)
-                };
-                let out = model.render_with(&batch.rays, true, None, path);
-                let (next, report) = train_step_from(
-                    model,
-                    &mut optim,
-                    out,
-                    &batch,
-                    &LossConfig::default(),
-                    rates,
-                );
-                model = next;
-                let secs = start.elapsed().as_secs_f64();
-                assert!(report.applied, "benchmark step produced a non-finite loss");
-                if step > 0 {
-                    times.push(secs);
-                }
-            }
-            let secs = times.iter().sum::<f64>() / times.len().max(1) as f64;
+            let Timing { secs, rendered } = time_case(&ad, size, &mlp, case, &grid, args.steps);
             let flops = Size {
                 rays: rendered,
                 ..size
             }
-            .step_flops(&mlp, path, top_k);
+            .step_flops(&mlp, case.path, case.top_k);
             println!(
                 "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
                 backend.name(),
-                if top_k > 0 {
-                    format!("{label} (k={top_k})")
+                if case.top_k > 0 {
+                    format!("{} (k={})", case.label, case.top_k)
                 } else {
-                    label.to_string()
+                    case.label.to_string()
                 },
                 secs,
-                n as f64 / secs,
+                size.rays as f64 / secs,
                 flops / 1e9,
                 flops / secs / 1e9,
                 ceiling,

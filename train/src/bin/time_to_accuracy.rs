@@ -17,7 +17,8 @@ use clap::Parser;
 use plotters::prelude::*;
 use serde::Serialize;
 use serde_json::json;
-use train::metrics::{Summary, read_json};
+use train::json::read_json;
+use train::summary::Summary;
 
 /// Options.
 #[derive(Debug, Parser)]

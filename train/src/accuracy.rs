@@ -1,12 +1,7 @@
-//! Plain-number metrics and the run's log files (`metrics.jsonl`,
-//! `summary.json`, `split.json`).
-
-use std::io::Write;
-use std::path::{Path, PathBuf};
+//! How close renders come to their targets, in plain numbers: colour PSNR,
+//! depth error and feature cosine, summed pixel by pixel.
 
 use serde::{Deserialize, Serialize};
-
-use crate::error::TrainError;
 
 /// PSNR in dB of a mean squared error of colours in `[0, 1]`.
 pub fn psnr(mse: f64) -> f64 {
@@ -102,94 +97,6 @@ pub struct EvalMetrics {
     pub pixels: u64,
 }
 
-/// `summary.json`: the final figures of a run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Summary {
-    /// Iterations completed.
-    pub iterations: usize,
-    /// Held-out figures over the *interior* pixels of the held-out views:
-    /// those at least the (scaled) border margin from the image border, the
-    /// only ones training ever draws (or of the training views when nothing
-    /// is held out).
-    pub heldout_interior: EvalMetrics,
-    /// Held-out figures over *every* pixel of the held-out views, the
-    /// never-supervised border included (`null` when the views were not
-    /// rendered in full).
-    pub heldout_whole: Option<EvalMetrics>,
-    /// Training wall-clock seconds (all sessions of a resumed run).
-    pub wall_seconds: f64,
-    /// Training rays per second (rays processed / training seconds).
-    pub rays_per_second: f64,
-    /// Peak resident memory of the process (`VmHWM`), bytes.
-    pub peak_memory_bytes: Option<u64>,
-    /// The untrained field on the fixed sample of interior held-out pixels
-    /// that every periodic evaluation measures, for comparison.
-    pub initial_interior: Option<EvalMetrics>,
-    /// Steps skipped because of a non-finite loss or gradient.
-    pub skipped_steps: usize,
-    /// Backend used.
-    pub backend: String,
-    /// Held-out frame indices the figures refer to.
-    pub heldout_frames: Vec<usize>,
-}
-
-/// Frames `0, n, 2n, ...` are held out (none when `n` is 0 or there are
-/// fewer than two frames); the rest are trained on.
-pub fn split_frames(frames: usize, holdout_every: usize) -> field_ops::run_dir::Split {
-    let mut split = field_ops::run_dir::Split::default();
-    for i in 0..frames {
-        if holdout_every > 0 && frames > 1 && i.is_multiple_of(holdout_every) {
-            split.heldout.push(i);
-        } else {
-            split.train.push(i);
-        }
-    }
-    split
-}
-
-/// Appends JSON lines to `metrics.jsonl`.
-#[derive(Debug)]
-pub struct MetricsLog {
-    path: PathBuf,
-    file: std::fs::File,
-}
-
-impl MetricsLog {
-    /// Opens (creating or appending to) the log at `path`.
-    pub fn open(path: &Path) -> Result<Self, TrainError> {
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(path)
-            .map_err(|e| TrainError::io(path, e))?;
-        Ok(Self {
-            path: path.to_path_buf(),
-            file,
-        })
-    }
-
-    /// Writes one JSON object as a line.
-    pub fn write(&mut self, value: &serde_json::Value) -> Result<(), TrainError> {
-        let mut line = value.to_string();
-        line.push('\n');
-        self.file
-            .write_all(line.as_bytes())
-            .map_err(|e| TrainError::io(&self.path, e))
-    }
-}
-
-/// Writes `value` as pretty JSON to `path` (atomically).
-pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), TrainError> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| TrainError::json(path, e))?;
-    crate::checkpoint::write_atomic(path, text.as_bytes())
-}
-
-/// Reads a JSON file into `T`, naming the file in errors.
-pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, TrainError> {
-    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -227,14 +134,5 @@ mod tests {
         assert_eq!(m.pixels, 3);
         let empty = EvalAccumulator::default().finish();
         assert!(empty.depth_mae.is_none() && empty.feature_cosine.is_none());
-    }
-
-    #[test]
-    fn split_holds_out_every_nth_frame() {
-        let s = split_frames(10, 4);
-        assert_eq!(s.heldout, vec![0, 4, 8]);
-        assert_eq!(s.train, vec![1, 2, 3, 5, 6, 7, 9]);
-        assert!(split_frames(10, 0).heldout.is_empty());
-        assert_eq!(split_frames(1, 1).train, vec![0]);
     }
 }

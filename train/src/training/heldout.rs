@@ -1,0 +1,98 @@
+//! What a session measures its field on: the held-out frames (the training
+//! frames when none are held out), a fixed sample of their interior pixels
+//! for the periodic evaluations, and the views in full at the end.
+
+use std::path::Path;
+
+use burn::module::Module;
+use burn::tensor::Device;
+use datasets::Scene;
+use field_ops::run_dir::Split;
+use model::OpenNerf;
+
+use crate::accuracy::EvalMetrics;
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels, evaluate_views};
+
+/// The held-out frames and pixels of a session.
+#[derive(Debug, Clone)]
+pub(super) struct HeldOut {
+    /// Frame indices measured.
+    pub frames: Vec<usize>,
+    pixels: EvalPixels,
+    render_chunk: usize,
+    border_margin: u32,
+    /// The inference device rendering runs on.
+    device: Device,
+}
+
+impl HeldOut {
+    /// Draws the pixel sample (fixed by the run's seed).
+    pub(super) fn new(
+        scene: &Scene,
+        split: &Split,
+        config: &TrainConfig,
+        device: Device,
+    ) -> Result<Self, TrainError> {
+        let frames: Vec<usize> = if split.heldout.is_empty() {
+            split.train.clone()
+        } else {
+            split.heldout.clone()
+        };
+        let pixels = eval_pixels(
+            scene,
+            &frames,
+            config.logging.eval_pixels,
+            config.sampler.border_margin,
+            config.sampler.min_near,
+            config.seed,
+        )?;
+        Ok(Self {
+            frames,
+            pixels,
+            render_chunk: config.logging.render_chunk,
+            border_margin: config.sampler.border_margin,
+            device,
+        })
+    }
+
+    /// Figures of `model` on the pixel sample.
+    pub(super) fn sample(&self, model: &OpenNerf, scene: &Scene) -> EvalMetrics {
+        evaluate_pixels(
+            &model.valid(),
+            scene,
+            &self.pixels,
+            self.render_chunk,
+            &self.device,
+        )
+    }
+
+    /// The final figures of `model`: with `render`, the views in full
+    /// (their PNGs written into `renders`), on interior pixels and on every
+    /// pixel; else on the pixel sample only.
+    pub(super) fn last(
+        &self,
+        model: &OpenNerf,
+        scene: &Scene,
+        render: bool,
+        renders: &Path,
+    ) -> Result<(EvalMetrics, Option<EvalMetrics>), TrainError> {
+        let valid = model.valid();
+        if render {
+            let m = evaluate_views(
+                &valid,
+                scene,
+                &self.frames,
+                self.border_margin,
+                self.render_chunk,
+                &self.device,
+                renders,
+            )?;
+            Ok((m.interior, Some(m.whole)))
+        } else {
+            let m = evaluate_pixels(&valid, scene, &self.pixels, self.render_chunk, &self.device);
+            Ok((m, None))
+        }
+    }
+}

@@ -1,0 +1,18 @@
+//! Training a field into a run directory: the start of a new run or of a
+//! resumed one, the loop with its periodic logging, evaluations and
+//! checkpoints, the schedule's fit to a time budget, the novel views, and
+//! the final renders and `summary.json`.
+
+mod budget;
+mod console;
+mod finish;
+mod heldout;
+mod novel;
+mod session;
+mod snapshot;
+mod start;
+mod train_loop;
+
+pub use session::{RunOutcome, SessionOptions};
+pub use snapshot::{model_bytes, restore};
+pub use start::{resume, train_new};

@@ -1,0 +1,143 @@
+//! The start of a session: a new run (its directory, configuration, split
+//! and untrained field) or a resumed one (its newest intact checkpoint).
+
+use std::path::Path;
+
+use datasets::{Scene, SceneMeta};
+use field_ops::run_dir::{RunDir, Split};
+
+use super::session::{RunOutcome, SessionOptions};
+use super::snapshot::{adam, restore};
+use super::train_loop::{SessionStart, TrainLoop};
+use crate::backend::training_device;
+use crate::checkpoint::{CheckpointState, list_checkpoints};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use crate::json::{read_json, write_json};
+
+/// Starts a new run on `scene` in `out`: writes `config.json`, `scene.json`
+/// and `split.json`, then trains.
+pub fn train_new(
+    scene: &Scene,
+    mut config: TrainConfig,
+    holdout_every: usize,
+    out: &Path,
+    session: &SessionOptions,
+) -> Result<RunOutcome, TrainError> {
+    config.set_feature_dim(scene.features.as_ref().map_or(0, |f| f.dim()));
+    config.validate()?;
+    if scene.frames.is_empty() {
+        return Err(TrainError::Config(format!(
+            "scene {} has no frames",
+            scene.name
+        )));
+    }
+    if let Some(due) = super::novel::due_at(&config) {
+        if !session.fit_schedule_to_budget && due >= config.schedule.iterations {
+            return Err(TrainError::Config(format!(
+                "novel views are due at iteration {due}, but the schedule ends at {}: give --novel-after below it",
+                config.schedule.iterations
+            )));
+        }
+        field_ops::novel::scene_extractor(scene, &config.novel)?;
+    }
+    let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
+    let run = RunDir::new(out);
+    crate::validate::fresh_out_dir(&run.dir)?;
+    std::fs::create_dir_all(&run.dir).map_err(|e| TrainError::io(&run.dir, e))?;
+    write_json(&run.config(), &config)?;
+    write_json(&run.scene(), &crate::data::meta(scene))?;
+    write_json(&run.split(), &split)?;
+    let _ = std::fs::remove_file(run.metrics());
+    let device = training_device(session.backend, session.device_index);
+    device.seed(config.seed);
+    let model = config
+        .model
+        .init(&device)
+        .with_occupancy(crate::occupancy::initial_grid(&config.occupancy));
+    let optim = adam(&config);
+    let state = CheckpointState {
+        iteration: 0,
+        seed: config.seed,
+        skipped_steps: 0,
+        wall_seconds: 0.0,
+        train_seconds: 0.0,
+        rays_processed: 0,
+        occupancy: None,
+    };
+    TrainLoop::train(SessionStart {
+        scene,
+        added: None,
+        config: &config,
+        split: &split,
+        run: &run,
+        model,
+        optim,
+        state,
+        device: &device,
+        session,
+    })
+}
+
+/// Continues the run in `dir` from its newest checkpoint. `iterations`
+/// replaces the schedule's length (the default keeps it, so the run ends
+/// exactly where an uninterrupted one would).
+pub fn resume(
+    dir: &Path,
+    iterations: Option<usize>,
+    session: &SessionOptions,
+) -> Result<RunOutcome, TrainError> {
+    let run = RunDir::new(dir);
+    let mut config: TrainConfig = read_json(&run.config())?;
+    let meta: SceneMeta = read_json(&run.scene())?;
+    let split: Split = read_json(&run.split())?;
+    if list_checkpoints(&run.checkpoints())?.is_empty() {
+        return Err(TrainError::NoCheckpoint {
+            path: dir.to_path_buf(),
+        });
+    }
+    let (ckpt, path, damaged) = crate::checkpoint::newest_intact(&run.checkpoints())?;
+    for e in &damaged {
+        eprintln!(
+            "warning: {e}; resuming from the older {} (iteration {}), the damaged file is kept as *.damaged",
+            path.display(),
+            ckpt.state.iteration
+        );
+    }
+    crate::checkpoint::remove_stale_temp_files(&run.dir)?;
+    crate::checkpoint::remove_stale_temp_files(&run.checkpoints())?;
+    if let Some(n) = iterations {
+        crate::validate::resume_iterations(n, ckpt.state.iteration, dir)?;
+        config.schedule.iterations = n;
+    }
+    // config.json is rewritten only once everything it describes checks out.
+    config.validate()?;
+    let field_ops::run_dir::RunScene {
+        scene,
+        novel: added,
+    } = field_ops::run_dir::rebuild_scene(&run, &meta)?;
+    let n = scene.frames.len();
+    if split.train.iter().chain(&split.heldout).any(|&i| i >= n) {
+        return Err(TrainError::json(
+            run.split(),
+            format!("frame index out of range for a scene of {n} frames"),
+        ));
+    }
+    let device = training_device(session.backend, session.device_index);
+    let (model, optim) = restore(&config, &ckpt, &path, &device)?;
+    if iterations.is_some() {
+        write_json(&run.config(), &config)?;
+    }
+    TrainLoop::train(SessionStart {
+        scene: &scene,
+        added,
+        config: &config,
+        split: &split,
+        run: &run,
+        model,
+        optim,
+        state: ckpt.state,
+        device: &device,
+        session,
+    })
+}

@@ -1,0 +1,415 @@
+//! The training loop: one step per iteration, with, around it, the time
+//! budget, the schedule's fit, the novel views, the log lines, the
+//! periodic evaluations and the checkpoints.
+
+use std::borrow::Cow;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::ModuleOptimizer;
+use burn::tensor::Device;
+use datasets::Scene;
+use field_ops::run_dir::{RunDir, Split};
+use indicatif::ProgressBar;
+use model::{FeatureSpace, OpenNerf};
+
+use super::budget::ScheduleFit;
+use super::console::{Clock, RayRate, describe, grid_line, show_step};
+use super::finish::{Trained, finish};
+use super::heldout::HeldOut;
+use super::novel::SessionViews;
+use super::session::{RunOutcome, SessionOptions};
+use super::snapshot::save_checkpoint;
+use crate::batch::{TrainSampler, feature_space, iteration_seed, to_tensors};
+use crate::checkpoint::{CheckpointState, list_checkpoints};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use crate::json::write_json;
+use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
+use crate::occupancy::ClipStats;
+use crate::progress::say;
+use crate::step::{StepRates, StepReport, train_step};
+use field_ops::novel::record::RecordedViews;
+
+/// Everything a session starts from.
+pub(super) struct SessionStart<'a> {
+    pub scene: &'a Scene,
+    /// Novel views already made (read back on resume).
+    pub added: Option<RecordedViews>,
+    pub config: &'a TrainConfig,
+    pub split: &'a Split,
+    pub run: &'a RunDir,
+    pub model: OpenNerf,
+    pub optim: ModuleOptimizer,
+    pub state: CheckpointState,
+    pub device: &'a Device,
+    pub session: &'a SessionOptions,
+}
+
+/// A session in progress. The model is not held here but passed from step
+/// to step, since each step consumes it and returns the next.
+pub(super) struct TrainLoop<'a> {
+    /// The configuration, whose schedule a time budget may refit.
+    config: TrainConfig,
+    split: &'a Split,
+    run: &'a RunDir,
+    session: &'a SessionOptions,
+    device: &'a Device,
+    inference: Device,
+    heldout: HeldOut,
+    space: FeatureSpace,
+    /// Novel views are appended to a copy of the scene when they are made.
+    scene: Cow<'a, Scene>,
+    views: SessionViews,
+    sampler: TrainSampler,
+    optim: ModuleOptimizer,
+    state: CheckpointState,
+    /// The iteration the session stops at.
+    end: usize,
+    fit: Option<ScheduleFit>,
+    log: MetricsLog,
+    bar: ProgressBar,
+    clock: Clock,
+    rate: RayRate,
+    /// What the occupancy grid clipped since the last log line.
+    skipping: ClipStats,
+    consecutive_bad: usize,
+    last_checkpoint: Option<PathBuf>,
+}
+
+/// What one step did.
+struct Step {
+    report: StepReport,
+    lr: f64,
+    /// Rays drawn for it.
+    rays: u64,
+}
+
+/// The seed of the device generator (the stratified jitter) at iteration
+/// `it`: seeding it per iteration makes a resumed run draw what the
+/// uninterrupted one would.
+fn jitter_seed(seed: u64, it: usize) -> u64 {
+    iteration_seed(seed ^ 0x6a09_e667_f3bc_c909, it)
+}
+
+/// The seed of the occupancy grid's update at iteration `it`.
+fn grid_update_seed(seed: u64, it: usize) -> u64 {
+    iteration_seed(seed ^ 0x0cc0_9a1d, it)
+}
+
+impl<'a> TrainLoop<'a> {
+    /// Trains from `start` to the end of the schedule (or of the session),
+    /// then saves, measures and summarises.
+    pub(super) fn train(start: SessionStart<'a>) -> Result<RunOutcome, TrainError> {
+        let (mut session, mut model) = Self::new(start)?;
+        while session.state.iteration < session.end {
+            if session.budget_spent() {
+                break;
+            }
+            let it = session.state.iteration;
+            session.refit_schedule(it)?;
+            session.add_novel_views_if_due(&model, it)?;
+            session.join_novel_views(it)?;
+            let (next, step) = session.step(model, it)?;
+            model = next;
+            session.account(it, &step)?;
+            session.log_step(&model, &step)?;
+            session.evaluate_and_save(&model)?;
+        }
+        session.finish(&model)
+    }
+
+    /// Sets the session up; a new run's untrained field is evaluated first.
+    fn new(s: SessionStart<'a>) -> Result<(Self, OpenNerf), TrainError> {
+        let config = s.config.clone();
+        let end = s.session.end(config.schedule.iterations);
+        let fit = ScheduleFit::for_session(s.session, s.state.iteration);
+        let inference = s.device.clone().without_autodiff();
+        let heldout = HeldOut::new(s.scene, s.split, &config, inference.clone())?;
+        let mut log = MetricsLog::open(&s.run.metrics())?;
+        let clock = Clock::start(s.state.wall_seconds);
+        if s.state.iteration == 0 {
+            let m = heldout.sample(&s.model, s.scene);
+            log.write(&MetricsEvent::Eval(EvalLine {
+                iteration: 0,
+                wall_seconds: 0.0,
+                interior: m,
+                whole: None,
+            }))?;
+        }
+        let space = feature_space(s.scene, s.device);
+        let views = SessionViews::new(s.added, s.state.iteration);
+        let sampler = TrainSampler::new(
+            s.scene,
+            &views.training_frames(&s.split.train, s.state.iteration),
+            &config.sampler,
+            s.state.seed,
+        )?;
+        let bar = crate::progress::bar(s.session.progress, s.state.iteration, end);
+        let last_checkpoint = list_checkpoints(&s.run.checkpoints())?.pop().map(|c| c.1);
+        let session = Self {
+            config,
+            split: s.split,
+            run: s.run,
+            session: s.session,
+            device: s.device,
+            inference,
+            heldout,
+            space,
+            scene: Cow::Borrowed(s.scene),
+            views,
+            sampler,
+            optim: s.optim,
+            state: s.state,
+            end,
+            fit,
+            log,
+            bar,
+            clock,
+            rate: RayRate::start(),
+            skipping: ClipStats::default(),
+            consecutive_bad: 0,
+            last_checkpoint,
+        };
+        Ok((session, s.model))
+    }
+
+    /// Whether the session's time budget is spent (and says so).
+    fn budget_spent(&self) -> bool {
+        match self.session.time_budget {
+            Some(budget) if self.clock.elapsed() >= budget => {
+                say(
+                    &self.bar,
+                    format!(
+                        "time budget of {budget} s spent at iteration {}",
+                        self.state.iteration
+                    ),
+                );
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Refits the schedule to the time budget when a fit is due, writing
+    /// the new length to `config.json`.
+    fn refit_schedule(&mut self, it: usize) -> Result<(), TrainError> {
+        let elapsed = self.clock.elapsed();
+        let Some(refit) = self
+            .fit
+            .as_mut()
+            .and_then(|f| f.observe(it, elapsed, self.config.schedule.iterations))
+        else {
+            return Ok(());
+        };
+        self.config.schedule.iterations = refit.iterations;
+        self.end = self.session.end(refit.iterations);
+        write_json(&self.run.config(), &self.config)?;
+        self.bar.set_length(self.end as u64);
+        if let Some(message) = refit.announce {
+            say(&self.bar, message);
+        }
+        Ok(())
+    }
+
+    /// Makes the novel views when they are due before iteration `it`.
+    fn add_novel_views_if_due(&mut self, model: &OpenNerf, it: usize) -> Result<(), TrainError> {
+        if !self.views.due(&self.config, it) {
+            return Ok(());
+        }
+        say(&self.bar, super::novel::adding_message(&self.config, it));
+        let bar = &self.bar;
+        let report = super::novel::add_views(
+            &model.valid(),
+            self.scene.to_mut(),
+            &self.split.train,
+            &self.config,
+            self.run,
+            it,
+            &self.inference,
+            |done, total| bar.set_message(format!("novel view {done}/{total} rendered")),
+        )?;
+        let line = super::novel::log_line(&report, it, self.clock.wall());
+        self.log.write(&MetricsEvent::NovelViews(line))?;
+        say(
+            &self.bar,
+            super::novel::added_message(&report, self.run, it),
+        );
+        self.views.added = Some(report.added);
+        Ok(())
+    }
+
+    /// From the iteration recorded with the novel views on, the sampler
+    /// draws from them too.
+    fn join_novel_views(&mut self, it: usize) -> Result<(), TrainError> {
+        if self.views.join(it) {
+            self.sampler = TrainSampler::new(
+                &self.scene,
+                &self.views.training_frames(&self.split.train, it),
+                &self.config.sampler,
+                self.state.seed,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The step of iteration `it`: the grid's update when due, the batch
+    /// (clipped to the grid), the loss and the update.
+    fn step(&mut self, model: OpenNerf, it: usize) -> Result<(OpenNerf, Step), TrainError> {
+        let mut model = model;
+        let lr = self.config.schedule.lr(it);
+        let rates = StepRates {
+            base: lr,
+            head: lr * self.config.optimiser.head_lr_scale,
+        };
+        let step_start = Instant::now();
+        self.device.seed(jitter_seed(self.state.seed, it));
+        if self.config.occupancy.update_due(it)
+            && let Some(grid) = model.occupancy()
+        {
+            let mut grid = grid.clone();
+            let seed = grid_update_seed(self.state.seed, it);
+            crate::occupancy::update_grid(&mut grid, &model.valid(), seed, &self.inference);
+            model = model.with_occupancy(Some(grid));
+        }
+        let drawn = self.sampler.batch(&self.scene, it)?;
+        let rays = drawn.len() as u64;
+        let drawn = match model.occupancy() {
+            Some(grid) => {
+                let (clipped, stats) = crate::occupancy::clip_batch(grid, drawn);
+                self.skipping.add(stats);
+                clipped
+            }
+            None => drawn,
+        };
+        let batch = to_tensors(&drawn, &self.space, self.device);
+        let (next, report) = train_step(
+            model,
+            &mut self.optim,
+            &batch,
+            self.scene.background,
+            &self.config.losses,
+            rates,
+        );
+        self.state.train_seconds += step_start.elapsed().as_secs_f64();
+        self.state.iteration += 1;
+        Ok((next, Step { report, lr, rays }))
+    }
+
+    /// Counts the step of iteration `it`; a skipped one is logged, and too
+    /// many in a row end the run.
+    fn account(&mut self, it: usize, step: &Step) -> Result<(), TrainError> {
+        let report = &step.report;
+        if report.applied {
+            self.consecutive_bad = 0;
+            self.state.rays_processed += step.rays;
+            self.rate.add(step.rays);
+            return Ok(());
+        }
+        self.consecutive_bad += 1;
+        self.state.skipped_steps += 1;
+        self.log.write(&MetricsEvent::Nonfinite(NonfiniteLine {
+            iteration: it,
+            loss: report.loss,
+            grad_l1: report.grad_l1,
+            consecutive: self.consecutive_bad,
+        }))?;
+        say(
+            &self.bar,
+            format!(
+                "iteration {it}: non-finite loss or gradient (loss {}, |grad| {}), step skipped",
+                report.loss, report.grad_l1
+            ),
+        );
+        if self.consecutive_bad >= self.config.logging.max_nonfinite_steps.max(1) {
+            self.bar.abandon();
+            return Err(TrainError::Diverged {
+                count: self.consecutive_bad,
+                iteration: it,
+                last_checkpoint: self.last_checkpoint.clone(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The training line of the step, when one is due, and the bar.
+    fn log_step(&mut self, model: &OpenNerf, step: &Step) -> Result<(), TrainError> {
+        let i = self.state.iteration;
+        let report = &step.report;
+        let every = self.config.logging.log_every.max(1);
+        if report.applied && (i.is_multiple_of(every) || i == self.end) {
+            let rays_per_second = self.rate.take();
+            let wall_seconds = self.clock.wall();
+            let grid = model.occupancy().map(|grid| {
+                let line = grid_line(grid, &self.skipping);
+                self.skipping = ClipStats::default();
+                line
+            });
+            self.log.write(&MetricsEvent::Train(TrainLine {
+                iteration: i,
+                loss: report.loss,
+                rgb_mse: report.rgb_mse,
+                psnr: report.psnr(),
+                depth: report.depth,
+                open: report.open,
+                lr: step.lr,
+                rays_per_second,
+                wall_seconds,
+                grid,
+            }))?;
+            show_step(&self.bar, i, self.end, report, rays_per_second);
+        }
+        self.bar.set_position(i as u64);
+        Ok(())
+    }
+
+    /// The periodic evaluation on the pixel sample and the periodic
+    /// checkpoint, when due (the last iteration has its own).
+    fn evaluate_and_save(&mut self, model: &OpenNerf) -> Result<(), TrainError> {
+        let i = self.state.iteration;
+        let logging = self.config.logging;
+        if logging.eval_every > 0 && i.is_multiple_of(logging.eval_every) && i < self.end {
+            let m = self.heldout.sample(model, &self.scene);
+            self.log.write(&MetricsEvent::Eval(EvalLine {
+                iteration: i,
+                wall_seconds: self.clock.wall(),
+                interior: m,
+                whole: None,
+            }))?;
+            let figures = describe("held-out interior pixels (sample):", &m);
+            say(&self.bar, format!("iteration {i}: {figures}"));
+        }
+        if logging.checkpoint_every > 0
+            && i.is_multiple_of(logging.checkpoint_every)
+            && i < self.end
+        {
+            self.state.wall_seconds = self.clock.wall();
+            self.last_checkpoint = Some(save_checkpoint(
+                self.run,
+                model,
+                &self.optim,
+                &self.state,
+                logging.keep_checkpoints,
+            )?);
+        }
+        Ok(())
+    }
+
+    /// Ends the session: the bar, then [`finish`].
+    fn finish(mut self, model: &OpenNerf) -> Result<RunOutcome, TrainError> {
+        self.bar.finish_and_clear();
+        self.state.wall_seconds = self.clock.wall();
+        let trained = Trained {
+            run: self.run,
+            session: self.session,
+            config: &self.config,
+            scene: &self.scene,
+            model,
+            optim: &self.optim,
+            state: &self.state,
+            heldout: &self.heldout,
+        };
+        finish(&trained, &mut self.log, &self.clock)
+    }
+}
