@@ -146,25 +146,11 @@ impl Checkpoint {
     }
 }
 
-/// Writes `bytes` to `path` through a temporary file and a rename.
+/// Writes `bytes` to `path` through a temporary file and a rename (see
+/// [`field_ops::files::write_atomic`], whose temporary names
+/// [`remove_stale_temp_files`] knows).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
-    let dir = path.parent().unwrap_or_else(|| Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| TrainError::io(dir, e))?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "file".into());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(TrainError::io(&tmp, e));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| TrainError::io(path, e))
+    Ok(field_ops::files::write_atomic(path, bytes)?)
 }
 
 /// The checkpoint file name for `iteration` inside `dir`

@@ -176,7 +176,7 @@ pub struct Cli {
     /// (e.g. to be resumed later with the same schedule).
     #[arg(long)]
     pub stop_at: Option<usize>,
-    /// Novel views (SPEC 5): render this many views with the field part-way
+    /// Novel views (paper Sec. 3.3): render this many views with the field part-way
     /// through training, run the scene's 2D feature extractor on them and
     /// add them as training frames (0: none). Counted in the iteration and
     /// time budget.

@@ -12,7 +12,7 @@ pub use field_ops::novel::{NovelMode, NovelViewConfig};
 use crate::error::TrainError;
 use crate::schedule::ScheduleConfig;
 
-/// Weights of the loss terms (SPEC 4).
+/// Weights of the loss terms (README, "How the feature field is trained").
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct LossConfig {

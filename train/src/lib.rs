@@ -18,7 +18,6 @@ pub mod curve;
 pub mod data;
 pub mod error;
 pub mod evaluate;
-pub mod json;
 pub mod metrics_log;
 pub mod occupancy;
 pub mod preset;

@@ -17,7 +17,7 @@ use clap::Parser;
 use plotters::prelude::*;
 use serde::Serialize;
 use serde_json::json;
-use train::json::read_json;
+use field_ops::json::read_json;
 use train::summary::Summary;
 
 /// Options.

@@ -14,7 +14,7 @@ use crate::backend::peak_memory_bytes;
 use crate::checkpoint::CheckpointState;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-use crate::json::write_json;
+use field_ops::json::write_json;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, initial_eval};
 use crate::summary::Summary;
 

@@ -13,7 +13,7 @@ use crate::backend::training_device;
 use crate::checkpoint::{CheckpointState, list_checkpoints};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-use crate::json::{read_json, write_json};
+use field_ops::json::{read_json, write_json};
 
 /// Starts a new run on `scene` in `out`: writes `config.json`, `scene.json`
 /// and `split.json`, then trains.
