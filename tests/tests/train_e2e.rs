@@ -8,6 +8,7 @@ use tests::{
     ci_scene, max_abs_diff, run_weights as weights, scratch_dir, serial, tiny_config, wgpu_enabled,
 };
 use train::checkpoint::{Checkpoint, list_checkpoints};
+use train::metrics_log::MetricsEvent;
 use train::{BackendKind, SessionOptions, TrainError};
 
 fn session(backend: BackendKind) -> SessionOptions {
@@ -90,6 +91,14 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     let curves = train::curve::parse(&log);
     assert_eq!(curves.heldout_psnr.last().map(|p| p.1), Some(h.psnr));
     assert!(curves.batch_psnr.len() >= 2);
+    let events = train::metrics_log::parse(&log);
+    assert_eq!(events.len(), log.lines().count(), "every line is an event");
+    let Some(MetricsEvent::Final(last)) = events.last() else {
+        panic!("the log ends with {:?}", events.last());
+    };
+    assert_eq!(last.interior, *h);
+    assert_eq!(last.whole, Some(whole));
+    // On disk, every held-out figure names the pixels it was measured on.
     let last: serde_json::Value = serde_json::from_str(log.lines().last().unwrap()).unwrap();
     assert_eq!(last["event"], "final");
     assert!(last["psnr_interior"].is_number() && last["psnr_whole"].is_number());
@@ -105,10 +114,9 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     ] {
         assert!(run.renders().join(name).exists(), "missing renders/{name}");
     }
-    let metrics = std::fs::read_to_string(run.metrics()).unwrap();
-    let evals = metrics
-        .lines()
-        .filter(|l| l.contains("\"event\":\"eval\""))
+    let evals = events
+        .iter()
+        .filter(|e| matches!(e, MetricsEvent::Eval(_)))
         .count();
     assert_eq!(evals, 3, "evaluations at 0, 100, 200");
     let ckpts: Vec<usize> = list_checkpoints(&run.checkpoints())
@@ -283,10 +291,10 @@ fn diverging_training_stops_after_bounded_non_finite_steps() {
     assert_eq!(*count, 3);
     assert!(*iteration < 10, "stopped at {iteration}");
     assert!(err.to_string().contains("non-finite"), "{err}");
-    let skipped = std::fs::read_to_string(dir.path().join("metrics.jsonl"))
+    let skipped = train::metrics_log::read(&dir.path().join("metrics.jsonl"))
         .unwrap()
-        .lines()
-        .filter(|l| l.contains("\"event\":\"nonfinite\""))
+        .iter()
+        .filter(|e| matches!(e, MetricsEvent::Nonfinite(_)))
         .count();
     assert_eq!(skipped, 3);
     // Skipped steps never reach the weights: the checkpoints stay readable.

@@ -12,7 +12,6 @@
 //! truncated file or one overwritten with garbage is reported as corrupt
 //! before any of it is decoded.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};

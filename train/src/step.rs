@@ -26,9 +26,11 @@ pub struct LossTerms {
 }
 
 /// `L = L_rgb + lambda_open L_open + lambda_depth L_depth + c (L_rgb^c +
-/// lambda_depth L_depth^c)` with `c = coarse_weight` (README, "How the
-/// feature field is trained"). Depth only where the target is valid (> 0);
-/// features only where the target is non-zero.
+/// lambda_depth L_depth^c)` with `c = coarse_weight`: the OpenNeRF training
+/// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
+/// fine level) with the coarse level's colour and depth terms weighted by
+/// `c`. Depth only where the target is valid (> 0); features only where the
+/// target is non-zero.
 pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
     let device = batch.rgb.device();
     let zero = || Tensor::<1>::zeros([1], &device);

@@ -16,8 +16,8 @@ use std::process::Command;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, ValueEnum};
-use field_ops::scores::SegmentationScores;
 use field_ops::json::read_json;
+use field_ops::scores::SegmentationScores;
 use train::summary::Summary;
 use train::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 

@@ -14,10 +14,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
+use field_ops::json::read_json;
 use plotters::prelude::*;
 use serde::Serialize;
 use serde_json::json;
-use field_ops::json::read_json;
 use train::summary::Summary;
 
 /// Options.

@@ -119,7 +119,7 @@ impl ScheduleFit {
 
 #[cfg(test)]
 mod tests {
-    use super::BudgetFit;
+    use super::{BudgetFit, ScheduleFit, SessionOptions};
 
     /// Steps of 0.5 s after a slow first one: the fit skips the first steps,
     /// times 20, and plans 95% of what is left of the budget.
@@ -170,5 +170,47 @@ mod tests {
         // Fitted once at 0.25 s a step, the plan would have been ~380
         // iterations, which take ~140 s at the slower pace.
         assert!(planned < 300, "{planned}");
+    }
+
+    /// Only a new run asked to fit its schedule has a fit; the first fit is
+    /// announced, a later one only when it moves the plan by over 5%.
+    #[test]
+    fn fits_are_announced_when_they_are_news() {
+        let budget = SessionOptions {
+            time_budget: Some(100.0),
+            fit_schedule_to_budget: true,
+            ..SessionOptions::default()
+        };
+        assert!(ScheduleFit::for_session(&budget, 10).is_none());
+        let fixed = SessionOptions {
+            fit_schedule_to_budget: false,
+            ..budget.clone()
+        };
+        assert!(ScheduleFit::for_session(&fixed, 0).is_none());
+        let mut fit = ScheduleFit::for_session(&budget, 0).unwrap();
+        // 0.5 s a step from iteration 3 on.
+        let elapsed = |it: usize| 0.5 * it as f64;
+        let mut refits = Vec::new();
+        let mut iterations = 1000;
+        for it in 0..200 {
+            if let Some(r) = fit.observe(it, elapsed(it), iterations) {
+                iterations = r.iterations;
+                refits.push((it, r));
+            }
+        }
+        let (at, first) = &refits[0];
+        assert_eq!(*at, 23);
+        // 0.95 * (100 - 11.5) / 0.5 = 168.15 more.
+        assert_eq!(first.iterations, 23 + 168);
+        assert_eq!(
+            first.announce.as_deref(),
+            Some("schedule fitted to the time budget: 191 iterations")
+        );
+        // At a steady pace later fits move the plan by a step or two: no news.
+        assert!(refits[1..].iter().all(|(_, r)| r.announce.is_none()));
+        // A fit that matches the schedule changes nothing.
+        let mut same = ScheduleFit::for_session(&budget, 0).unwrap();
+        assert_eq!(same.observe(3, 1.5, 191), None);
+        assert_eq!(same.observe(23, 11.5, 191), None);
     }
 }

@@ -14,9 +14,9 @@ use crate::backend::peak_memory_bytes;
 use crate::checkpoint::CheckpointState;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-use field_ops::json::write_json;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, initial_eval};
 use crate::summary::Summary;
+use field_ops::json::write_json;
 
 /// A session whose last step is done.
 pub(super) struct Trained<'a> {

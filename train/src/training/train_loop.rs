@@ -25,11 +25,11 @@ use crate::batch::{TrainSampler, feature_space, iteration_seed, to_tensors};
 use crate::checkpoint::{CheckpointState, list_checkpoints};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-use field_ops::json::write_json;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
 use crate::occupancy::ClipStats;
 use crate::progress::say;
 use crate::step::{StepRates, StepReport, train_step};
+use field_ops::json::write_json;
 use field_ops::novel::record::RecordedViews;
 
 /// Everything a session starts from.
