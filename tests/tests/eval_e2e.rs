@@ -4,7 +4,7 @@
 
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
-use eval::commands::common::PointArgs;
+use eval::commands::common::{ComputeArgs, PointArgs};
 use eval::commands::segment::{SegmentArgs, segment_command};
 use eval::metrics::format_table;
 use eval::segment::{
@@ -142,8 +142,10 @@ fn train_then_segment_in_every_mode() {
         chunk: 4096,
         split: None,
         out: Some(dir.path().join("seg")),
-        backend: field_ops::backend::BackendKind::Flex,
-        device: None,
+        compute: ComputeArgs {
+            backend: field_ops::backend::BackendKind::Flex,
+            device: None,
+        },
         compare: true,
         classes: None,
         text_model: None,

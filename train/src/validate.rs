@@ -157,7 +157,7 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
         && cli.dataset != DatasetKind::Synthetic
     {
         return Err(flag_error(format!(
-            "--novel-oracle {}: the oracle takes novel views from a synthetic scene's ground              truth; a scene on disk has none (leave --novel-oracle out)",
+            "--novel-oracle {}: the oracle takes novel views from a synthetic scene's ground truth; a scene on disk has none (leave --novel-oracle out)",
             o.name()
         )));
     }

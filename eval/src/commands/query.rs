@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::common::{Context, device_of};
+use super::common::Context;
 use super::render::{RenderArgs, render_cameras};
 use crate::checks::radius;
 
@@ -155,7 +155,7 @@ fn write_point_relevancy(
 pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, OpsError> {
     let r = &args.render;
     check(args)?;
-    let device = device_of(r.backend, r.device);
+    let device = r.compute.device();
     let ctx = Context::load(&r.run, &device)?;
     let (query, label) = query_embedding(args, &ctx, &device)?;
     let m = &ctx.run.meta;

@@ -3,14 +3,12 @@
 
 use std::path::PathBuf;
 
-use super::common::{Context, device_of, evenly, select_cameras};
+use super::common::{ComputeArgs, Context, evenly, select_cameras};
 use crate::checks::{at_least_one, invalid, max_views};
-use field_ops::backend::check_device_flag;
 
 use crate::cameras::{NamedCamera, camera_path, resized};
 use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
-use field_ops::backend::{BackendKind, parse_device_index};
 use field_ops::images::save_view_pngs;
 use field_ops::render::render_view;
 
@@ -44,12 +42,9 @@ pub struct RenderArgs {
     /// Output directory (default: `renders/eval` in the run directory).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Compute backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
-    pub backend: BackendKind,
-    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
-    #[arg(long, value_parser = parse_device_index)]
-    pub device: Option<usize>,
+    /// Compute backend and device.
+    #[command(flatten)]
+    pub compute: ComputeArgs,
 }
 
 /// The cameras `render` (and `query`) render at: `--cameras` by name or
@@ -89,7 +84,7 @@ pub fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamer
 /// Runs `render`: colour, depth and feature-PCA PNGs per camera. Returns the written files.
 pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
     check(args)?;
-    let device = device_of(args.backend, args.device);
+    let device = args.compute.device();
     let ctx = Context::load(&args.run, &device)?;
     let cams = render_cameras(args, &ctx)?;
     let out = args
@@ -159,5 +154,5 @@ pub fn check(a: &RenderArgs) -> Result<(), OpsError> {
         " (the number of cameras along the path)",
     )?;
     at_least_one("chunk", Some(a.chunk), "")?;
-    check_device_flag(a.backend, a.device).map_err(invalid)
+    a.compute.check()
 }

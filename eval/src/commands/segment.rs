@@ -5,9 +5,8 @@ use std::path::{Path, PathBuf};
 
 use datasets::features::FeatureSet;
 
-use super::common::{Context, PointArgs, device_of, evenly, load_points_with, select_cameras};
+use super::common::{ComputeArgs, Context, PointArgs, evenly, load_points_with, select_cameras};
 use crate::checks::{at_least_one, invalid, max_views, radius};
-use field_ops::backend::check_device_flag;
 
 use burn::tensor::Device;
 use datasets::Scene;
@@ -20,7 +19,6 @@ use crate::segment::{
     segment_with_field_modes, write_prediction_plys,
 };
 use field_ops::OpsError;
-use field_ops::backend::{BackendKind, parse_device_index};
 use field_ops::json::{read_json, write_json};
 use field_ops::project::ProjectOptions;
 use field_ops::scores::SegmentationScores;
@@ -69,12 +67,9 @@ pub struct SegmentArgs {
     /// [default: the run directory].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Compute backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
-    pub backend: BackendKind,
-    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
-    #[arg(long, value_parser = parse_device_index)]
-    pub device: Option<usize>,
+    /// Compute backend and device.
+    #[command(flatten)]
+    pub compute: ComputeArgs,
     /// Also score the other field modes, the projection of the scene's own 2D
     /// feature maps (no field: the bound the field is measured against) and
     /// the ground-truth-feature oracle, in one table (`segmentation_compare.json`).
@@ -98,7 +93,7 @@ pub struct SegmentArgs {
 /// prediction / error PLYs next to the JSON.
 pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, OpsError> {
     check(args)?;
-    let device = device_of(args.backend, args.device);
+    let device = args.compute.device();
     let mode: SegmentMode = args.mode.parse()?;
     let ctx = Context::load(&args.run, &device)?;
     let scene = ctx.scene.as_ref();
@@ -322,5 +317,5 @@ pub fn check(a: &SegmentArgs) -> Result<(), OpsError> {
             out.display()
         )));
     }
-    check_device_flag(a.backend, a.device).map_err(invalid)
+    a.compute.check()
 }
