@@ -64,10 +64,10 @@ pub struct NovelViewConfig {
     /// Guided cameras whose render of their target differs from the colour
     /// the capture saw there by more than this (RMS, colours in [0, 1]) are
     /// rejected; `None` (`null` in JSON, the default): no check. See
-    /// [`ProposalOptions::max_color_error`].
+    /// [`ProposalOptions::max_color_error`](super::guided::ProposalOptions::max_color_error).
     pub max_color_error: Option<f64>,
     /// External extractor for scenes on disk: program and leading arguments
-    /// (see [`CommandExtractor`]); synthetic scenes use their own.
+    /// (see [`CommandExtractor`](datasets::extractor::CommandExtractor)); synthetic scenes use their own.
     pub extractor: Option<Vec<String>>,
     /// Ground truth in place of the field's render or the extractor's
     /// reading (synthetic scenes only; a diagnostic, see [`NovelOracle`]);

@@ -60,7 +60,7 @@ pub fn scene_extractor(
 /// the accumulated opacity reaches `config.min_acc` (0 elsewhere: no target).
 /// With `config.oracle`, a synthetic scene's ground truth stands in for the
 /// field's render (and for the extractor's reading with
-/// [`NovelOracle::Labels`]). `progress(done, total)` is called per view.
+/// [`NovelOracle::Labels`](super::oracle::NovelOracle::Labels)). `progress(done, total)` is called per view.
 #[allow(clippy::too_many_arguments)]
 pub fn render_views(
     model: &OpenNerf,
