@@ -12,7 +12,8 @@
 //! (seed 21 and scale 0.5, the render scale of novel views, by default).
 
 use datasets::extractor::FeatureExtractor;
-use datasets::scene::{RgbImage, nearest_pixel};
+use datasets::grid::nearest_pixel;
+use datasets::scene::RgbImage;
 use datasets::synthetic::{self, CLASSES, SceneSize, build_room, classes, raytrace};
 use model::geometry::{Camera, Intrinsics, Vec3, look_at, norm, sub};
 

@@ -11,7 +11,7 @@ use half::f16;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-pub use pca::{AUTO_EXPLAINED_VARIANCE, PcaBasis, PcaSetting};
+pub use pca::{AUTO_EXPLAINED_VARIANCE, PcaBasis, PcaSetting, symmetric_eigen};
 
 use crate::error::DatasetError;
 use crate::grid::nearest_pixel;

@@ -2,7 +2,7 @@
 
 use model::geometry::{Camera, SceneBox};
 
-pub use crate::grid::nearest_pixel;
+use crate::grid::nearest_pixel;
 use crate::options::LoaderOptions;
 
 /// An RGB image with values in `[0, 1]`, row-major `[height, width, 3]`.

@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use datasets::features::symmetric_eigen;
 use datasets::imageio::save_rgb8;
 
 use crate::colormap::{to_u8, turbo};
@@ -123,25 +124,25 @@ fn mean_vector(sample: &[&[f32]], dim: usize) -> Vec<f64> {
 }
 
 /// The `count` leading eigenvectors of the sample covariance, by order of
-/// eigenvalue (fewer when `dim < count`: missing axes are zero).
+/// eigenvalue, each with its largest-magnitude entry positive (fewer when
+/// `dim < count`: missing axes are zero).
 ///
 /// # Shapes
 /// `sample`: `n` slices of `dim`; returns `count` vectors of `dim`.
 pub fn top_components(sample: &[&[f32]], mean: &[f64], dim: usize, count: usize) -> Vec<Vec<f64>> {
-    let mut cov = nalgebra::DMatrix::<f64>::zeros(dim, dim);
+    let mut cov = vec![0.0f64; dim * dim];
     for f in sample {
-        let c =
-            nalgebra::DVector::from_iterator(dim, f.iter().zip(mean).map(|(&x, &m)| x as f64 - m));
-        cov.ger(1.0, &c, &c, 1.0);
-    }
-    let eigen = cov.symmetric_eigen();
-    let mut order: Vec<usize> = (0..dim).collect();
-    order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-    (0..count)
-        .map(|axis| match order.get(axis) {
-            Some(&i) if eigen.eigenvalues[i] > 1e-30 => {
-                eigen.eigenvectors.column(i).iter().copied().collect()
+        let c: Vec<f64> = f.iter().zip(mean).map(|(&x, &m)| x as f64 - m).collect();
+        for (a, &ca) in c.iter().enumerate() {
+            for (r, &cb) in cov[a * dim..(a + 1) * dim].iter_mut().zip(&c) {
+                *r += ca * cb;
             }
+        }
+    }
+    let (values, vectors) = symmetric_eigen(cov, dim).unwrap_or_default();
+    (0..count)
+        .map(|axis| match values.get(axis) {
+            Some(&v) if v > 1e-30 => vectors[axis * dim..(axis + 1) * dim].to_vec(),
             _ => vec![0.0; dim],
         })
         .collect()

@@ -262,8 +262,7 @@ pub fn read(path: &Path) -> Result<Vec<MetricsEvent>, TrainError> {
 /// The evaluation of the untrained field recorded in the log at `path`
 /// (iteration 0); `None` when there is none or the log cannot be read.
 pub fn initial_eval(path: &Path) -> Option<EvalMetrics> {
-    let text = std::fs::read_to_string(path).ok()?;
-    parse(&text).into_iter().find_map(|e| match e {
+    read(path).ok()?.into_iter().find_map(|e| match e {
         MetricsEvent::Eval(l) if l.iteration == 0 => Some(l.interior),
         _ => None,
     })

@@ -190,7 +190,7 @@ impl PcaBasis {
 ///
 /// # Shapes
 /// `a`: `[n, n]` -> (`[n]`, `[n, n]` rows = eigenvectors).
-fn symmetric_eigen(a: Vec<f64>, n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+pub fn symmetric_eigen(a: Vec<f64>, n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
     let m = DMatrix::from_row_slice(n, n, &a);
     let eig = SymmetricEigen::try_new(m, f64::EPSILON, 10_000)?;
     let mut order: Vec<usize> = (0..n).collect();

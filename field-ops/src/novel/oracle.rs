@@ -6,7 +6,7 @@
 //! train on real captures (there is no ground truth there).
 
 use datasets::extractor::{FeatureExtractor, SimulatedExtractor};
-use datasets::scene::nearest_pixel;
+use datasets::grid::nearest_pixel;
 use datasets::synthetic::{self, Room, SceneSize, classes, raytrace};
 use datasets::text::TextEmbeddings;
 use datasets::{FeatureMap, Scene, SceneSource};
