@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::TrainError;
+use field_ops::files::write_atomic;
 
 const MAGIC: &[u8; 8] = b"ONERFCK1";
 const HEADER_LEN: usize = 8 + 4 * 8;
@@ -135,7 +136,7 @@ impl Checkpoint {
     /// same directory is written, flushed to disk and renamed over `path`,
     /// so a crash never leaves a half-written checkpoint under the real name.
     pub fn write(&self, path: &Path) -> Result<(), TrainError> {
-        write_atomic(path, &self.to_bytes())
+        Ok(write_atomic(path, &self.to_bytes())?)
     }
 
     /// Reads and verifies the checkpoint at `path`.
@@ -143,13 +144,6 @@ impl Checkpoint {
         let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e))?;
         Self::from_bytes(&bytes, path)
     }
-}
-
-/// Writes `bytes` to `path` through a temporary file and a rename (see
-/// [`field_ops::files::write_atomic`], whose temporary names
-/// [`remove_stale_temp_files`] knows).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
-    Ok(field_ops::files::write_atomic(path, bytes)?)
 }
 
 /// The checkpoint file name for `iteration` inside `dir`
@@ -195,7 +189,7 @@ pub fn prune_checkpoints(dir: &Path, keep: usize) -> Result<(), TrainError> {
     Ok(())
 }
 
-/// The process id in a temporary name written by [`write_atomic`]
+/// The process id in a temporary name written by [`write_atomic`](field_ops::files::write_atomic)
 /// (`.NAME.tmp-PID`).
 fn temp_file_pid(name: &str) -> Option<u32> {
     let (_, pid) = name.strip_prefix('.')?.rsplit_once(".tmp-")?;
@@ -213,7 +207,7 @@ fn process_alive(pid: u32) -> bool {
     proc.is_dir() && proc.join(pid.to_string()).exists()
 }
 
-/// Deletes the temporary files in `dir` that [`write_atomic`] calls of
+/// Deletes the temporary files in `dir` that [`write_atomic`](field_ops::files::write_atomic) calls of
 /// processes no longer running left behind (a kill during a write leaves
 /// one; the real file it was to replace is intact). Returns what was deleted.
 pub fn remove_stale_temp_files(dir: &Path) -> Result<Vec<PathBuf>, TrainError> {

@@ -66,17 +66,13 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             })
         }
         DatasetKind::Blender => {
-            if cli.stride.is_some() {
-                return unsupported("stride");
-            }
-            if cli.resolution.is_some() {
-                return unsupported("resolution (use --downscale N)");
-            }
-            if cli.features.is_some() {
-                return unsupported("features");
-            }
-            if cli.pca.is_some() {
-                return unsupported("pca (the scene has no feature maps)");
+            if let Some(flag) = first_given(&[
+                ("stride", cli.stride.is_some()),
+                ("resolution (use --downscale N)", cli.resolution.is_some()),
+                ("features", cli.features.is_some()),
+                ("pca (the scene has no feature maps)", cli.pca.is_some()),
+            ]) {
+                return unsupported(flag);
             }
             let defaults = BlenderOptions::default();
             LoaderOptions::Blender(BlenderOptions {
@@ -85,15 +81,13 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             })
         }
         DatasetKind::Llff => {
-            for (flag, given) in [
+            if let Some(flag) = first_given(&[
                 ("stride", cli.stride.is_some()),
                 ("resolution", cli.resolution.is_some()),
                 ("features", cli.features.is_some()),
                 ("pca (the scene has no feature maps)", cli.pca.is_some()),
-            ] {
-                if given {
-                    return unsupported(flag);
-                }
+            ]) {
+                return unsupported(flag);
             }
             LoaderOptions::Llff(LlffOptions {
                 // LLFF ships pre-downsampled folders `images_N`.
@@ -104,6 +98,14 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
         DatasetKind::Synthetic => unreachable!("handled above"),
     };
     Ok(SceneSource::Disk { loader, path })
+}
+
+/// The first flag of `flags` that was given.
+fn first_given<'a>(flags: &[(&'a str, bool)]) -> Option<&'a str> {
+    flags
+        .iter()
+        .find(|(_, given)| *given)
+        .map(|(flag, _)| *flag)
 }
 
 /// Builds (generates or loads) the scene described by `source`, fitting

@@ -6,6 +6,7 @@ use std::fmt;
 use std::path::Path;
 use std::str::FromStr;
 
+use clap::ValueEnum;
 use datasets::Scene;
 use datasets::novel_record::NovelView;
 
@@ -43,23 +44,20 @@ impl FromStr for ViewChoice {
                 let name = rest
                     .strip_suffix(')')
                     .ok_or_else(|| format!("unknown novel-view mode {s:?}"))?;
-                let oracle = [NovelOracle::Renders, NovelOracle::Labels]
-                    .into_iter()
+                let oracle = NovelOracle::value_variants()
+                    .iter()
+                    .copied()
                     .find(|o| o.name() == name)
                     .ok_or_else(|| format!("unknown ground truth {name:?} in {s:?}"))?;
                 (mode, Some(oracle))
             }
             None => (s, None),
         };
-        let mode = [
-            NovelMode::None,
-            NovelMode::Trajectory,
-            NovelMode::Random,
-            NovelMode::Guided,
-        ]
-        .into_iter()
-        .find(|m| m.name() == mode)
-        .ok_or_else(|| format!("unknown novel-view mode {mode:?}"))?;
+        let mode = NovelMode::value_variants()
+            .iter()
+            .copied()
+            .find(|m| m.name() == mode)
+            .ok_or_else(|| format!("unknown novel-view mode {mode:?}"))?;
         Ok(Self { mode, oracle })
     }
 }

@@ -44,7 +44,7 @@ pub(super) fn finish(
         state,
         t.config.logging.keep_checkpoints,
     )?;
-    crate::checkpoint::write_atomic(&run.weights(), &model_bytes(t.model)?)?;
+    field_ops::files::write_atomic(&run.weights(), &model_bytes(t.model)?)?;
     let (interior, whole) =
         t.heldout
             .last(t.model, t.scene, t.session.final_render, &run.renders())?;

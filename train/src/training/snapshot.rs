@@ -83,7 +83,7 @@ pub(super) fn save_checkpoint(
     let path = checkpoint_path(&run.checkpoints(), ckpt.state.iteration);
     ckpt.write(&path)?;
     if let Some(grid) = model.occupancy() {
-        crate::checkpoint::write_atomic(&run.occupancy(), &grid.to_bytes())?;
+        field_ops::files::write_atomic(&run.occupancy(), &grid.to_bytes())?;
     }
     prune_checkpoints(&run.checkpoints(), keep)?;
     Ok(path)
