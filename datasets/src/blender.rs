@@ -74,6 +74,7 @@ fn intrinsics(
                 fy,
                 cx: pick(frame.cx, top.cx).map_or((jw as f64 - 1.0) / 2.0, |c| c - 0.5),
                 cy: pick(frame.cy, top.cy).map_or((jh as f64 - 1.0) / 2.0, |c| c - 0.5),
+                distortion: model::geometry::Distortion::NONE,
             }
         }
         (None, Some(a)) => {
@@ -185,6 +186,7 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
             depth: None,
             depth_weight: 0.0,
             labels: None,
+            mask: None,
         });
     }
     let cameras: Vec<Camera> = frames.iter().map(|f| f.camera).collect();
@@ -204,6 +206,7 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
             loader: LoaderOptions::Blender(options.clone()),
             path: dir.to_path_buf(),
         },
+        world: None,
     })
 }
 

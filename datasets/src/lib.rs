@@ -1,5 +1,6 @@
 //! Everything that turns files on disk (or a seed) into scenes and ray
-//! batches: Nice-SLAM Replica, Blender/nerfstudio and LLFF loaders, lazy
+//! batches: Nice-SLAM Replica, Blender/nerfstudio, LLFF, COLMAP and ScanNet
+//! loaders, lazy
 //! feature maps with PCA compression, text embeddings, point clouds, the
 //! synthetic benchmark scene with its simulated 2D feature extractor, and the
 //! ray sampler.
@@ -7,6 +8,7 @@
 
 pub mod balance;
 pub mod blender;
+pub mod colmap;
 pub mod error;
 pub mod extractor;
 pub mod features;
@@ -21,6 +23,7 @@ pub mod points;
 pub mod poses;
 pub mod replica;
 pub mod sampler;
+pub mod scannet;
 pub mod scene;
 pub mod synthetic;
 pub mod text;
@@ -29,7 +32,7 @@ pub mod writer;
 pub use error::DatasetError;
 pub use features::FeatureMap;
 pub use options::LoaderOptions;
-pub use scene::{DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource};
+pub use scene::{DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource, WorldFrame};
 
 use std::path::PathBuf;
 
@@ -63,6 +66,8 @@ pub fn load_scene_with_basis(
             ),
             LoaderOptions::Blender(o) => blender::load_blender(path, o),
             LoaderOptions::Llff(o) => llff::load_llff(path, o),
+            LoaderOptions::Colmap(o) => colmap::load_colmap(path, o),
+            LoaderOptions::Scannet(o) => scannet::load_scannet(path, o),
         },
     }
 }

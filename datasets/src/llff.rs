@@ -89,6 +89,7 @@ pub fn read_poses_bounds(path: &Path) -> Result<Vec<LlffView>, DatasetError> {
             fy: f,
             cx: (w as f64 - 1.0) / 2.0,
             cy: (h as f64 - 1.0) / 2.0,
+            distortion: model::geometry::Distortion::NONE,
         };
         views.push(LlffView {
             intrinsics,
@@ -220,6 +221,7 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
             depth: None,
             depth_weight: 0.0,
             labels: None,
+            mask: None,
         });
     }
     let scene_box = box_of(&pb, pts, options.box_margin)?;
@@ -237,5 +239,6 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
             loader: LoaderOptions::Llff(options.clone()),
             path: dir.to_path_buf(),
         },
+        world: None,
     })
 }

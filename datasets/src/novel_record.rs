@@ -219,6 +219,7 @@ fn load_view(
         }),
         depth_weight: e.depth_weight,
         labels: None,
+        mask: None,
     };
     let map = FeatureMap {
         width: fw as u32,

@@ -21,15 +21,22 @@ pub enum LoaderOptions {
     Blender(#[serde(deserialize_with = "null_as_default")] BlenderOptions),
     /// LLFF ([`crate::llff`]).
     Llff(#[serde(deserialize_with = "null_as_default")] LlffOptions),
+    /// A COLMAP reconstruction ([`crate::colmap`]).
+    Colmap(#[serde(deserialize_with = "null_as_default")] ColmapOptions),
+    /// A ScanNet scene export ([`crate::scannet`]).
+    Scannet(#[serde(deserialize_with = "null_as_default")] ScannetOptions),
 }
 
 impl LoaderOptions {
-    /// The format's name (`replica`, `blender` or `llff`), as serialised.
+    /// The format's name (`replica`, `blender`, `llff`, `colmap` or
+    /// `scannet`), as serialised.
     pub fn format(&self) -> &'static str {
         match self {
             Self::Replica(_) => "replica",
             Self::Blender(_) => "blender",
             Self::Llff(_) => "llff",
+            Self::Colmap(_) => "colmap",
+            Self::Scannet(_) => "scannet",
         }
     }
 }
@@ -137,6 +144,66 @@ impl Default for LlffOptions {
             images: None,
             max_frames: None,
             box_margin: 0.05,
+        }
+    }
+}
+
+/// Options of the COLMAP loader ([`crate::colmap::load_colmap`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ColmapOptions {
+    /// Image folder inside the reconstruction (`images`, or a downscaled
+    /// copy such as `images_2`; intrinsics are scaled to its images' size).
+    pub images: String,
+    /// Use COLMAP's dense depth maps (`stereo/depth_maps/*.geometric.bin`)
+    /// as depth targets (zero and NaN depths are no target).
+    pub depth: bool,
+    /// Keep every `stride`-th image (in name order).
+    pub stride: usize,
+    /// Keep at most this many images (after the stride).
+    pub max_frames: Option<usize>,
+    /// Scene-box margin, as a fraction of the largest extent.
+    pub box_margin: f64,
+}
+
+impl Default for ColmapOptions {
+    fn default() -> Self {
+        Self {
+            images: "images".into(),
+            depth: false,
+            stride: 1,
+            max_frames: None,
+            box_margin: 0.05,
+        }
+    }
+}
+
+/// Options of the ScanNet loader ([`crate::scannet::load_scannet`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ScannetOptions {
+    /// Keep every `stride`-th frame (frames with invalid poses are skipped
+    /// before the stride is applied).
+    pub stride: usize,
+    /// Keep at most this many frames (after the stride).
+    pub max_frames: Option<usize>,
+    /// Resample the colour images to `(width, height)` [default: their own
+    /// size, 1296x968 for ScanNet].
+    pub resolution: Option<(u32, u32)>,
+    /// Scene-box margin, as a fraction of the largest extent.
+    pub box_margin: f64,
+    /// Depth pixels used for the box: every `box_pixel_step`-th in each axis.
+    pub box_pixel_step: u32,
+}
+
+impl Default for ScannetOptions {
+    fn default() -> Self {
+        Self {
+            stride: 1,
+            max_frames: None,
+            resolution: None,
+            box_margin: 0.05,
+            box_pixel_step: 8,
         }
     }
 }

@@ -151,6 +151,7 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         fy: cam.fy,
         cx: cam.cx,
         cy: cam.cy,
+        distortion: model::geometry::Distortion::NONE,
     };
     let (tw, th) = options.resolution.unwrap_or((cam.w, cam.h));
     let intrinsics = base.scaled(tw, th);
@@ -188,6 +189,7 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
             depth: Some(depth),
             depth_weight: 1.0,
             labels: None,
+            mask: None,
         });
     }
     let scene_box = box_of(dir, box_points, options.box_margin)?;
@@ -221,6 +223,7 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
             }),
             path: dir.to_path_buf(),
         },
+        world: None,
     })
 }
 

@@ -67,6 +67,10 @@ pub struct Frame {
     pub depth_weight: f32,
     /// Per-pixel class index (synthetic scenes only; `u16::MAX` = none).
     pub labels: Option<Vec<u16>>,
+    /// Pixels that may be training targets, row-major `[height, width]` at
+    /// the colour image's size (`None`: all of them). Masked-out pixels
+    /// (e.g. a moving person, the capture rig) are never sampled.
+    pub mask: Option<Vec<bool>>,
 }
 
 /// How a scene can be rebuilt (saved in a run directory as `scene.json`).
@@ -125,6 +129,19 @@ pub struct Scene {
     pub classes: Option<crate::text::TextEmbeddings>,
     /// How to rebuild this scene.
     pub source: SceneSource,
+    /// The capture's own world frame, when the loader moved the scene out
+    /// of it (e.g. COLMAP's arbitrary frame, oriented, centred and scaled).
+    pub world: Option<WorldFrame>,
+}
+
+/// A capture's own world frame and the map from it to the scene's frame
+/// (the one every pose, point and output of the run is in).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct WorldFrame {
+    /// Name of the capture's frame (`colmap`, `nerfstudio`).
+    pub name: String,
+    /// `p_scene = scale * R p_capture + t`.
+    pub to_scene: model::geometry::Similarity,
 }
 
 /// What a run directory records about its scene (`scene.json`): enough to
@@ -143,6 +160,9 @@ pub struct SceneMeta {
     pub pca: Option<crate::features::PcaBasis>,
     /// Dimension of the original feature space (D).
     pub feature_dim: Option<usize>,
+    /// The capture's own world frame, when the scene was moved out of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub world: Option<WorldFrame>,
 }
 
 #[cfg(test)]

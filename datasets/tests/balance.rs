@@ -29,6 +29,7 @@ fn scene() -> Scene {
         depth: None,
         depth_weight: 1.0,
         labels: None,
+        mask: None,
     };
     let mut data = Vec::new();
     for y in 0..W {
@@ -59,6 +60,7 @@ fn scene() -> Scene {
             size: "ci".into(),
             pca: None,
         },
+        world: None,
     }
 }
 

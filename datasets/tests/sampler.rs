@@ -38,6 +38,7 @@ fn frame(i: usize, w: u32, h: u32, depth: bool) -> Frame {
         }),
         depth_weight: 0.5 + i as f32,
         labels: None,
+        mask: None,
     }
 }
 
@@ -90,6 +91,7 @@ fn scene(with_features: bool) -> Scene {
             size: "ci".into(),
             pca: None,
         },
+        world: None,
     }
 }
 

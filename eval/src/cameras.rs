@@ -45,6 +45,7 @@ pub fn load_traj(
         fy: c.fy,
         cx: c.cx,
         cy: c.cy,
+        distortion: model::geometry::Distortion::NONE,
     };
     Ok(datasets::replica::read_trajectory(traj)?
         .into_iter()

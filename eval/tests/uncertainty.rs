@@ -99,6 +99,7 @@ fn probe_setup() -> (model::OpenNerf, Scene, model::geometry::Camera) {
         fy: 8.0,
         cx: 4.0,
         cy: 4.0,
+        distortion: model::geometry::Distortion::NONE,
     };
     let b = scene.scene_box;
     let mid: [f64; 3] = std::array::from_fn(|i| 0.5 * (b.min[i] + b.max[i]));

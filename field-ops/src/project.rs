@@ -184,6 +184,7 @@ mod tests {
                 fy: 4.0,
                 cx: 3.5,
                 cy: 2.5,
+                distortion: model::geometry::Distortion::NONE,
             },
             pose: Pose::identity(),
         }
@@ -271,6 +272,7 @@ mod tests {
                     fy: w as f64 / 2.0,
                     cx: (w as f64 - 1.0) / 2.0,
                     cy: (h as f64 - 1.0) / 2.0,
+                    distortion: model::geometry::Distortion::NONE,
                 },
                 pose: Pose::identity(),
             };

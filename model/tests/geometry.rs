@@ -112,6 +112,7 @@ fn ray_projection_round_trip() {
             fy: 310.0,
             cx: 319.5,
             cy: 170.0,
+            distortion: model::geometry::Distortion::NONE,
         },
         pose,
     };
@@ -146,6 +147,7 @@ fn intrinsics_scaled() {
         fy: 600.0,
         cx: 599.5,
         cy: 339.5,
+        distortion: model::geometry::Distortion::NONE,
     };
     let s = k.scaled(640, 360);
     assert!(close(s.fx, 320.0, 1e-12) && close(s.fy, 600.0 * 360.0 / 680.0, 1e-12));
@@ -216,4 +218,80 @@ fn scene_box_intersection() {
     assert!(fit.contains([0.0, 0.0, 0.0]) && fit.contains([2.0, 1.0, -1.0]));
     assert!(close(fit.min[0], -0.2, 1e-12) && close(fit.max[2], 0.2, 1e-12));
     assert!(SceneBox::from_points([[f64::NAN; 3]], 0.1).is_none());
+}
+
+/// Distorted cameras: projecting the ray of every pixel (a grid over the
+/// whole image, corners included) returns that pixel to 1e-6 px, for
+/// COLMAP's SIMPLE_RADIAL / RADIAL / OPENCV and nerfstudio's OPENCV with
+/// k3, k4 at strengths real lenses have (barrel and pincushion).
+#[test]
+fn distorted_rays_project_back_to_their_pixels() {
+    use model::geometry::Distortion;
+    let lenses = [
+        Distortion {
+            k1: -0.12,
+            ..Distortion::NONE
+        },
+        Distortion {
+            k1: 0.08,
+            k2: -0.02,
+            ..Distortion::NONE
+        },
+        Distortion {
+            k1: -0.28,
+            k2: 0.07,
+            p1: 1.2e-3,
+            p2: -8e-4,
+            ..Distortion::NONE
+        },
+        Distortion {
+            k1: -0.25,
+            k2: 0.06,
+            k3: -0.006,
+            k4: 4e-4,
+            p1: -5e-4,
+            p2: 9e-4,
+        },
+    ];
+    for distortion in lenses {
+        let cam = Camera {
+            intrinsics: Intrinsics {
+                width: 3031,
+                height: 2006,
+                fx: 2500.0,
+                fy: 2480.0,
+                cx: 1515.0,
+                cy: 1002.5,
+                distortion,
+            },
+            pose: model::geometry::look_at([0.5, -1.0, 2.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+                .expect("pose"),
+        };
+        let mut worst: f64 = 0.0;
+        for j in (0..=2005).step_by(59).chain([2005]) {
+            for i in (0..=3030).step_by(61).chain([3030]) {
+                let (u, v) = (i as f64, j as f64);
+                let ray = cam.ray(u, v);
+                let p = cam
+                    .project(model::geometry::add_scaled(ray.origin, 3.0, ray.direction))
+                    .expect("in front");
+                worst = worst.max((p.u - u).abs()).max((p.v - v).abs());
+            }
+        }
+        assert!(
+            worst < 1e-6,
+            "{distortion:?}: worst round trip {worst:e} px"
+        );
+        // And the distortion is real: a corner ray is not the pinhole one.
+        let pin = Intrinsics {
+            distortion: Distortion::NONE,
+            ..cam.intrinsics
+        };
+        let d = cam.intrinsics.camera_direction(0.0, 0.0);
+        let q = pin.camera_direction(0.0, 0.0);
+        assert!(
+            (d[0] - q[0]).abs() > 1e-3,
+            "{distortion:?} moves the corner ray"
+        );
+    }
 }

@@ -122,6 +122,7 @@ pub fn meta(scene: &Scene) -> SceneMeta {
         background: scene.background,
         pca: scene.features.as_ref().and_then(|f| f.pca.clone()),
         feature_dim: scene.features.as_ref().map(|f| f.full_dim),
+        world: scene.world.clone(),
     }
 }
 

@@ -216,6 +216,7 @@ pub fn generate_with(
             depth: Some(r.depth),
             depth_weight: 1.0,
             labels: Some(r.labels),
+            mask: None,
         })
         .collect();
     let features = extract_all(&extractor, &frames, pca, basis, seed)?;
@@ -245,6 +246,7 @@ pub fn generate_with(
             size: size.to_string(),
             pca: None,
         },
+        world: None,
     })
 }
 

@@ -162,6 +162,7 @@ mod tests {
             fy: 52.0,
             cx: 31.5,
             cy: 23.0,
+            distortion: model::geometry::Distortion::NONE,
         };
         let poses = [
             look_at([1.0, 2.0, 0.5], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]).expect("pose"),

@@ -46,6 +46,7 @@ pub fn write_tiny_run(dir: &Path) {
         background: scene.background,
         pca: features.pca.clone(),
         feature_dim: Some(features.full_dim),
+        world: None,
     };
     json("scene.json", serde_json::to_value(&meta).expect("meta"));
     let n = scene.frames.len();

@@ -13,9 +13,13 @@
 
 use std::fmt;
 
+mod distortion;
 mod scene_box;
+mod similarity;
 
+pub use distortion::Distortion;
 pub use scene_box::{NormalizedRay, SceneBox};
+pub use similarity::Similarity;
 
 /// A 3-vector in `f64`.
 pub type Vec3 = [f64; 3];
@@ -86,7 +90,8 @@ fn normalize(a: Vec3) -> Vec3 {
     [a[0] / n, a[1] / n, a[2] / n]
 }
 
-/// Pinhole intrinsics in pixels (OpenCV pixel-centre convention).
+/// Pinhole intrinsics in pixels (OpenCV pixel-centre convention), with the
+/// lens distortion of the images they describe (none for most scenes).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Intrinsics {
     /// Image width in pixels.
@@ -101,6 +106,10 @@ pub struct Intrinsics {
     pub cx: f64,
     /// Principal point y.
     pub cy: f64,
+    /// Lens distortion of the image (in normalised coordinates, so it does
+    /// not change when the image is resampled).
+    #[serde(default, skip_serializing_if = "Distortion::is_none")]
+    pub distortion: Distortion,
 }
 
 impl Intrinsics {
@@ -115,6 +124,7 @@ impl Intrinsics {
             fy: f,
             cx: (width as f64 - 1.0) / 2.0,
             cy: (height as f64 - 1.0) / 2.0,
+            distortion: Distortion::NONE,
         }
     }
 
@@ -130,6 +140,7 @@ impl Intrinsics {
             fy: self.fy * sy,
             cx: (self.cx + 0.5) * sx - 0.5,
             cy: (self.cy + 0.5) * sy - 0.5,
+            distortion: self.distortion,
         }
     }
 
@@ -140,9 +151,19 @@ impl Intrinsics {
         dx * 2.0 / 12f64.sqrt()
     }
 
-    /// Direction in camera space (z = 1) through image point `(u, v)`.
+    /// Direction in camera space (z = 1) through image point `(u, v)`,
+    /// undistorted.
     pub fn camera_direction(&self, u: f64, v: f64) -> Vec3 {
-        [(u - self.cx) / self.fx, (v - self.cy) / self.fy, 1.0]
+        let (x, y) = self
+            .distortion
+            .undistort((u - self.cx) / self.fx, (v - self.cy) / self.fy);
+        [x, y, 1.0]
+    }
+
+    /// Image point of the camera-space direction `(x, y, 1)`, distorted.
+    pub fn image_point(&self, x: f64, y: f64) -> (f64, f64) {
+        let (xd, yd) = self.distortion.distort(x, y);
+        (self.fx * xd + self.cx, self.fy * yd + self.cy)
     }
 }
 
@@ -333,12 +354,8 @@ impl Camera {
         if c[2] <= 0.0 || !c[2].is_finite() {
             return None;
         }
-        let k = &self.intrinsics;
-        Some(Projection {
-            u: k.fx * c[0] / c[2] + k.cx,
-            v: k.fy * c[1] / c[2] + k.cy,
-            z: c[2],
-        })
+        let (u, v) = self.intrinsics.image_point(c[0] / c[2], c[1] / c[2]);
+        Some(Projection { u, v, z: c[2] })
     }
 
     /// The same view at another resolution.
