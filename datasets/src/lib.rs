@@ -9,6 +9,7 @@
 pub mod balance;
 pub mod blender;
 pub mod colmap;
+pub mod detect;
 pub mod error;
 pub mod extractor;
 pub mod features;

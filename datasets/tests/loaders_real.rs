@@ -242,13 +242,53 @@ fn load_scene_dispatches_on_the_source() {
     // A format no loader reads is refused when the source is read.
     let err = serde_json::from_value::<datasets::SceneSource>(serde_json::json!({
         "kind": "disk",
-        "format": "colmap",
+        "format": "photogrammetry",
         "path": dir,
         "options": null,
     }))
     .expect_err("unknown format");
     assert!(
-        err.to_string().contains("unknown variant `colmap`"),
+        err.to_string().contains("unknown variant `photogrammetry`"),
         "{err}"
+    );
+}
+
+/// Format detection on every directory of the shared data: each scene is
+/// recognised as its format, the directories that hold no scene (text
+/// embeddings, a class list) are refused with what each format needs.
+#[test]
+fn detection_recognises_every_shared_scene() {
+    use datasets::detect::{Format, detect};
+    let Some(root) = dataset("") else { return };
+    let want = [
+        ("colmap_statue", Some(Format::Colmap)),
+        ("lego_train", Some(Format::Blender)),
+        ("llff_fern", Some(Format::Llff)),
+        ("replica_room0_20f", Some(Format::Replica)),
+        ("clip_text", None),
+        ("replica_classes", None),
+    ];
+    let mut seen = 0;
+    for (name, format) in want {
+        let dir = root.join(name);
+        if !dir.is_dir() {
+            println!("skipped: {} not found", dir.display());
+            continue;
+        }
+        seen += 1;
+        match (detect(&dir), format) {
+            (Ok(d), Some(f)) => assert_eq!(d.format, f, "{name}: {}", d.evidence),
+            (Err(e), None) => assert!(e.to_string().contains("no scene format"), "{e}"),
+            (got, want) => panic!("{name}: detected {got:?}, expected {want:?}"),
+        }
+    }
+    // Every directory of the shared data is covered by the table above.
+    let listed = std::fs::read_dir(&root)
+        .expect("data dir")
+        .filter(|e| e.as_ref().is_ok_and(|e| e.path().is_dir()))
+        .count();
+    assert_eq!(
+        listed, seen,
+        "a shared data directory is missing from the table"
     );
 }

@@ -10,6 +10,7 @@ pub mod backend;
 pub mod colormap;
 pub mod error;
 pub mod files;
+pub mod frame;
 pub mod images;
 pub mod json;
 pub mod novel;

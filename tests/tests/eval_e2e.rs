@@ -149,8 +149,11 @@ fn train_then_segment_in_every_mode() {
         compare: true,
         classes: None,
         text_model: None,
+        frame: Default::default(),
     };
-    let scores = segment_command(&args).expect("segment command");
+    let scores = segment_command(&args)
+        .expect("segment command")
+        .expect("labelled points are scored");
     assert_eq!(scores.mode, "hybrid");
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&out).expect("json")).expect("parse");

@@ -138,7 +138,9 @@ fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
     ])
     .unwrap()
     .args;
-    let scores = eval::commands::segment::segment_command(&args).unwrap();
+    let scores = eval::commands::segment::segment_command(&args)
+        .unwrap()
+        .expect("labelled points are scored");
     assert!(scores.all.miou.is_some_and(f64::is_finite), "{scores:?}");
     assert!(out.exists());
 }

@@ -18,6 +18,25 @@ pub enum DatasetKind {
     Blender,
     /// LLFF `poses_bounds.npy` with `images_N/`.
     Llff,
+    /// A COLMAP reconstruction (`images/`, `sparse/0/` or `sparse/`, binary
+    /// or text model).
+    Colmap,
+    /// A ScanNet scene export (`color/`, `depth/`, `pose/`, `intrinsic/`).
+    Scannet,
+    /// Detect the format from the files in `--data` (and print which).
+    Auto,
+}
+
+impl Cli {
+    /// The scene source asked for: `--dataset`, else `auto` when `--data`
+    /// is given, else the synthetic scene.
+    pub fn dataset_kind(&self) -> DatasetKind {
+        match (self.dataset, &self.data) {
+            (Some(kind), _) => kind,
+            (None, Some(_)) => DatasetKind::Auto,
+            (None, None) => DatasetKind::Synthetic,
+        }
+    }
 }
 
 impl DatasetKind {
@@ -28,6 +47,9 @@ impl DatasetKind {
             Self::Replica => "replica",
             Self::Blender => "blender",
             Self::Llff => "llff",
+            Self::Colmap => "colmap",
+            Self::Scannet => "scannet",
+            Self::Auto => "auto",
         }
     }
 }
@@ -86,10 +108,10 @@ pub struct Cli {
     #[arg(long)]
     pub device: Option<usize>,
 
-    /// Scene source.
-    #[arg(long, value_enum, default_value_t = DatasetKind::Synthetic)]
-    pub dataset: DatasetKind,
-    /// Scene directory (required for replica, blender, llff).
+    /// Scene source [default: auto when --data is given, else synthetic].
+    #[arg(long, value_enum)]
+    pub dataset: Option<DatasetKind>,
+    /// Scene directory (any format but synthetic).
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Synthetic scene: generator seed.
@@ -116,9 +138,14 @@ pub struct Cli {
     /// Resize images to WxH (intrinsics scaled) [default: the loader's].
     #[arg(long, conflicts_with = "downscale")]
     pub resolution: Option<Resolution>,
-    /// Divide the image size by N [default: the loader's].
+    /// Divide the image size by N [default: the loader's]. For LLFF and
+    /// COLMAP this picks the downscaled copies `images_N/`.
     #[arg(long)]
     pub downscale: Option<u32>,
+    /// COLMAP: use the dense depth maps (`stereo/depth_maps/*.geometric.bin`)
+    /// as depth targets; zero and NaN depths are no target.
+    #[arg(long)]
+    pub colmap_depth: bool,
     /// Hold out every Nth frame (frames 0, N, 2N, ...) for evaluation (N >= 2).
     #[arg(long, default_value_t = 8)]
     pub holdout_every: usize,
@@ -269,7 +296,7 @@ mod tests {
         Cli::command().debug_assert();
         let cli = Cli::try_parse_from(["train"]).unwrap();
         assert_eq!(cli.backend, BackendKind::Flex);
-        assert_eq!(cli.dataset, DatasetKind::Synthetic);
+        assert_eq!(cli.dataset_kind(), DatasetKind::Synthetic);
         assert!(cli.resume.is_none());
         let cli = Cli::try_parse_from([
             "train",

@@ -4,9 +4,12 @@
 use std::path::PathBuf;
 
 use datasets::blender::BlenderOptions;
+use datasets::colmap::ColmapOptions;
+use datasets::detect::Format;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
 use datasets::replica::ReplicaOptions;
+use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
@@ -14,7 +17,8 @@ use crate::error::TrainError;
 
 /// How to build the scene of a new run, from the command-line options.
 pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
-    if cli.dataset == DatasetKind::Synthetic {
+    let kind = cli.dataset_kind();
+    if kind == DatasetKind::Synthetic {
         return Ok(SceneSource::Synthetic {
             seed: cli.scene_seed,
             size: match cli.scene_size {
@@ -27,7 +31,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
     let path: PathBuf = cli.data.clone().ok_or_else(|| {
         TrainError::Config(format!(
             "--dataset {} needs --data PATH (the scene directory)",
-            cli.dataset.name()
+            kind.name()
         ))
     })?;
     if !path.exists() {
@@ -36,14 +40,51 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             std::io::Error::new(std::io::ErrorKind::NotFound, "scene directory not found"),
         ));
     }
-    let format = cli.dataset.name();
+    let format = match kind {
+        DatasetKind::Auto => {
+            let found = datasets::detect::detect(&path)?;
+            eprintln!(
+                "--dataset auto: {} is a {} scene (it holds {})",
+                path.display(),
+                found.format,
+                found.evidence
+            );
+            found.format
+        }
+        DatasetKind::Replica => Format::Replica,
+        DatasetKind::Blender => Format::Blender,
+        DatasetKind::Llff => Format::Llff,
+        DatasetKind::Colmap => Format::Colmap,
+        DatasetKind::Scannet => Format::Scannet,
+        DatasetKind::Synthetic => unreachable!("handled above"),
+    };
+    let loader = loader_options(cli, format)?;
+    Ok(SceneSource::Disk { loader, path })
+}
+
+/// The loader options of `format` from the command line, refusing the
+/// flags the format does not take.
+fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError> {
+    let name = format.name();
     let unsupported = |flag: &str| {
         Err(TrainError::Config(format!(
-            "--{flag} is not supported for --dataset {format}"
+            "--{flag} is not supported for --dataset {name}"
         )))
     };
-    let loader = match cli.dataset {
-        DatasetKind::Replica => {
+    if format != Format::Colmap && cli.colmap_depth {
+        return unsupported("colmap-depth");
+    }
+    // Only Replica reads feature maps from disk.
+    if format != Format::Replica
+        && let Some(flag) = first_given(&[
+            ("features", cli.features.is_some()),
+            ("pca (the scene has no feature maps)", cli.pca.is_some()),
+        ])
+    {
+        return unsupported(flag);
+    }
+    Ok(match format {
+        Format::Replica => {
             if cli.downscale.is_some() {
                 return unsupported("downscale (use --resolution WxH)");
             }
@@ -65,12 +106,10 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                 ..defaults
             })
         }
-        DatasetKind::Blender => {
+        Format::Blender => {
             if let Some(flag) = first_given(&[
                 ("stride", cli.stride.is_some()),
                 ("resolution (use --downscale N)", cli.resolution.is_some()),
-                ("features", cli.features.is_some()),
-                ("pca (the scene has no feature maps)", cli.pca.is_some()),
             ]) {
                 return unsupported(flag);
             }
@@ -80,12 +119,10 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                 ..defaults
             })
         }
-        DatasetKind::Llff => {
+        Format::Llff => {
             if let Some(flag) = first_given(&[
                 ("stride", cli.stride.is_some()),
                 ("resolution", cli.resolution.is_some()),
-                ("features", cli.features.is_some()),
-                ("pca (the scene has no feature maps)", cli.pca.is_some()),
             ]) {
                 return unsupported(flag);
             }
@@ -95,9 +132,34 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                 ..LlffOptions::default()
             })
         }
-        DatasetKind::Synthetic => unreachable!("handled above"),
-    };
-    Ok(SceneSource::Disk { loader, path })
+        Format::Colmap => {
+            if cli.resolution.is_some() {
+                return unsupported("resolution (use --downscale N for images_N/)");
+            }
+            let defaults = ColmapOptions::default();
+            LoaderOptions::Colmap(ColmapOptions {
+                // COLMAP workspaces keep downscaled copies in `images_N`.
+                images: match cli.downscale {
+                    Some(d) if d > 1 => format!("images_{d}"),
+                    _ => defaults.images.clone(),
+                },
+                depth: cli.colmap_depth,
+                stride: cli.stride.unwrap_or(defaults.stride),
+                ..defaults
+            })
+        }
+        Format::Scannet => {
+            if cli.downscale.is_some() {
+                return unsupported("downscale (use --resolution WxH)");
+            }
+            let defaults = ScannetOptions::default();
+            LoaderOptions::Scannet(ScannetOptions {
+                stride: cli.stride.unwrap_or(defaults.stride),
+                resolution: cli.resolution.map(|r| (r.width, r.height)),
+                ..defaults
+            })
+        }
+    })
 }
 
 /// The first flag of `flags` that was given.

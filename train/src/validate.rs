@@ -154,18 +154,18 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
         _ => {}
     }
     if let Some(o) = cli.novel_oracle
-        && cli.dataset != DatasetKind::Synthetic
+        && cli.dataset_kind() != DatasetKind::Synthetic
     {
         return Err(flag_error(format!(
             "--novel-oracle {}: the oracle takes novel views from a synthetic scene's ground truth; a scene on disk has none (leave --novel-oracle out)",
             o.name()
         )));
     }
-    if cli.dataset == DatasetKind::Synthetic {
+    if cli.dataset_kind() == DatasetKind::Synthetic {
         if let Some(data) = &cli.data {
             return Err(flag_error(format!(
-                "--data {} is given without --dataset (the default is the built-in synthetic \
-                 scene, which reads no files); add --dataset replica, blender or llff",
+                "--data {} is given with --dataset synthetic (the built-in scene, which \
+                 reads no files); leave --dataset out to detect the format of the directory",
                 data.display()
             )));
         }
@@ -174,12 +174,13 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
             ("stride", cli.stride.is_some()),
             ("resolution", cli.resolution.is_some()),
             ("downscale", cli.downscale.is_some()),
+            ("colmap-depth", cli.colmap_depth),
         ] {
             if given {
                 return Err(flag_error(format!(
                     "--{flag} applies to a scene on disk, not to the synthetic scene (which \
-                     makes its own images and feature maps); add --dataset replica|blender|llff \
-                     and --data PATH, or leave --{flag} out"
+                     makes its own images and feature maps); add --data PATH (the format is \
+                     detected, or give --dataset), or leave --{flag} out"
                 )));
             }
         }
@@ -191,7 +192,8 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
 /// that would change them are refused instead of being silently ignored.
 fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
     let ignored = [
-        ("dataset", cli.dataset != DatasetKind::Synthetic),
+        ("dataset", cli.dataset.is_some()),
+        ("colmap-depth", cli.colmap_depth),
         ("features", cli.features.is_some()),
         ("stride", cli.stride.is_some()),
         ("resolution", cli.resolution.is_some()),

@@ -94,8 +94,61 @@ fn out_of_range_numbers_are_refused_by_flag() {
 
 #[test]
 fn scene_flags_that_would_be_ignored_are_refused() {
-    assert_refused(&["--data", "/some/room"], &["--data", "--dataset replica"]);
+    assert_refused(
+        &["--dataset", "synthetic", "--data", "/some/room"],
+        &["--data", "--dataset synthetic"],
+    );
     assert_refused(&["--features", "/some/feats"], &["--features", "synthetic"]);
+    // --data alone detects the format, so a missing directory is named.
+    assert_refused(&["--data", "/some/room"], &["/some/room", "not found"]);
+}
+
+/// `--dataset auto` (the default with --data) names the format it chose
+/// and why; a directory of no known format is refused with what each
+/// format needs, and nothing is written.
+#[test]
+fn the_format_of_a_data_directory_is_detected() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    let out = tmp.path().join("run");
+    assert_refused(
+        &["--data", s(&empty), "--out", s(&out)],
+        &[
+            "empty",
+            "no scene format",
+            "transforms.json",
+            "sparse/0/",
+            "poses_bounds.npy",
+        ],
+    );
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
+    let room = replica_dir(tmp.path(), 3);
+    let config = tiny_config(tmp.path());
+    let run = train(&[
+        "--data",
+        s(&room),
+        "--config",
+        s(&config),
+        "--iters",
+        "2",
+        "--holdout-every",
+        "3",
+        "--no-final-render",
+        "--quiet",
+        "--out",
+        s(&out),
+    ]);
+    let (_, err) = text(&run);
+    assert!(run.status.success(), "{err}");
+    assert!(
+        err.contains("is a replica scene (it holds traj.txt and results/)"),
+        "{err}"
+    );
+    let scene: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
+            .expect("json");
+    assert_eq!(scene["source"]["format"], "replica", "{scene}");
 }
 
 #[test]

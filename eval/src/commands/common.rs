@@ -14,6 +14,7 @@ use crate::cameras::{NamedCamera, load_traj, load_transforms_json};
 use crate::segment::EvalPoints;
 use field_ops::OpsError;
 use field_ops::backend::{BackendKind, check_device_flag, parse_device_index};
+use field_ops::frame::OutputFrame;
 use field_ops::run_dir::{LoadedRun, load_run};
 
 /// The compute device of a command: `--backend` and, for wgpu, `--device`
@@ -85,14 +86,26 @@ impl Context {
 /// Points, labels and class embeddings from the arguments, falling back on
 /// the scene's own labelled cloud and classes.
 pub fn load_points(args: &PointArgs, scene: Option<&Scene>) -> Result<EvalPoints, OpsError> {
-    load_points_with(args, scene, None)
+    load_points_with(args, scene, None, &OutputFrame::SCENE)
 }
 
-/// [`load_points`] with class embeddings given (e.g. from free text).
+/// The error for points without labels and no classes to segment them into.
+fn no_classes(what: &str) -> OpsError {
+    OpsError::Invalid(format!(
+        "{what}: the points have no labels and there are no classes to segment them into; \
+         give --classes with --text-model, or --embeddings with --names (or --labels)"
+    ))
+}
+
+/// [`load_points`] with class embeddings given (e.g. from free text); a
+/// `--points` file is read in `frame` and moved into the scene's frame.
+/// Points without labels come back unlabelled (to be segmented, not scored)
+/// when there are classes to segment them into.
 pub fn load_points_with(
     args: &PointArgs,
     scene: Option<&Scene>,
     given: Option<TextEmbeddings>,
+    frame: &OutputFrame,
 ) -> Result<EvalPoints, OpsError> {
     let texts = match (&args.embeddings, &args.names) {
         _ if given.is_some() => given,
@@ -108,6 +121,11 @@ pub fn load_points_with(
         let scene = scene.ok_or_else(|| {
             OpsError::Invalid("no --points and no scene to take them from".into())
         })?;
+        if let Some(cloud) = scene.points.as_ref().filter(|c| c.labels.is_none()) {
+            // A capture's own cloud (e.g. COLMAP's sparse points): no ground truth.
+            let texts = texts.ok_or_else(|| no_classes(&format!("scene {}", scene.name)))?;
+            return Ok(EvalPoints::unlabelled(cloud.positions.clone(), &texts));
+        }
         let mut p = EvalPoints::from_scene(scene)?;
         if let Some(t) = texts {
             reembed(&mut p, &t)?;
@@ -115,14 +133,14 @@ pub fn load_points_with(
         return Ok(p);
     };
     let cloud = read_ply(ply)?;
-    let raw = match &args.labels {
-        Some(l) => read_labels_txt(l, cloud.positions.len())?,
-        None => cloud.labels.clone().ok_or_else(|| {
-            OpsError::Invalid(format!(
-                "{}: no label property and no --labels",
-                ply.display()
-            ))
-        })?,
+    let positions = frame.scene_points(&cloud.positions);
+    let raw = match (&args.labels, &cloud.labels) {
+        (Some(l), _) => read_labels_txt(l, cloud.positions.len())?,
+        (None, Some(raw)) => raw.clone(),
+        (None, None) => {
+            let texts = texts.ok_or_else(|| no_classes(&ply.display().to_string()))?;
+            return Ok(EvalPoints::unlabelled(positions, &texts));
+        }
     };
     let texts = match texts {
         Some(t) => t,
@@ -137,11 +155,12 @@ pub fn load_points_with(
     let label_file = args.labels.as_deref().unwrap_or(ply);
     labels_in_range(&raw, &map, label_file, args.class_map.as_deref())?;
     let mut p = EvalPoints {
-        positions: cloud.positions,
+        positions,
         labels: map.map(&raw),
         names: map.names.clone(),
         embeddings: Vec::new(),
         dim: texts.dim,
+        labelled: true,
     };
     reembed(&mut p, &texts)?;
     Ok(p)

@@ -49,7 +49,8 @@ pub struct QueryArgs {
     /// Names of the class embeddings.
     #[arg(long)]
     pub names: Option<PathBuf>,
-    /// Also score this point cloud (PLY); `scene` uses the scene's own cloud.
+    /// Also score this point cloud (PLY, in the --frame frame); `scene` uses the
+    /// scene's own cloud.
     #[arg(long)]
     pub points: Option<String>,
     /// Radius (metres) of the Gaussian a point is queried with.
@@ -122,17 +123,27 @@ fn write_point_relevancy(
 ) -> Result<PathBuf, OpsError> {
     let (r, m) = (&args.render, &ctx.run.meta);
     let pca = m.pca.as_ref();
-    let mut cloud = if spec == "scene" {
-        ctx.scene
+    let frame = r.frame.resolve(m)?;
+    // The scene's cloud is in the scene's frame; a user's is in --frame's.
+    let (mut cloud, in_scene) = if spec == "scene" {
+        let c = ctx
+            .scene
             .as_ref()
             .and_then(|s| s.points.clone())
-            .ok_or_else(|| OpsError::Invalid("the scene has no point cloud".into()))?
+            .ok_or_else(|| OpsError::Invalid("the scene has no point cloud".into()))?;
+        let p = c.positions.clone();
+        (c, p)
     } else {
-        read_ply(Path::new(spec))?
+        let c = read_ply(Path::new(spec))?;
+        let p = frame.scene_points(&c.positions);
+        (c, p)
     };
+    if spec == "scene" {
+        cloud.positions = frame.points(&cloud.positions);
+    }
     let f = sampled_features(
         &ctx.run.model,
-        &cloud.positions,
+        &in_scene,
         &m.scene_box,
         args.radius,
         r.chunk,

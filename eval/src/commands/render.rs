@@ -1,7 +1,7 @@
 //! `eval render`: colour, depth and feature images of a run from scene
 //! frames, camera files or a smooth camera path.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::common::{ComputeArgs, Context, evenly, select_cameras};
 use crate::checks::{at_least_one, invalid, max_views};
@@ -9,6 +9,7 @@ use crate::checks::{at_least_one, invalid, max_views};
 use crate::cameras::{NamedCamera, camera_path, resized};
 use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
+use field_ops::frame::{FrameArgs, OutputFrame};
 use field_ops::images::save_view_pngs;
 use field_ops::render::render_view;
 
@@ -45,6 +46,9 @@ pub struct RenderArgs {
     /// Compute backend and device.
     #[command(flatten)]
     pub compute: ComputeArgs,
+    /// Frame of the written camera poses (`cameras.json`) and point clouds.
+    #[command(flatten)]
+    pub frame: FrameArgs,
 }
 
 /// The cameras `render` (and `query`) render at: `--cameras` by name or
@@ -81,17 +85,19 @@ pub fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamer
     })
 }
 
-/// Runs `render`: colour, depth and feature-PCA PNGs per camera. Returns the written files.
+/// Runs `render`: colour, depth and feature-PCA PNGs per camera, and
+/// `cameras.json` with their poses. Returns the written files.
 pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
     check(args)?;
     let device = args.compute.device();
     let ctx = Context::load(&args.run, &device)?;
+    let frame = args.frame.resolve(&ctx.run.meta)?;
     let cams = render_cameras(args, &ctx)?;
     let out = args
         .out
         .clone()
         .unwrap_or_else(|| ctx.run.dir.renders().join("eval"));
-    let mut written = Vec::new();
+    let mut written = vec![write_cameras(&out, &cams, &frame, &args.frame.frame)?];
     let mut animation = Vec::new();
     let bar = field_ops::progress::progress(cams.len(), "rendering");
     for c in &cams {
@@ -136,6 +142,41 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
         written.push(path);
     }
     Ok(written)
+}
+
+/// One rendered camera as `cameras.json` lists it.
+#[derive(serde::Serialize)]
+struct WrittenCamera<'a> {
+    name: &'a str,
+    intrinsics: model::geometry::Intrinsics,
+    /// Row-major 4x4, OpenCV axes.
+    camera_to_world: [[f64; 4]; 4],
+}
+
+/// Writes `cameras.json` into `out`: the cameras rendered, their poses in
+/// `frame` (named `frame_name`), so that renders can be placed in the
+/// capture's own coordinates.
+pub fn write_cameras(
+    out: &Path,
+    cams: &[NamedCamera],
+    frame: &OutputFrame,
+    frame_name: &str,
+) -> Result<PathBuf, OpsError> {
+    std::fs::create_dir_all(out).map_err(|e| OpsError::io(out, e))?;
+    let list: Vec<WrittenCamera<'_>> = cams
+        .iter()
+        .map(|c| WrittenCamera {
+            name: &c.name,
+            intrinsics: c.camera.intrinsics,
+            camera_to_world: frame.camera(&c.camera).pose.to_matrix(),
+        })
+        .collect();
+    let path = out.join("cameras.json");
+    field_ops::json::write_json(
+        &path,
+        &serde_json::json!({ "frame": frame_name, "cameras": list }),
+    )?;
+    Ok(path)
 }
 
 /// Checks `render` (and the camera part of `query`).

@@ -19,6 +19,7 @@ use crate::segment::{
     segment_with_field_modes, write_prediction_plys,
 };
 use field_ops::OpsError;
+use field_ops::frame::{FrameArgs, OutputFrame};
 use field_ops::json::{read_json, write_json};
 use field_ops::project::ProjectOptions;
 use field_ops::scores::SegmentationScores;
@@ -87,20 +88,34 @@ pub struct SegmentArgs {
     /// directory (text_embeddings_cache.json).
     #[arg(long, value_name = "DIR", requires = "classes")]
     pub text_model: Option<PathBuf>,
+    /// Frame of the written point clouds (and of a --points file).
+    #[command(flatten)]
+    pub frame: FrameArgs,
 }
 
 /// Runs `segment`: predictions, scores (printed and written as JSON) and the
-/// prediction / error PLYs next to the JSON.
-pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, OpsError> {
+/// prediction / error PLYs next to the JSON. Points without ground truth
+/// (a capture's sparse cloud) are segmented only: their prediction PLY is
+/// written and `None` returned.
+pub fn segment_command(args: &SegmentArgs) -> Result<Option<SegmentationScores>, OpsError> {
     check(args)?;
     let device = args.compute.device();
     let mode: SegmentMode = args.mode.parse()?;
     let ctx = Context::load(&args.run, &device)?;
+    let frame = args.frame.resolve(&ctx.run.meta)?;
     let scene = ctx.scene.as_ref();
     let given = asked_classes(args, &ctx, &device)?;
     let asked = given.as_ref().map(|t| t.names.clone()).unwrap_or_default();
-    let points = load_points_with(&args.data, scene, given)?;
-    crate::text_query::note_unscored(&asked, &points.names);
+    let points = load_points_with(&args.data, scene, given, &frame)?;
+    if !points.labelled && args.compare {
+        return Err(invalid(
+            "--compare scores every mode against ground truth, and these points have no labels"
+                .into(),
+        ));
+    }
+    if points.labelled {
+        crate::text_query::note_unscored(&asked, &points.names);
+    }
     let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
     let views = scene_views_of(&cams, idx.as_deref(), scene, !args.rendered_depth);
     let views = evenly(&views, args.max_views);
@@ -146,6 +161,11 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, OpsErro
         .map(|(_, p, s)| (p.clone(), *s))
         .ok_or_else(|| OpsError::Invalid(format!("mode {mode} was not computed")))?;
     busy.finish_and_clear();
+    let dir = args.out.clone().unwrap_or_else(|| run.dir.dir.clone());
+    if !points.labelled {
+        write_unscored(&dir, mode, &points, &pred, seen, views.len(), &frame)?;
+        return Ok(None);
+    }
     let split = match &args.split {
         Some(p) => Some(read_json::<ClassSplit>(p)?),
         None => points.split(),
@@ -165,8 +185,7 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, OpsErro
     );
     print!("{}", format_table(&[(&mode.to_string(), &scores)]));
     print!("{}", format_per_class(&scores, split.as_ref()));
-    let dir = args.out.clone().unwrap_or_else(|| run.dir.dir.clone());
-    write_scores(&dir, mode, &scores, &points, &pred)?;
+    write_scores(&dir, mode, &scores, &points, &pred, &frame)?;
     if args.compare {
         let features = scene.and_then(|s| s.features.as_ref());
         let mut rows: Vec<SegmentationScores> = computed
@@ -188,7 +207,34 @@ pub fn segment_command(args: &SegmentArgs) -> Result<SegmentationScores, OpsErro
         write_json(&compare, &rows)?;
         println!("wrote {}", compare.display());
     }
-    Ok(scores)
+    Ok(Some(scores))
+}
+
+/// Points without ground truth: the class counts printed and the
+/// prediction PLY written, no scores.
+fn write_unscored(
+    dir: &Path,
+    mode: SegmentMode,
+    points: &EvalPoints,
+    pred: &[u32],
+    seen: usize,
+    views: usize,
+    frame: &OutputFrame,
+) -> Result<(), OpsError> {
+    println!(
+        "{} points, {} classes, {views} views; {seen} points seen by a view",
+        points.positions.len(),
+        points.names.len(),
+    );
+    println!("the points have no ground-truth labels: predicted classes only, no scores");
+    for (c, name) in points.names.iter().enumerate() {
+        let n = pred.iter().filter(|&&p| p == c as u32).count();
+        println!("  {name:<24} {n:>8} points");
+    }
+    for path in write_prediction_plys(dir, &format!("segmentation_{mode}"), points, pred, frame)? {
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }
 
 /// The class names of `--classes` embedded by `--text-model` (`None`
@@ -250,12 +296,13 @@ fn write_scores(
     scores: &SegmentationScores,
     points: &EvalPoints,
     pred: &[u32],
+    frame: &OutputFrame,
 ) -> Result<(), OpsError> {
     std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
     let out = dir.join("segmentation.json");
     write_json(&out, scores)?;
     let stem = format!("segmentation_{mode}");
-    write_prediction_plys(dir, &stem, points, pred)?;
+    write_prediction_plys(dir, &stem, points, pred, frame)?;
     for path in [
         out,
         dir.join(format!("{stem}_pred.ply")),

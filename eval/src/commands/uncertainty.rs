@@ -61,6 +61,9 @@ pub struct UncertaintyArgs {
     /// Compute backend (for the proposals' field checks and previews).
     #[arg(long, value_enum, default_value_t = field_ops::backend::BackendKind::Flex)]
     pub backend: field_ops::backend::BackendKind,
+    /// Frame of the written points.
+    #[command(flatten)]
+    pub frame: field_ops::frame::FrameArgs,
 }
 
 /// What `uncertainty.json` records.
@@ -137,6 +140,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
     let meta: datasets::SceneMeta = read_json(&dir.scene())?;
     let mut split: Split = read_json(&dir.split())?;
     let scene = field_ops::run_dir::load_run_scene(&dir, &meta, &mut split)?;
+    let frame = args.frame.resolve(&meta)?;
     let (points, labelled) = labelled_coarse_points(&scene, &split.train, args.voxel)?;
     let opts = UncertaintyOptions {
         k: args.k,
@@ -165,10 +169,11 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
     write_json(&json, &summary)?;
     written.push(json);
     let csv = out.join("uncertainty.csv");
-    write_csv(&csv, &points, &map, errors.as_deref())?;
+    let written_points = frame.points(&points);
+    write_csv(&csv, &written_points, &map, errors.as_deref())?;
     written.push(csv);
     let ply = out.join("uncertainty.ply");
-    write_uncertainty_ply(&ply, &points, &map)?;
+    write_uncertainty_ply(&ply, &written_points, &map)?;
     written.push(ply);
     if let Some(e) = &errors {
         let png = out.join("uncertainty_scatter.png");

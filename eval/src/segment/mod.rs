@@ -4,12 +4,13 @@
 //! embeddings, and the paper's metrics.
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use burn::tensor::Device;
 use datasets::features::{FeatureSet, PcaBasis};
 use datasets::points::{IGNORE_LABEL, PointCloud, write_ply};
+use datasets::text::TextEmbeddings;
 use datasets::{DepthImage, FeatureMap, Scene};
 use model::OpenNerf;
 use model::geometry::{Camera, SceneBox, Vec3};
@@ -18,6 +19,7 @@ use crate::metrics::{ClassSplit, ConfusionMatrix, NO_PREDICTION, score};
 use crate::similarity::ClassScorer;
 use field_ops::OpsError;
 use field_ops::colormap::class_color;
+use field_ops::frame::OutputFrame;
 use field_ops::project::ProjectOptions;
 use field_ops::scores::SegmentationScores;
 
@@ -112,9 +114,25 @@ pub struct EvalPoints {
     pub embeddings: Vec<f32>,
     /// Embedding dimension D.
     pub dim: usize,
+    /// Whether the points carry ground-truth labels (a capture's sparse
+    /// cloud does not: it is segmented, not scored).
+    pub labelled: bool,
 }
 
 impl EvalPoints {
+    /// Points without ground truth, to be segmented into the classes of
+    /// `texts` (every label [`IGNORE_LABEL`]).
+    pub fn unlabelled(positions: Vec<Vec3>, texts: &TextEmbeddings) -> Self {
+        Self {
+            labels: vec![IGNORE_LABEL; positions.len()],
+            positions,
+            names: texts.names.clone(),
+            embeddings: texts.data.clone(),
+            dim: texts.dim,
+            labelled: false,
+        }
+    }
+
     /// The labelled point cloud and class embeddings a scene carries (the
     /// synthetic scene's defaults). Negative labels become [`IGNORE_LABEL`].
     pub fn from_scene(scene: &Scene) -> Result<Self, OpsError> {
@@ -144,6 +162,7 @@ impl EvalPoints {
             names: classes.names.clone(),
             embeddings: classes.data.clone(),
             dim: classes.dim,
+            labelled: true,
         })
     }
 
@@ -330,14 +349,17 @@ pub fn evaluate(mode: &str, points: &EvalPoints, pred: &[u32]) -> SegmentationSc
 }
 
 /// Writes `{stem}_pred.ply` (points coloured by predicted class, with the
-/// predicted class as label) and `{stem}_error.ply` (green correct, red
-/// wrong, grey not evaluated or unpredicted) into `dir`.
+/// predicted class as label) and, for labelled points, `{stem}_error.ply`
+/// (green correct, red wrong, grey not evaluated or unpredicted) into
+/// `dir`, positions in `frame`. Returns the files written.
 pub fn write_prediction_plys(
     dir: &Path,
     stem: &str,
     points: &EvalPoints,
     pred: &[u32],
-) -> Result<(), OpsError> {
+    frame: &OutputFrame,
+) -> Result<Vec<PathBuf>, OpsError> {
+    let positions = frame.points(&points.positions);
     std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
     let colors = pred
         .iter()
@@ -350,7 +372,7 @@ pub fn write_prediction_plys(
         })
         .collect();
     let cloud = PointCloud {
-        positions: points.positions.clone(),
+        positions: positions.clone(),
         colors: Some(colors),
         labels: Some(
             pred.iter()
@@ -358,9 +380,13 @@ pub fn write_prediction_plys(
                 .collect(),
         ),
     };
-    write_ply(&dir.join(format!("{stem}_pred.ply")), &cloud, &[])?;
+    let pred_ply = dir.join(format!("{stem}_pred.ply"));
+    write_ply(&pred_ply, &cloud, &[])?;
+    if !points.labelled {
+        return Ok(vec![pred_ply]);
+    }
     let err = PointCloud {
-        positions: points.positions.clone(),
+        positions,
         colors: Some(
             points
                 .labels
@@ -383,8 +409,9 @@ pub fn write_prediction_plys(
                 .collect(),
         ),
     };
-    write_ply(&dir.join(format!("{stem}_error.ply")), &err, &[])?;
-    Ok(())
+    let err_ply = dir.join(format!("{stem}_error.ply"));
+    write_ply(&err_ply, &err, &[])?;
+    Ok(vec![pred_ply, err_ply])
 }
 
 /// Views of `scene`'s frames `indices` with their sensor depth (when

@@ -47,6 +47,9 @@ pub fn train_new(
     std::fs::create_dir_all(&run.dir).map_err(|e| TrainError::io(&run.dir, e))?;
     write_json(&run.config(), &config)?;
     write_json(&run.scene(), &crate::data::meta(scene))?;
+    if let Some(w) = &scene.world {
+        print_world_frame(w, &run.scene());
+    }
     write_json(&run.split(), &split)?;
     let _ = std::fs::remove_file(run.metrics());
     let device = training_device(session.backend, session.device_index);
@@ -77,6 +80,26 @@ pub fn train_new(
         device: &device,
         session,
     })
+}
+
+/// Tells the user how the scene was moved out of the capture's own frame
+/// and where that transform is kept.
+fn print_world_frame(w: &datasets::WorldFrame, scene_json: &Path) {
+    let m = w.to_scene.to_matrix();
+    let row = |r: &[f64; 4]| format!("[{:>9.5} {:>9.5} {:>9.5} {:>9.5}]", r[0], r[1], r[2], r[3]);
+    eprintln!(
+        "scene frame = {} frame mapped by scale {:.6} (p_scene = s R p_{} + t):\n  {}\n  {}\n  {}\n\
+         (stored in {} under \"world\"; eval writes outputs in the {} frame with --frame {})",
+        w.name,
+        w.to_scene.scale,
+        w.name,
+        row(&m[0]),
+        row(&m[1]),
+        row(&m[2]),
+        scene_json.display(),
+        w.name,
+        w.name
+    );
 }
 
 /// Continues the run in `dir` from its newest checkpoint. `iterations`

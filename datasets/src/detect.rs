@@ -1,0 +1,199 @@
+//! Which format a scene directory is in, from the files it holds: what
+//! `--dataset auto` runs.
+
+use std::fmt;
+use std::path::Path;
+
+use crate::error::DatasetError;
+
+/// A scene format on disk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Nice-SLAM Replica.
+    Replica,
+    /// Blender / nerfstudio `transforms.json`.
+    Blender,
+    /// LLFF `poses_bounds.npy`.
+    Llff,
+    /// A COLMAP reconstruction.
+    Colmap,
+    /// A ScanNet scene export.
+    Scannet,
+}
+
+impl Format {
+    /// Every format, in the order their requirements are listed.
+    pub const ALL: [Format; 5] = [
+        Format::Colmap,
+        Format::Blender,
+        Format::Scannet,
+        Format::Replica,
+        Format::Llff,
+    ];
+
+    /// The name used on the command line and in `scene.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Replica => "replica",
+            Self::Blender => "blender",
+            Self::Llff => "llff",
+            Self::Colmap => "colmap",
+            Self::Scannet => "scannet",
+        }
+    }
+
+    /// What a directory of this format holds, for messages.
+    pub fn needs(self) -> &'static str {
+        match self {
+            Self::Replica => "traj.txt and results/ (frameNNNNNN.jpg, depthNNNNNN.png)",
+            Self::Blender => "transforms.json or transforms_train.json",
+            Self::Llff => "poses_bounds.npy and images*/",
+            Self::Colmap => {
+                "sparse/0/ or sparse/ with cameras, images and points3D (.bin or .txt), and images/"
+            }
+            Self::Scannet => "color/, depth/, pose/ and intrinsic/intrinsic_color.txt",
+        }
+    }
+
+    /// The files of `dir` that show it is in this format, or `None`.
+    fn evidence(self, dir: &Path) -> Option<String> {
+        let is_file = |p: &str| dir.join(p).is_file();
+        let is_dir = |p: &str| dir.join(p).is_dir();
+        match self {
+            Self::Replica => (is_file("traj.txt") && is_dir("results"))
+                .then(|| "traj.txt and results/".to_string()),
+            Self::Blender => ["transforms.json", "transforms_train.json"]
+                .into_iter()
+                .find(|f| is_file(f))
+                .map(str::to_string),
+            Self::Llff => is_file("poses_bounds.npy").then(|| "poses_bounds.npy".to_string()),
+            Self::Colmap => ["sparse/0", "sparse"].into_iter().find_map(|s| {
+                ["cameras.bin", "cameras.txt"]
+                    .into_iter()
+                    .find(|c| is_file(&format!("{s}/{c}")))
+                    .map(|c| format!("{s}/{c}"))
+            }),
+            Self::Scannet => {
+                (is_dir("color") && is_dir("pose") && is_file("intrinsic/intrinsic_color.txt"))
+                    .then(|| "color/, pose/ and intrinsic/intrinsic_color.txt".to_string())
+            }
+        }
+    }
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The format `dir` was found to be in, and the files that decided it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Detected {
+    /// The format.
+    pub format: Format,
+    /// The files that show it (e.g. `sparse/0/cameras.bin`).
+    pub evidence: String,
+}
+
+/// Detects the format of the scene directory `dir`: exactly one format's
+/// files must be there. An unknown or empty directory, or one that holds
+/// the files of several formats, is an error listing what each format needs.
+pub fn detect(dir: &Path) -> Result<Detected, DatasetError> {
+    if !dir.is_dir() {
+        return Err(DatasetError::invalid(
+            dir,
+            "not a directory (--data takes the scene directory)",
+        ));
+    }
+    let found: Vec<Detected> = Format::ALL
+        .into_iter()
+        .filter_map(|format| {
+            format
+                .evidence(dir)
+                .map(|evidence| Detected { format, evidence })
+        })
+        .collect();
+    match found.as_slice() {
+        [one] => Ok(one.clone()),
+        [] => Err(DatasetError::invalid(
+            dir,
+            format!(
+                "no scene format recognised; a scene directory holds one of:\n{}",
+                requirements()
+            ),
+        )),
+        many => Err(DatasetError::invalid(
+            dir,
+            format!(
+                "holds the files of several formats ({}); choose one with --dataset {}",
+                many.iter()
+                    .map(|d| format!("{}: {}", d.format, d.evidence))
+                    .collect::<Vec<_>>()
+                    .join("; "),
+                many.iter()
+                    .map(|d| d.format.name())
+                    .collect::<Vec<_>>()
+                    .join("|"),
+            ),
+        )),
+    }
+}
+
+/// One line per format: its name and what its directory holds.
+fn requirements() -> String {
+    Format::ALL
+        .iter()
+        .map(|f| format!("  {:<8} {}", f.name(), f.needs()))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(dir: &Path, rel: &str) {
+        let p = dir.join(rel);
+        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
+        std::fs::write(p, b"").expect("write");
+    }
+
+    #[test]
+    fn each_layout_is_recognised_and_mixtures_are_refused() {
+        let cases: [(&[&str], Format); 6] = [
+            (&["traj.txt", "results/frame000000.jpg"], Format::Replica),
+            (&["transforms.json"], Format::Blender),
+            (&["poses_bounds.npy", "images_8/a.png"], Format::Llff),
+            (&["sparse/0/cameras.bin", "images/a.jpg"], Format::Colmap),
+            (&["sparse/cameras.txt", "images/a.jpg"], Format::Colmap),
+            (
+                &["color/0.jpg", "pose/0.txt", "intrinsic/intrinsic_color.txt"],
+                Format::Scannet,
+            ),
+        ];
+        for (files, want) in cases {
+            let dir = tempfile::tempdir().expect("temp dir");
+            files.iter().for_each(|f| touch(dir.path(), f));
+            assert_eq!(
+                detect(dir.path()).expect("detected").format,
+                want,
+                "{files:?}"
+            );
+        }
+        let dir = tempfile::tempdir().expect("temp dir");
+        let e = detect(dir.path()).expect_err("empty").to_string();
+        assert!(
+            e.contains("no scene format") && e.contains("poses_bounds.npy"),
+            "{e}"
+        );
+        touch(dir.path(), "transforms.json");
+        touch(dir.path(), "sparse/0/cameras.bin");
+        let e = detect(dir.path()).expect_err("two formats").to_string();
+        assert!(e.contains("--dataset colmap|blender"), "{e}");
+        let e = detect(&dir.path().join("transforms.json"))
+            .expect_err("a file")
+            .to_string();
+        assert!(e.contains("not a directory"), "{e}");
+    }
+}
