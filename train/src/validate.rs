@@ -411,8 +411,9 @@ mod tests {
             &["--time-budget", "NaN"],
             &["--time-budget", "-3"],
             &["--holdout-every", "0"],
-            &["--data", "/x"],
+            &["--data", "/x", "--dataset", "synthetic"],
             &["--features", "/x"],
+            &["--colmap-depth"],
             &["--device", "0"],
         ] {
             let err = parse(bad).unwrap_err().to_string();
