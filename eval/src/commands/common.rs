@@ -138,7 +138,9 @@ pub fn load_points_with(
         (Some(l), _) => read_labels_txt(l, cloud.positions.len())?,
         (None, Some(raw)) => raw.clone(),
         (None, None) => {
-            let texts = texts.ok_or_else(|| no_classes(&ply.display().to_string()))?;
+            let texts = texts
+                .or_else(|| scene.and_then(|s| s.classes.clone()))
+                .ok_or_else(|| no_classes(&ply.display().to_string()))?;
             return Ok(EvalPoints::unlabelled(positions, &texts));
         }
     };
