@@ -120,6 +120,8 @@ fn unlabelled_points_are_segmented_in_the_capture_frame() {
             "2",
             "--render-scale",
             "0.5",
+            "--mode",
+            "project",
         ])
     };
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
@@ -129,15 +131,16 @@ fn unlabelled_points_are_segmented_in_the_capture_frame() {
     // No scores and no error cloud without ground truth.
     for dir in [&a, &b] {
         assert!(!dir.join("segmentation.json").exists());
-        assert!(!dir.join("segmentation_hybrid_error.ply").exists());
+        assert!(!dir.join("segmentation_project_error.ply").exists());
     }
-    let pa = read_ply(&a.join("segmentation_hybrid_pred.ply")).expect("pred a");
-    let pb = read_ply(&b.join("segmentation_hybrid_pred.ply")).expect("pred b");
+    let pa = read_ply(&a.join("segmentation_project_pred.ply")).expect("pred a");
+    let pb = read_ply(&b.join("segmentation_project_pred.ply")).expect("pred b");
     // The same points, given in either frame, get the same classes, and each
     // output is written in the frame its input was given in.
     assert_eq!(pa.labels, pb.labels);
-    // ... and that says something: the field tells the points apart, so
-    // points read in the wrong frame would be classed differently.
+    // ... and that says something: which points the views see (the others
+    // get no class, -1) depends on where they are, so points read in the
+    // wrong frame are classed differently.
     let labels = pa.labels.as_ref().expect("labels");
     let distinct: std::collections::BTreeSet<i64> = labels.iter().copied().collect();
     assert!(
@@ -145,7 +148,7 @@ fn unlabelled_points_are_segmented_in_the_capture_frame() {
         "one class for every point: {distinct:?}"
     );
     ok(&segment(&ply_colmap, "scene", &tmp.path().join("wrong")));
-    let wrong = read_ply(&tmp.path().join("wrong/segmentation_hybrid_pred.ply")).expect("wrong");
+    let wrong = read_ply(&tmp.path().join("wrong/segmentation_project_pred.ply")).expect("wrong");
     assert_ne!(wrong.labels, pa.labels, "the frame changes nothing");
     for i in 0..in_scene.len() {
         assert!(
@@ -189,8 +192,10 @@ fn unlabelled_points_are_segmented_in_the_capture_frame() {
         "2",
         "--render-scale",
         "0.5",
+        "--mode",
+        "project",
     ]));
-    let pc = read_ply(&c.join("segmentation_hybrid_pred.ply")).expect("pred c");
+    let pc = read_ply(&c.join("segmentation_project_pred.ply")).expect("pred c");
     assert_eq!(pc.labels, pb.labels);
 }
 
