@@ -351,6 +351,26 @@ fn plan(source: &FeatureSource, image_sizes: &[(u32, u32)]) -> Result<Vec<MapSlo
     Ok(slots)
 }
 
+/// The feature maps at `path` (a stacked `.npy` or a directory of per-frame
+/// `.npy`, see [`FeatureSource::discover`]) for `frames`, compressed with
+/// `basis` when given (a run's stored basis), else as `pca` asks (fitted
+/// on a sample drawn with `seed`).
+pub fn load_frame_features(
+    path: &Path,
+    frames: &[crate::Frame],
+    pca: PcaSetting,
+    basis: Option<&PcaBasis>,
+    seed: u64,
+) -> Result<FeatureSet, DatasetError> {
+    let names: Vec<String> = frames.iter().map(|f| f.name.clone()).collect();
+    let source = FeatureSource::discover(path, &names)?;
+    let sizes: Vec<(u32, u32)> = frames.iter().map(|f| (f.rgb.width, f.rgb.height)).collect();
+    match basis {
+        Some(basis) => load_features_with_basis(&source, &sizes, basis),
+        None => load_features(&source, &sizes, pca, seed),
+    }
+}
+
 /// Loads the maps of `source` for frames of `image_sizes` (`(width, height)`),
 /// one map at a time. Unless `pca` is off, a first pass samples pixels to
 /// fit the basis and a second pass compresses each map as it is read.

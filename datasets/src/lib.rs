@@ -67,7 +67,13 @@ pub fn load_scene_with_basis(
             ),
             LoaderOptions::Blender(o) => blender::load_blender(path, o),
             LoaderOptions::Llff(o) => llff::load_llff(path, o),
-            LoaderOptions::Colmap(o) => colmap::load_colmap(path, o),
+            LoaderOptions::Colmap(o) => colmap::load_colmap(
+                path,
+                &colmap::ColmapOptions {
+                    basis: basis.cloned(),
+                    ..o.clone()
+                },
+            ),
             LoaderOptions::Scannet(o) => scannet::load_scannet(path, o),
         },
     }

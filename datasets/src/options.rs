@@ -164,6 +164,18 @@ pub struct ColmapOptions {
     pub max_frames: Option<usize>,
     /// Scene-box margin, as a fraction of the largest extent.
     pub box_margin: f64,
+    /// Feature maps: a stacked `.npy` or a directory of `<image stem>.npy`
+    /// (indexed over the images kept).
+    pub features: Option<PathBuf>,
+    /// Compression of the feature maps.
+    #[serde(deserialize_with = "null_as_default")]
+    pub pca: PcaSetting,
+    /// A basis to compress with instead of fitting one (a run's stored
+    /// basis when its scene is rebuilt); not part of the saved options.
+    #[serde(skip)]
+    pub basis: Option<PcaBasis>,
+    /// Seed of the PCA pixel sample.
+    pub seed: u64,
 }
 
 impl Default for ColmapOptions {
@@ -174,6 +186,10 @@ impl Default for ColmapOptions {
             stride: 1,
             max_frames: None,
             box_margin: 0.05,
+            features: None,
+            pca: PcaSetting::Off,
+            basis: None,
+            seed: 0,
         }
     }
 }

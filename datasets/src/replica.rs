@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use model::geometry::{Camera, Intrinsics, Pose};
 
 use crate::error::DatasetError;
-use crate::features::{FeatureSource, load_features, load_features_with_basis};
+use crate::features::load_frame_features;
 use crate::options::LoaderOptions;
 pub use crate::options::ReplicaOptions;
 use crate::poses::{backproject, box_of, checked_pose};
@@ -193,19 +193,19 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         });
     }
     let scene_box = box_of(dir, box_points, options.box_margin)?;
-    let features = match &options.features {
-        Some(path) => {
-            let names: Vec<String> = frames.iter().map(|f| f.name.clone()).collect();
-            let source = FeatureSource::discover(path, &names)?;
-            let sizes: Vec<(u32, u32)> =
-                frames.iter().map(|f| (f.rgb.width, f.rgb.height)).collect();
-            Some(match &options.basis {
-                Some(basis) => load_features_with_basis(&source, &sizes, basis)?,
-                None => load_features(&source, &sizes, options.pca, options.seed)?,
-            })
-        }
-        None => None,
-    };
+    let features = options
+        .features
+        .as_ref()
+        .map(|path| {
+            load_frame_features(
+                path,
+                &frames,
+                options.pca,
+                options.basis.as_ref(),
+                options.seed,
+            )
+        })
+        .transpose()?;
     Ok(Scene {
         name: dir
             .file_name()

@@ -120,7 +120,9 @@ pub struct Cli {
     /// Synthetic scene: size preset.
     #[arg(long, value_enum, default_value_t = SceneSizeArg::Ci)]
     pub scene_size: SceneSizeArg,
-    /// Feature maps (`.npy` directory or stacked file) for a scene on disk [default: none].
+    /// Feature maps (`.npy` directory or stacked file) for a Replica or COLMAP
+    /// scene: one `H x W x D` map per frame kept, named after the frame
+    /// (Replica `frameNNNNNN.npy`, COLMAP the image stem) [default: none].
     #[arg(long)]
     pub features: Option<PathBuf>,
     /// Compression of the feature maps: `auto` keeps the principal

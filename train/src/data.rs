@@ -74,8 +74,8 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
     if format != Format::Colmap && cli.colmap_depth {
         return unsupported("colmap-depth");
     }
-    // Only Replica reads feature maps from disk.
-    if format != Format::Replica
+    // Replica and COLMAP read feature maps from disk.
+    if !matches!(format, Format::Replica | Format::Colmap)
         && let Some(flag) = first_given(&[
             ("features", cli.features.is_some()),
             ("pca (the scene has no feature maps)", cli.pca.is_some()),
@@ -136,8 +136,18 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             if cli.resolution.is_some() {
                 return unsupported("resolution (use --downscale N for images_N/)");
             }
+            if cli.features.is_none() && cli.pca.is_some() {
+                return Err(TrainError::Config(
+                    "--pca needs --features (there are no feature maps to compress)".into(),
+                ));
+            }
             let defaults = ColmapOptions::default();
             LoaderOptions::Colmap(ColmapOptions {
+                features: cli.features.clone(),
+                pca: match &cli.features {
+                    Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
+                    None => defaults.pca,
+                },
                 // COLMAP workspaces keep downscaled copies in `images_N`.
                 images: match cli.downscale {
                     Some(d) if d > 1 => format!("images_{d}"),
