@@ -128,8 +128,8 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// This camera as [`Intrinsics`] (pixel-centre convention: `cx = cx_colmap
-    /// - 0.5`), or why it cannot be: a model other than the
+    /// This camera as [`Intrinsics`] (pixel-centre convention:
+    /// `cx = cx_colmap - 0.5`), or why it cannot be: a model other than the
     /// [supported ones](SUPPORTED_MODELS), a bad size or a bad parameter.
     pub fn intrinsics(&self) -> Result<Intrinsics, String> {
         let name = self.model.name();

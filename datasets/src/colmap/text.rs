@@ -135,7 +135,7 @@ fn image_line(path: &Path, n: usize, line: &str) -> Result<Image, DatasetError> 
 /// An image's 2D points line.
 fn points2d_line(path: &Path, n: usize, line: &str) -> Result<Vec<Point2D>, DatasetError> {
     let toks: Vec<&str> = line.split_whitespace().collect();
-    if toks.len() % 3 != 0 {
+    if !toks.len().is_multiple_of(3) {
         return Err(at(
             path,
             n,
@@ -196,7 +196,7 @@ pub fn read_points(path: &Path) -> Result<Vec<Point3D>, DatasetError> {
         ];
         let error = parse(path, n, "error", tok(7))?;
         let rest = toks.get(8..).unwrap_or_default();
-        if rest.len() % 2 != 0 {
+        if !rest.len().is_multiple_of(2) {
             return Err(at(
                 path,
                 n,
