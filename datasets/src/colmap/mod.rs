@@ -29,6 +29,7 @@
 //! a frame's name is its image file's stem.
 
 pub mod binary;
+pub mod camera;
 pub mod depth;
 pub mod frame;
 pub mod model;
