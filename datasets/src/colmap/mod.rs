@@ -46,6 +46,7 @@ use crate::error::DatasetError;
 use crate::imageio;
 pub use crate::options::ColmapOptions;
 use crate::options::LoaderOptions;
+use crate::features::load_frame_features;
 use crate::points::PointCloud;
 use crate::scene::{Frame, Scene, SceneSource, WorldFrame};
 
@@ -240,12 +241,25 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         frame::scene_box(&mapped, &mapped_poses, options.box_margin).ok_or_else(|| {
             DatasetError::invalid(model.file("points3D"), "no point to bound the scene")
         })?;
+    let features = options
+        .features
+        .as_ref()
+        .map(|path| {
+            load_frame_features(
+                path,
+                &frames,
+                options.pca,
+                options.basis.as_ref(),
+                options.seed,
+            )
+        })
+        .transpose()?;
     Ok(Scene {
         name: dir
             .file_name()
             .map_or("colmap".into(), |n| n.to_string_lossy().into_owned()),
         frames,
-        features: None,
+        features,
         scene_box,
         background: None,
         points: Some(PointCloud {
@@ -255,7 +269,10 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         }),
         classes: None,
         source: SceneSource::Disk {
-            loader: LoaderOptions::Colmap(options.clone()),
+            loader: LoaderOptions::Colmap(ColmapOptions {
+                basis: None,
+                ..options.clone()
+            }),
             path: dir.to_path_buf(),
         },
         world: Some(WorldFrame {
