@@ -1,6 +1,6 @@
 //! The scene frame of a COLMAP reconstruction, whose own world frame is
 //! arbitrary (any orientation, origin and scale): up is +z, the centre is
-//! the centre of the sparse points' robust box, and that box's largest
+//! the centre of the region the capture sees, and that region's largest
 //! side is [`SCENE_SIZE`] units.
 //!
 //! * Up: the normalised mean of the cameras' up vectors (`-y` of each
@@ -8,12 +8,18 @@
 //! * Robust box: per axis (after that rotation) the 2nd and 98th
 //!   percentiles of the sparse points, or of the camera centres when there
 //!   are fewer than [`MIN_POINTS`] points.
-//! * Scale: `SCENE_SIZE / largest side` of the robust box (the sampler's
+//! * Seen region: the robust box grown to hold what every camera sees at
+//!   the depth of its own points (its image corners at the median depth of
+//!   the sparse points in front of it). Sparse points lie on textured
+//!   surfaces only; an object photographed from a few metres fills the
+//!   frame with a desk or a floor that has few of them, and a field
+//!   bounded by the points alone would render that as empty.
+//! * Scale: `SCENE_SIZE / largest side` of the seen region (the sampler's
 //!   near plane and query radii are tuned for scenes of a few units).
 
-use model::geometry::{Pose, SceneBox, Similarity, Vec3, cross, dot, norm};
+use model::geometry::{Camera, Pose, SceneBox, Similarity, Vec3, cross, dot, norm};
 
-/// Largest side of the robust box in the scene frame.
+/// Largest side of the seen region in the scene frame.
 pub const SCENE_SIZE: f64 = 3.0;
 
 /// Fewer sparse points than this: the robust box is the camera centres'.
@@ -93,26 +99,76 @@ pub fn box_basis(points: &[Vec3], poses: &[Pose]) -> Vec<Vec3> {
     }
 }
 
-/// The map from COLMAP's world frame to the scene frame (see the module
-/// documentation), or why there is none (the points and cameras span no
-/// extent).
-pub fn to_scene(poses: &[Pose], points: &[Vec3]) -> Result<Similarity, String> {
-    let rotation = mean_up(poses).map_or(Similarity::IDENTITY.rotation, rotation_onto_z);
+/// Each camera's image corners at the median depth of the `points` in
+/// front of it and inside its image (none for a camera that sees none).
+pub fn seen_corners(cameras: &[Camera], points: &[Vec3]) -> Vec<Vec3> {
+    let mut corners = Vec::new();
+    for cam in cameras {
+        let k = &cam.intrinsics;
+        let (w, h) = (k.width as f64, k.height as f64);
+        let mut depths: Vec<f64> = points
+            .iter()
+            .filter_map(|&p| cam.project(p))
+            .filter(|q| q.u >= -0.5 && q.u <= w - 0.5 && q.v >= -0.5 && q.v <= h - 0.5)
+            .map(|q| q.z)
+            .collect();
+        if depths.is_empty() {
+            continue;
+        }
+        depths.sort_by(f64::total_cmp);
+        let d = percentile(&depths, 0.5);
+        for (u, v) in [
+            (-0.5, -0.5),
+            (w - 0.5, -0.5),
+            (-0.5, h - 0.5),
+            (w - 0.5, h - 0.5),
+        ] {
+            let ray = cam.ray(u, v);
+            corners.push(std::array::from_fn(|i| {
+                ray.origin[i] + d * ray.direction[i]
+            }));
+        }
+    }
+    corners
+}
+
+/// The region the scene frame is fitted to: the robust box of
+/// [`box_basis`] grown to hold the robust box of [`seen_corners`].
+pub fn seen_region(cameras: &[Camera], points: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    let poses: Vec<Pose> = cameras.iter().map(|c| c.pose).collect();
+    let (mut lo, mut hi) = robust_box(&box_basis(points, &poses))?;
+    if let Some((clo, chi)) = robust_box(&seen_corners(cameras, points)) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(clo[k]);
+            hi[k] = hi[k].max(chi[k]);
+        }
+    }
+    Some((lo, hi))
+}
+
+/// The map from COLMAP's frame to the scene frame (see the module docs).
+pub fn to_scene(cameras: &[Camera], points: &[Vec3]) -> Result<Similarity, String> {
+    let poses: Vec<Pose> = cameras.iter().map(|c| c.pose).collect();
+    let rotation = mean_up(&poses).map_or(Similarity::IDENTITY.rotation, rotation_onto_z);
     let rotate = Similarity {
         rotation,
         ..Similarity::IDENTITY
     };
-    let basis: Vec<Vec3> = box_basis(points, poses)
-        .into_iter()
-        .map(|p| rotate.apply_point(p))
+    let rotated: Vec<Camera> = cameras
+        .iter()
+        .map(|c| Camera {
+            intrinsics: c.intrinsics,
+            pose: rotate.apply_pose(&c.pose),
+        })
         .collect();
-    let (lo, hi) =
-        robust_box(&basis).ok_or("no sparse point and no camera to centre the scene on")?;
+    let points: Vec<Vec3> = points.iter().map(|&p| rotate.apply_point(p)).collect();
+    let (lo, hi) = seen_region(&rotated, &points)
+        .ok_or("no sparse point and no camera to centre the scene on")?;
     let side = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
     if !(side > 0.0 && side.is_finite()) {
         return Err(format!(
             "cannot scale the scene: the robust box of its {} points has no extent",
-            basis.len()
+            points.len()
         ));
     }
     let scale = SCENE_SIZE / side;
@@ -123,11 +179,10 @@ pub fn to_scene(poses: &[Pose], points: &[Vec3]) -> Result<Similarity, String> {
     })
 }
 
-/// The scene box: the robust box of the (already mapped) `points`, or of
-/// the camera centres when there are too few points, grown by `margin` of
-/// its largest extent.
-pub fn scene_box(points: &[Vec3], poses: &[Pose], margin: f64) -> Option<SceneBox> {
-    let (lo, hi) = robust_box(&box_basis(points, poses))?;
+/// The scene box of `points` and `cameras` already in the scene frame:
+/// the seen region plus `margin` of its largest extent.
+pub fn scene_box(points: &[Vec3], cameras: &[Camera], margin: f64) -> Option<SceneBox> {
+    let (lo, hi) = seen_region(cameras, points)?;
     SceneBox::from_points([lo, hi], margin)
 }
 
@@ -186,8 +241,10 @@ mod tests {
             })
             .collect();
         pts.push([1e6, 0.0, 0.0]);
-        let poses = [Pose::identity()]; // up = -y
-        let s = to_scene(&poses, &pts).expect("extent");
+        // A camera far behind the block with a narrow view: what it sees at
+        // its points' depth lies inside their robust box. Up is -y.
+        let cams = [camera([5.0, 5.0, -100.0], 1e5)];
+        let s = to_scene(&cams, &pts).expect("extent");
         let mapped: Vec<Vec3> = pts.iter().map(|&p| s.apply_point(p)).collect();
         let (lo, hi) = robust_box(&mapped).expect("points");
         let side = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
@@ -195,8 +252,62 @@ mod tests {
         assert!((0..3).all(|k| (lo[k] + hi[k]).abs() < 1e-9));
         let up = s.apply_vector([0.0, -1.0, 0.0]);
         assert!((up[2] / s.scale - 1.0).abs() < 1e-12);
-        let b = scene_box(&mapped, &poses, 0.05).expect("box");
+        let mapped_cams: Vec<Camera> = cams
+            .iter()
+            .map(|c| Camera {
+                intrinsics: c.intrinsics,
+                pose: s.apply_pose(&c.pose),
+            })
+            .collect();
+        let b = scene_box(&mapped, &mapped_cams, 0.05).expect("box");
         assert!(!b.contains(mapped[1000]));
-        assert!(to_scene(&poses, &[]).is_err(), "one camera, no points");
+        assert!(to_scene(&cams, &[]).is_err(), "one camera, no points");
+    }
+
+    /// A camera `(x, y, z)` looking along +z (up -y), 100x100 pixels.
+    fn camera(at: Vec3, focal: f64) -> Camera {
+        Camera {
+            intrinsics: model::geometry::Intrinsics {
+                width: 100,
+                height: 100,
+                fx: focal,
+                fy: focal,
+                cx: 49.5,
+                cy: 49.5,
+                distortion: model::geometry::Distortion::NONE,
+            },
+            pose: Pose {
+                translation: at,
+                ..Pose::identity()
+            },
+        }
+    }
+
+    /// Few points, wide view: the region grows to the image's footprint at
+    /// the points' depth (a desk around a small object).
+    #[test]
+    fn the_region_holds_what_the_cameras_see_at_the_points_depth() {
+        let pts: Vec<Vec3> = (0..50)
+            .map(|i| {
+                let t = i as f64 / 50.0;
+                [0.2 * (t - 0.5), 0.1 * (7.0 * t).sin(), 4.0 + 0.1 * t]
+            })
+            .collect();
+        // Focal 50 px over 100 px: the image spans +-1 at depth 1.
+        let cams = [camera([0.0; 3], 50.0)];
+        let (lo, hi) = seen_region(&cams, &pts).expect("region");
+        let depth = {
+            let mut d: Vec<f64> = pts.iter().map(|p| p[2]).collect();
+            d.sort_by(f64::total_cmp);
+            percentile(&d, 0.5)
+        };
+        for k in 0..2 {
+            assert!(
+                (hi[k] - depth).abs() < 1e-9 && (lo[k] + depth).abs() < 1e-9,
+                "{lo:?} {hi:?}"
+            );
+        }
+        let (plo, phi) = robust_box(&pts).expect("points");
+        assert!(lo[2] <= plo[2] && hi[2] >= phi[2]);
     }
 }

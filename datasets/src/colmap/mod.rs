@@ -43,10 +43,10 @@ pub use self::model::{
     Camera as ColmapCamera, CameraModel, Image, Model, ModelFormat, Point2D, Point3D,
 };
 use crate::error::DatasetError;
+use crate::features::load_frame_features;
 use crate::imageio;
 pub use crate::options::ColmapOptions;
 use crate::options::LoaderOptions;
-use crate::features::load_frame_features;
 use crate::points::PointCloud;
 use crate::scene::{Frame, Scene, SceneSource, WorldFrame};
 
@@ -225,8 +225,14 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
     }
     let mut views = views(&model)?;
     let positions: Vec<Vec3> = model.points.iter().map(|p| p.xyz).collect();
-    let poses: Vec<Pose> = views.iter().map(|v| v.pose).collect();
-    let to_scene = frame::to_scene(&poses, &positions)
+    let cameras: Vec<Camera> = views
+        .iter()
+        .map(|v| Camera {
+            intrinsics: v.intrinsics,
+            pose: v.pose,
+        })
+        .collect();
+    let to_scene = frame::to_scene(&cameras, &positions)
         .map_err(|m| DatasetError::invalid(model.file("points3D"), m))?;
     views.sort_by(|a, b| a.image.name.cmp(&b.image.name));
     let frames = views
@@ -236,9 +242,15 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         .map(|v| load_frame(dir, &model, v, options, &to_scene))
         .collect::<Result<Vec<_>, _>>()?;
     let mapped: Vec<Vec3> = positions.iter().map(|&p| to_scene.apply_point(p)).collect();
-    let mapped_poses: Vec<Pose> = poses.iter().map(|p| to_scene.apply_pose(p)).collect();
+    let mapped_cameras: Vec<Camera> = cameras
+        .iter()
+        .map(|c| Camera {
+            intrinsics: c.intrinsics,
+            pose: to_scene.apply_pose(&c.pose),
+        })
+        .collect();
     let scene_box =
-        frame::scene_box(&mapped, &mapped_poses, options.box_margin).ok_or_else(|| {
+        frame::scene_box(&mapped, &mapped_cameras, options.box_margin).ok_or_else(|| {
             DatasetError::invalid(model.file("points3D"), "no point to bound the scene")
         })?;
     let features = options

@@ -1,0 +1,220 @@
+//! Real captures through the `train` binary: a small COLMAP text model
+//! trains, and each kind of broken capture stops with an error naming the
+//! file and the problem, before the run directory is created.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A small model, so that a real run of a few iterations takes seconds.
+const TINY: &str = r#"{
+  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
+            "num_samples": 4, "head": {"width": 8, "layers": 1}},
+  "sampler": {"rays_per_batch": 32, "border_margin": 2},
+  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
+}"#;
+
+const IMAGES: usize = 4;
+
+fn train(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_train"))
+        .args(args)
+        .output()
+        .expect("the train binary runs")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// The text model of a small rig: one PINHOLE camera (40x30), four images
+/// looking along +z from x = 0, 0.2, 0.4, 0.6 (world-to-camera rotation
+/// identity), 30 points around the origin.
+fn model_text() -> [String; 3] {
+    let cameras = "# Camera list\n1 PINHOLE 40 30 38 38 20 15\n".to_string();
+    let mut images = "# Image list\n".to_string();
+    for i in 0..IMAGES {
+        images += &format!("{} 1 0 0 0 {} 0 3 1 img{i}.png\n\n", i + 1, -0.2 * i as f64);
+    }
+    let mut points = "# 3D point list\n".to_string();
+    for i in 0..30 {
+        let t = i as f64 / 30.0;
+        points += &format!(
+            "{} {:.4} {:.4} {:.4} 200 120 40 0.5 1 0\n",
+            i + 1,
+            (9.0 * t).sin() * 0.5,
+            (5.0 * t).cos() * 0.4,
+            t - 0.5
+        );
+    }
+    [cameras, images, points]
+}
+
+/// A COLMAP directory with the rig's images and `text` as its model.
+fn capture(root: &Path, text: &[String; 3]) -> PathBuf {
+    let dir = root.join("capture");
+    let sparse = dir.join("sparse").join("0");
+    std::fs::create_dir_all(&sparse).expect("mkdir");
+    for (name, body) in ["cameras.txt", "images.txt", "points3D.txt"]
+        .iter()
+        .zip(text)
+    {
+        std::fs::write(sparse.join(name), body).expect("write model");
+    }
+    let images = dir.join("images");
+    std::fs::create_dir_all(&images).expect("mkdir");
+    for i in 0..IMAGES {
+        image::RgbImage::from_fn(40, 30, |x, y| {
+            image::Rgb([(x * 6) as u8, (y * 8) as u8, 90])
+        })
+        .save(images.join(format!("img{i}.png")))
+        .expect("png");
+    }
+    dir
+}
+
+/// Trains two iterations on `data` into `out` with the tiny model.
+fn run(tmp: &Path, data: &Path, out: &Path, extra: &[&str]) -> Output {
+    let config = tmp.join("tiny.json");
+    std::fs::write(&config, TINY).expect("config");
+    let mut args = vec![
+        "--data",
+        s(data),
+        "--config",
+        s(&config),
+        "--iters",
+        "2",
+        "--holdout-every",
+        "4",
+        "--no-final-render",
+        "--quiet",
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    train(&args)
+}
+
+/// Asserts a clean refusal naming every `words`, with nothing written.
+fn assert_refused(tmp: &Path, data: &Path, extra: &[&str], words: &[&str]) {
+    let out = tmp.join("run");
+    let o = run(tmp, data, &out, extra);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "succeeded: {err}");
+    assert!(!err.contains("panicked"), "panicked: {err}");
+    for w in words {
+        assert!(err.contains(w), "{w:?} not in {err:?}");
+    }
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
+    eprintln!("refused:\n{}", err.trim_end());
+}
+
+#[test]
+fn a_colmap_text_model_trains_and_records_its_frame() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = capture(tmp.path(), &model_text());
+    let out = tmp.path().join("run");
+    let o = run(tmp.path(), &data, &out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("is a colmap scene"), "{err}");
+    assert!(err.contains("--frame colmap"), "{err}");
+    let meta: datasets::SceneMeta =
+        serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
+            .expect("scene.json parses");
+    let world = meta.world.expect("capture frame recorded");
+    assert_eq!(world.name, "colmap");
+    // The recorded map takes the first camera's centre, (0, 0, -3) in
+    // COLMAP's frame, to where the rebuilt scene has it.
+    let scene = datasets::load_scene(&meta.source).expect("scene rebuilds");
+    let c = world.to_scene.apply_point([0.0, 0.0, -3.0]);
+    let got = scene.frames[0].camera.pose.center();
+    assert!(
+        (0..3).all(|i| (c[i] - got[i]).abs() < 1e-9),
+        "{c:?} vs {got:?}"
+    );
+}
+
+#[test]
+fn broken_colmap_models_are_refused_by_file() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let edit = |part: usize, from: &str, to: &str| {
+        let mut text = model_text();
+        assert!(text[part].contains(from), "{from:?}");
+        text[part] = text[part].replacen(from, to, 1);
+        let root = tmp.path().join(format!("case-{part}-{}", to.len()));
+        capture(&root, &text)
+    };
+    let data = edit(1, " 1 img2.png", " 9 img2.png");
+    assert_refused(
+        tmp.path(),
+        &data,
+        &[],
+        &["images.txt", "img2.png", "camera 9"],
+    );
+    let data = edit(
+        0,
+        "PINHOLE 40 30 38 38 20 15",
+        "OPENCV_FISHEYE 40 30 38 38 20 15 0 0 0 0",
+    );
+    assert_refused(
+        tmp.path(),
+        &data,
+        &[],
+        &["cameras.txt", "OPENCV_FISHEYE", "image_undistorter"],
+    );
+    let mut text = model_text();
+    text[2] = text[2]
+        .lines()
+        .map(|l| match l.starts_with("4 ") {
+            true => "4 NaN 0.1 0.1 200 120 40 0.5 1 0",
+            false => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let data = capture(&tmp.path().join("nan"), &text);
+    assert_refused(tmp.path(), &data, &[], &["points3D.txt", "point 4"]);
+    let data = capture(&tmp.path().join("missing"), &model_text());
+    std::fs::remove_file(data.join("images").join("img3.png")).expect("rm");
+    assert_refused(tmp.path(), &data, &[], &["img3.png", "not found"]);
+    // Dense depth asked for, one map of the wrong aspect ratio.
+    let data = capture(&tmp.path().join("depth"), &model_text());
+    let maps = data.join("stereo").join("depth_maps");
+    std::fs::create_dir_all(&maps).expect("mkdir");
+    for i in 0..IMAGES {
+        let (w, h) = if i == 1 { (30, 40) } else { (40, 30) };
+        let mut bytes = format!("{w}&{h}&1&").into_bytes();
+        (0..w * h).for_each(|_| bytes.extend_from_slice(&2.5f32.to_le_bytes()));
+        std::fs::write(maps.join(format!("img{i}.png.geometric.bin")), bytes).expect("map");
+    }
+    assert_refused(
+        tmp.path(),
+        &data,
+        &["--colmap-depth"],
+        &["img1.png.geometric.bin", "aspect ratio"],
+    );
+}
+
+/// COLMAP's binary model of a real capture, cut short.
+#[test]
+fn a_truncated_binary_model_is_refused() {
+    let statue = datasets::data_dir().join("colmap_statue");
+    if !statue.is_dir() {
+        println!("skipped: {} not found", statue.display());
+        return;
+    }
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = tmp.path().join("statue");
+    let sparse = data.join("sparse");
+    std::fs::create_dir_all(&sparse).expect("mkdir");
+    for name in ["cameras.bin", "images.bin", "points3D.bin"] {
+        let bytes = std::fs::read(statue.join("sparse").join(name)).expect("read");
+        let keep = if name == "images.bin" {
+            bytes.len() / 2
+        } else {
+            bytes.len()
+        };
+        std::fs::write(sparse.join(name), &bytes[..keep]).expect("write");
+    }
+    std::fs::create_dir_all(data.join("images")).expect("mkdir");
+    assert_refused(tmp.path(), &data, &[], &["images.bin", "truncated"]);
+}
