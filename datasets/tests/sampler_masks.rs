@@ -10,7 +10,11 @@ use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
 
 /// Frame `i` keeps its right half (even frames) or bottom half (odd ones).
 fn keep(i: usize, x: u32, y: u32, w: u32, h: u32) -> bool {
-    if i % 2 == 0 { x >= w / 2 } else { y >= h / 2 }
+    if i.is_multiple_of(2) {
+        x >= w / 2
+    } else {
+        y >= h / 2
+    }
 }
 
 fn frame(i: usize, w: u32, h: u32) -> Frame {
@@ -101,7 +105,11 @@ fn check(s: &Scene, pixels: impl Iterator<Item = [u32; 3]>) {
         let ((x0, x1), (y0, y1)) = interior(config().border_margin, w, h);
         assert!((x0..x1).contains(&x) && (y0..y1).contains(&y));
         // Which quarter of the unmasked interior the pixel is in.
-        let (kx0, ky0) = if f % 2 == 0 { (w / 2, y0) } else { (x0, h / 2) };
+        let (kx0, ky0) = if f.is_multiple_of(2) {
+            (w / 2, y0)
+        } else {
+            (x0, h / 2)
+        };
         let q = usize::from(x >= (kx0 + x1) / 2) + 2 * usize::from(y >= (ky0 + y1) / 2);
         seen[f as usize][q] = true;
         n += 1;

@@ -11,7 +11,7 @@
 //! Frames are the colour images, in numerical order of `<i>`. ScanNet's
 //! intrinsics follow OpenCV's pixel-centre convention and are used as they
 //! are; they carry no image size, so each is checked against its images by
-//! its principal point, which must lie within 15% of the image's width
+//! its principal point, which must lie within 10% of the image's width
 //! (height) of the centre (a depth map of another size or aspect than the
 //! intrinsics describe fails this).
 //!
@@ -50,7 +50,7 @@ pub const DEPTH_UNITS_PER_METRE: f64 = 1000.0;
 
 /// Largest distance of the principal point from the image centre, as a
 /// fraction of the image's side, for intrinsics to describe an image.
-pub const PRINCIPAL_POINT_TOLERANCE: f64 = 0.15;
+pub const PRINCIPAL_POINT_TOLERANCE: f64 = 0.1;
 
 /// What [`load_scannet_with_report`] left out.
 #[derive(Debug, Clone, Default, PartialEq)]
