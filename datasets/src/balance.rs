@@ -12,13 +12,16 @@
 //! extractor recognises it: a rare feature) gets more rays from those views
 //! than from far views where it smears into its surroundings (a common
 //! feature).
+//!
+//! Masked-out pixels ([`Frame::mask`]) are never drawn and count in no
+//! cluster's share.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::DatasetError;
 use crate::sampler::{RayBatch, SamplerConfig, batch_at, check_frames, interior};
-use crate::scene::Scene;
+use crate::scene::{Frame, Scene};
 
 /// Map pixels sampled to fit the cluster centres.
 const FIT_SAMPLES: usize = 16_384;
@@ -51,6 +54,60 @@ struct Cell {
     frame: usize,
     x: (u32, u32),
     y: (u32, u32),
+    /// Unmasked pixels in the cell (all of them without a mask).
+    pixels: u32,
+}
+
+/// Draws inside a cell before [`Cell::draw`] turns to listing its unmasked
+/// pixels.
+const CELL_REJECTIONS: usize = 64;
+
+impl Cell {
+    /// A cell of `frame` with its unmasked pixel count.
+    fn new(frame: &Frame, fi: usize, x: (u32, u32), y: (u32, u32)) -> Self {
+        let pixels = match frame.mask {
+            None => (x.1 - x.0) * (y.1 - y.0),
+            Some(_) => (y.0..y.1)
+                .map(|yy| {
+                    (x.0..x.1)
+                        .filter(|&xx| frame.is_target_pixel(xx, yy))
+                        .count() as u32
+                })
+                .sum(),
+        };
+        Self {
+            frame: fi,
+            x,
+            y,
+            pixels,
+        }
+    }
+
+    /// A pixel of the cell uniformly among its unmasked ones (drawn again
+    /// while masked; an unmasked cell keeps its first draw, the stream of
+    /// a sampler without masks). The cell must have an unmasked pixel.
+    fn draw(&self, rng: &mut ChaCha8Rng, scene: &Scene) -> (usize, u32, u32) {
+        let frame = &scene.frames[self.frame];
+        for _ in 0..CELL_REJECTIONS {
+            let (x, y) = (
+                rng.random_range(self.x.0..self.x.1),
+                rng.random_range(self.y.0..self.y.1),
+            );
+            if frame.is_target_pixel(x, y) {
+                return (self.frame, x, y);
+            }
+        }
+        let listed: Vec<(u32, u32)> = (self.y.0..self.y.1)
+            .flat_map(|y| (self.x.0..self.x.1).map(move |x| (x, y)))
+            .filter(|&(x, y)| frame.is_target_pixel(x, y))
+            .collect();
+        if listed.is_empty() {
+            // Not reached: cells without an unmasked pixel are never built.
+            return (self.frame, self.x.0, self.y.0);
+        }
+        let (x, y) = listed[rng.random_range(0..listed.len())];
+        (self.frame, x, y)
+    }
 }
 
 /// Draws seeded batches of pixels with feature-balanced probabilities.
@@ -60,8 +117,8 @@ pub struct BalancedSampler {
     cells: Vec<Cell>,
     /// Cumulative cell weights (weight x pixel count).
     cdf: Vec<f64>,
-    /// Fraction of the interior pixels in each cluster (the last entry:
-    /// pixels without a target).
+    /// Fraction of the unmasked interior pixels in each cluster (the last
+    /// entry: pixels without a target).
     pub cluster_fractions: Vec<f64>,
 }
 
@@ -119,6 +176,12 @@ impl BalancedSampler {
             ));
         }
         let dim = fs.dim();
+        let no_cells = || {
+            DatasetError::invalid(
+                &scene.name,
+                "every interior pixel of the frames sampled from is masked out",
+            )
+        };
         // Cells of every frame, with the map pixel they read.
         let mut cells = Vec::new();
         let mut cell_pixel: Vec<Option<(usize, usize)>> = Vec::new();
@@ -130,15 +193,18 @@ impl BalancedSampler {
             let (mw, mh) = map.map_or((w, h), |m| (m.width, m.height));
             for (my, ya, yb) in spans(h, mh, y0, y1) {
                 for &(mx, xa, xb) in &spans(w, mw, x0, x1) {
-                    cells.push(Cell {
-                        frame: fi,
-                        x: (xa, xb),
-                        y: (ya, yb),
-                    });
+                    let cell = Cell::new(frame, fi, (xa, xb), (ya, yb));
+                    if cell.pixels == 0 {
+                        continue; // wholly masked out: never drawn
+                    }
+                    cells.push(cell);
                     let valid = map.is_some_and(|m| fs.is_target(m.pixel(mx, my)));
                     cell_pixel.push(valid.then_some((fi, (my * mw + mx) as usize)));
                 }
             }
+        }
+        if cells.is_empty() {
+            return Err(no_cells());
         }
         let vector = |(fi, p): (usize, usize)| -> Vec<f32> {
             fs.maps[fi].data[p * dim..(p + 1) * dim]
@@ -183,7 +249,7 @@ impl BalancedSampler {
             .iter()
             .map(|p| p.map_or(k, |p| nearest(&vector(p), &centres, dim)))
             .collect();
-        let area = |c: &Cell| ((c.x.1 - c.x.0) * (c.y.1 - c.y.0)) as f64;
+        let area = |c: &Cell| c.pixels as f64;
         let mut share = vec![0f64; k + 1];
         for (c, &g) in cells.iter().zip(&cluster) {
             share[g] += area(c);
@@ -217,12 +283,7 @@ impl BalancedSampler {
                     .cdf
                     .partition_point(|&c| c <= u)
                     .min(self.cells.len() - 1);
-                let c = self.cells[i];
-                (
-                    c.frame,
-                    rng.random_range(c.x.0..c.x.1),
-                    rng.random_range(c.y.0..c.y.1),
-                )
+                self.cells[i].draw(&mut rng, scene)
             })
             .collect();
         batch_at(config, scene, &self.frames, &picks)

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use model::geometry::{Camera, Pose, SceneBox, Vec3};
+use model::geometry::{Camera, Pose, RIGID_TOLERANCE, SceneBox, Similarity, Vec3};
 
 use crate::error::DatasetError;
 use crate::scene::DepthImage;
@@ -53,5 +53,59 @@ pub fn backproject(camera: &Camera, depth: &DepthImage, step: u32) -> Vec<Vec3> 
 pub fn box_of(path: &Path, points: Vec<Vec3>, margin: f64) -> Result<SceneBox, DatasetError> {
     SceneBox::from_points(points, margin).ok_or_else(|| {
         DatasetError::invalid(path, "no finite camera or depth point to bound the scene")
+    })
+}
+
+/// A similarity (rotation, uniform scale, translation) from a row-major
+/// 3x4 or 4x4 matrix `[[sR, t], [0 0 0 1]]`, with errors naming `path` and
+/// `what` (e.g. "applied_transform"): non-finite values, another shape, a
+/// last row other than `0 0 0 1`, a reflection or a singular matrix, or a
+/// linear part that is not a uniform scale times a rotation.
+pub fn checked_similarity(
+    path: &Path,
+    what: &str,
+    rows: &[Vec<f64>],
+) -> Result<Similarity, DatasetError> {
+    let bad = |m: String| DatasetError::invalid(path, format!("{what}: {m}"));
+    if !(rows.len() == 3 || rows.len() == 4) || rows.iter().any(|r| r.len() != 4) {
+        return Err(bad("expected a 3x4 or 4x4 matrix".into()));
+    }
+    if rows.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(bad("matrix contains NaN or infinite values".into()));
+    }
+    if let Some(last) = rows.get(3)
+        && last
+            .iter()
+            .zip([0.0, 0.0, 0.0, 1.0])
+            .any(|(a, b)| (a - b).abs() > RIGID_TOLERANCE)
+    {
+        return Err(bad(format!("last row is {last:?}, not [0, 0, 0, 1]")));
+    }
+    let a: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| rows[i][j]));
+    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+    if det <= 0.0 {
+        return Err(bad(format!(
+            "not a similarity: the linear part has determinant {det} (a reflection or singular)"
+        )));
+    }
+    let scale = det.cbrt();
+    let rotation = a.map(|row| row.map(|v| v / scale));
+    let error = Pose {
+        rotation,
+        translation: [0.0; 3],
+    }
+    .orthonormality_error();
+    if error > RIGID_TOLERANCE {
+        return Err(bad(format!(
+            "not a similarity (rotation, uniform scale, translation): the linear part \
+             divided by its scale {scale} is {error} from a rotation"
+        )));
+    }
+    Ok(Similarity {
+        rotation,
+        scale,
+        translation: [rows[0][3], rows[1][3], rows[2][3]],
     })
 }

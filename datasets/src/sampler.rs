@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::DatasetError;
-use crate::scene::Scene;
+use crate::scene::{Frame, Scene};
 
 /// How training rays are drawn: the `sampler` section of a run's
 /// `config.json`. The seed of the draws is given apart (a run derives it
@@ -135,7 +135,8 @@ impl RaySampler {
     }
 
     /// The next batch: pixels uniform over frames, then uniform inside the
-    /// frame's border margin.
+    /// frame's border margin, masked-out pixels never (see
+    /// [`sample_batch_from`]).
     pub fn next_batch(&mut self, scene: &Scene) -> Result<RayBatch, DatasetError> {
         let batch = match &self.frames {
             Some(frames) => sample_batch_from(&self.config, self.seed, scene, frames, self.drawn)?,
@@ -192,6 +193,11 @@ pub fn sample_batch(
 /// held-out ones left out). A pure function of `seed`, `index` and
 /// `frames`; `pixels` keeps the scene's frame indices. Listing every frame
 /// in order gives [`sample_batch`]'s batch.
+///
+/// Masked-out pixels ([`Frame::mask`]) are never drawn: a draw (frame and
+/// pixel) landing on one is drawn again, so the batch of a scene without
+/// masks is the same as before masks existed, and an unmasked pixel keeps
+/// its weight. Fails when every interior pixel is masked out.
 pub fn sample_batch_from(
     config: &SamplerConfig,
     seed: u64,
@@ -203,15 +209,77 @@ pub fn sample_batch_from(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(index);
     let picks: Vec<(usize, u32, u32)> = (0..config.rays_per_batch)
-        .map(|_| {
-            let fi = frames[rng.random_range(0..frames.len())];
-            let frame = &scene.frames[fi];
-            let ((x0, x1), (y0, y1)) =
-                interior(config.border_margin, frame.rgb.width, frame.rgb.height);
-            (fi, rng.random_range(x0..x1), rng.random_range(y0..y1))
-        })
-        .collect();
+        .map(|_| draw_pixel(&mut rng, config.border_margin, scene, frames))
+        .collect::<Result<_, _>>()?;
     Ok(batch_at(config, scene, frames, &picks))
+}
+
+/// Draws before [`draw_pixel`] turns to drawing from the unmasked pixels
+/// listed (only when nearly every pixel is masked out).
+const MAX_REJECTIONS: usize = 1000;
+
+/// One pixel: a frame of `frames` uniformly, then a pixel of its interior
+/// uniformly, drawn again (frame and pixel) while the pixel is masked out.
+/// Every unmasked interior pixel thus keeps its unmasked weight (a frame's
+/// share of rays shrinks with its masked area), and without masks the
+/// first draw is kept: the same stream as an unmasked sampler.
+fn draw_pixel(
+    rng: &mut ChaCha8Rng,
+    margin: u32,
+    scene: &Scene,
+    frames: &[usize],
+) -> Result<(usize, u32, u32), DatasetError> {
+    for _ in 0..MAX_REJECTIONS {
+        let fi = frames[rng.random_range(0..frames.len())];
+        let frame = &scene.frames[fi];
+        let ((x0, x1), (y0, y1)) = interior(margin, frame.rgb.width, frame.rgb.height);
+        let (x, y) = (rng.random_range(x0..x1), rng.random_range(y0..y1));
+        if frame.is_target_pixel(x, y) {
+            return Ok((fi, x, y));
+        }
+    }
+    draw_listed(rng, margin, scene, frames)
+}
+
+/// The unmasked interior pixels of `frame`, row-major.
+fn unmasked_interior(frame: &Frame, margin: u32) -> Vec<(u32, u32)> {
+    let ((x0, x1), (y0, y1)) = interior(margin, frame.rgb.width, frame.rgb.height);
+    (y0..y1)
+        .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+        .filter(|&(x, y)| frame.is_target_pixel(x, y))
+        .collect()
+}
+
+/// [`draw_pixel`]'s distribution drawn exactly from the listed unmasked
+/// pixels: a frame with weight (unmasked / all interior pixels), then one
+/// of its unmasked pixels. Fails when every pixel is masked out.
+fn draw_listed(
+    rng: &mut ChaCha8Rng,
+    margin: u32,
+    scene: &Scene,
+    frames: &[usize],
+) -> Result<(usize, u32, u32), DatasetError> {
+    let mut cdf = Vec::with_capacity(frames.len());
+    let mut total = 0.0;
+    for &fi in frames {
+        let frame = &scene.frames[fi];
+        let ((x0, x1), (y0, y1)) = interior(margin, frame.rgb.width, frame.rgb.height);
+        let all = ((x1 - x0) * (y1 - y0)) as f64;
+        total += unmasked_interior(frame, margin).len() as f64 / all;
+        cdf.push(total);
+    }
+    if total <= 0.0 {
+        return Err(DatasetError::invalid(
+            &scene.name,
+            "every interior pixel of the frames sampled from is masked out",
+        ));
+    }
+    let u = rng.random_range(0.0..total);
+    let k = cdf.partition_point(|&c| c <= u).min(frames.len() - 1);
+    let fi = frames[k];
+    let pixels = unmasked_interior(&scene.frames[fi], margin);
+    let (x, y) = pixels[rng.random_range(0..pixels.len())];
+    Ok((fi, x, y))
 }
 
 /// Checks that `frames` can be sampled from: non-empty, in range, non-empty images.
@@ -232,6 +300,16 @@ pub(crate) fn check_frames(scene: &Scene, frames: &[usize]) -> Result<(), Datase
         .find(|f| f.rgb.width == 0 || f.rgb.height == 0)
     {
         return Err(err(&format!("frame {} has an empty image", f.name)));
+    }
+    if let Some(f) = frames.iter().map(|&f| &scene.frames[f]).find(|f| {
+        f.mask
+            .as_ref()
+            .is_some_and(|m| m.len() != f.rgb.width as usize * f.rgb.height as usize)
+    }) {
+        return Err(err(&format!(
+            "frame {}'s mask does not match its {}x{} image",
+            f.name, f.rgb.width, f.rgb.height
+        )));
     }
     Ok(())
 }

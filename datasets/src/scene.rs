@@ -73,6 +73,18 @@ pub struct Frame {
     pub mask: Option<Vec<bool>>,
 }
 
+impl Frame {
+    /// Whether pixel `(x, y)` may be a training target: its [`Frame::mask`]
+    /// allows it (every pixel does without a mask).
+    pub fn is_target_pixel(&self, x: u32, y: u32) -> bool {
+        self.mask.as_ref().is_none_or(|m| {
+            m.get(y as usize * self.rgb.width as usize + x as usize)
+                .copied()
+                .unwrap_or(false)
+        })
+    }
+}
+
 /// How a scene can be rebuilt (saved in a run directory as `scene.json`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]

@@ -12,6 +12,11 @@
 //! <dir>/classes.npy, classes.txt        class text embeddings (C x D float32) and names
 //! <dir>/points.ply                      binary PLY: x y z, colour, `label` = class index
 //! ```
+//!
+//! [`write_nerfstudio`] writes a scene as a nerfstudio `transforms.json`
+//! capture instead (per-frame intrinsics and distortion, depth, masks).
+
+mod nerfstudio;
 
 use std::io::Write;
 use std::path::Path;
@@ -22,6 +27,8 @@ use crate::error::DatasetError;
 use crate::npy::write_npy_f16;
 use crate::points::write_ply;
 use crate::scene::{DepthImage, Frame, RgbImage, Scene};
+
+pub use nerfstudio::{NERFSTUDIO_DEPTH_UNIT, write_depth_mm, write_nerfstudio};
 
 /// Depth PNG scale of the Nice-SLAM layout (value = metres * scale).
 pub const DEPTH_SCALE: f64 = 6553.5;
