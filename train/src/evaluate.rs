@@ -129,7 +129,7 @@ pub fn evaluate_pixels(
 
 /// Metrics of whole held-out views, over the interior pixels (those the
 /// training sampler draws from: the border margin left out) and over every
-/// pixel.
+/// pixel; masked-out pixels are left out of both.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ViewMetrics {
     /// Pixels at least the (scaled) border margin from the image border.
@@ -175,6 +175,10 @@ pub fn evaluate_views(
         let full = scene.features.as_ref().map_or(0, |fs| fs.full_dim);
         for y in 0..h {
             for x in 0..w {
+                // Masked-out pixels are no target, in evaluation as in training.
+                if !frame.is_target_pixel(x, y) {
+                    continue;
+                }
                 let p = (y * w + x) as usize;
                 let depth = frame.depth.as_ref().map(|d| (view.depth[p], d.get(x, y)));
                 let target = scene.features.as_ref().and_then(|fs| {

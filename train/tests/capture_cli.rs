@@ -218,3 +218,60 @@ fn a_truncated_binary_model_is_refused() {
     std::fs::create_dir_all(data.join("images")).expect("mkdir");
     assert_refused(tmp.path(), &data, &[], &["images.bin", "truncated"]);
 }
+
+/// A ScanNet export of four 40x30 frames with depth at 20x15 (the same
+/// view), frame 2's pose lost (`-inf`, as ScanNet writes it).
+fn scannet(root: &Path) -> PathBuf {
+    let dir = root.join("scannet");
+    for sub in ["color", "depth", "pose", "intrinsic"] {
+        std::fs::create_dir_all(dir.join(sub)).expect("mkdir");
+    }
+    let k = |f: f64, cx: f64, cy: f64| format!("{f} 0 {cx} 0\n0 {f} {cy} 0\n0 0 1 0\n0 0 0 1\n");
+    std::fs::write(
+        dir.join("intrinsic/intrinsic_color.txt"),
+        k(38.0, 19.5, 14.5),
+    )
+    .expect("k");
+    std::fs::write(
+        dir.join("intrinsic/intrinsic_depth.txt"),
+        k(19.0, 9.75, 7.25),
+    )
+    .expect("k");
+    for i in 0..4 {
+        image::RgbImage::from_fn(40, 30, |x, y| {
+            image::Rgb([(x * 6) as u8, (y * 8) as u8, 90])
+        })
+        .save(dir.join(format!("color/{i}.png")))
+        .expect("png");
+        image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_pixel(20, 15, image::Luma([1500]))
+            .save(dir.join(format!("depth/{i}.png")))
+            .expect("png");
+        let pose = if i == 2 {
+            "-inf -inf -inf -inf\n".repeat(4)
+        } else {
+            format!("1 0 0 {}\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", 0.1 * i as f64)
+        };
+        std::fs::write(dir.join(format!("pose/{i}.txt")), pose).expect("pose");
+    }
+    dir
+}
+
+#[test]
+fn a_scannet_export_skips_lost_poses_and_refuses_bad_depth() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = scannet(tmp.path());
+    let out = tmp.path().join("trained");
+    let o = run(tmp.path(), &data, &out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("is a scannet scene"), "{err}");
+    assert!(
+        err.contains("skipped 1 frames with invalid poses (pose/2.txt)"),
+        "{err}"
+    );
+    // Depth of another size than its intrinsics describe.
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_pixel(20, 20, image::Luma([1500]))
+        .save(data.join("depth/1.png"))
+        .expect("png");
+    assert_refused(tmp.path(), &data, &[], &["depth/1.png"]);
+}
