@@ -230,7 +230,7 @@ fn quantile(values: &mut [f64], q: f64) -> f64 {
 }
 
 #[test]
-fn statue_scene_frame_is_up_z_with_a_robust_box_of_side_three() {
+fn statue_scene_frame_is_up_z_and_holds_what_the_cameras_see() {
     let Some(dir) = statue() else {
         return;
     };
@@ -271,8 +271,38 @@ fn statue_scene_frame_is_up_z_with_a_robust_box_of_side_three() {
             .collect::<Vec<_>>()
     );
     assert!(angle < 1.0, "mean up is {angle} degrees from +z");
-    let largest = sides.iter().copied().fold(0.0, f64::max);
-    assert!((largest - 3.0).abs() < 1e-6, "{sides:?}");
+    // The region the frame is fitted to: the points' robust box grown to
+    // what the cameras see at their points' depth, side 3, centred.
+    let cameras: Vec<_> = s.frames.iter().map(|f| f.camera).collect();
+    let (lo, hi) = datasets::colmap::frame::seen_region(&cameras, pts).expect("region");
+    let largest = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
+    assert!((largest - 3.0).abs() < 1e-6, "{lo:?} {hi:?}");
+    assert!(
+        (0..3).all(|k| (lo[k] + hi[k]).abs() < 1e-6),
+        "{lo:?} {hi:?}"
+    );
+    assert!(sides.iter().all(|&side| side <= 3.0 + 1e-9), "{sides:?}");
+    // Every image's corners, at the depth of what it sees, are in the box:
+    // the desk around the statue is inside the field.
+    for (f, cam) in s.frames.iter().zip(&cameras) {
+        let mut d: Vec<f64> = pts
+            .iter()
+            .filter_map(|&p| cam.project(p))
+            .map(|q| q.z)
+            .collect();
+        let depth = quantile(&mut d, 0.5);
+        let (w, h) = (f.rgb.width as f64, f.rgb.height as f64);
+        for (u, v) in [(0.0, 0.0), (w - 1.0, h - 1.0)] {
+            let r = cam.ray(u, v);
+            let p: [f64; 3] = std::array::from_fn(|i| r.origin[i] + depth * r.direction[i]);
+            let m = 0.2;
+            assert!(
+                (0..3).all(|k| p[k] > b.min[k] - m && p[k] < b.max[k] + m),
+                "{}: corner {p:?} outside {b:?}",
+                f.name
+            );
+        }
+    }
     assert!(inside * 10 >= pts.len() * 9, "{inside} of {}", pts.len());
     assert_eq!(s.name, "colmap_statue");
     assert!(s.features.is_none() && s.classes.is_none() && s.background.is_none());

@@ -198,10 +198,26 @@ fn a_capture_round_trips_through_writer_and_loader() {
         points().positions.as_flattened(),
         1e-6
     ));
-    let want = robust_points_box(&pts.positions, 0.05).expect("box");
-    assert_eq!(loaded.scene_box, want);
+    let want = robust_points_box(&pts.positions, 0.0).expect("box");
     assert!(close(&want.min, &[-0.55; 3], 1e-6), "{want:?}");
     assert!(close(&want.max, &[0.55; 3], 1e-6), "{want:?}");
+    // The scene box holds the points' robust box and what the cameras see
+    // at the points' depth.
+    let cameras: Vec<_> = loaded.frames.iter().map(|f| f.camera).collect();
+    let b = &loaded.scene_box;
+    assert_eq!(
+        *b,
+        datasets::blender::seen_points_box(&pts.positions, &cameras, 0.05).expect("box")
+    );
+    let corners = datasets::colmap::frame::seen_corners(&cameras, &pts.positions);
+    assert!(!corners.is_empty());
+    let (clo, chi) = datasets::colmap::frame::robust_box(&corners).expect("corners");
+    for p in [want.min, want.max, clo, chi].iter() {
+        assert!(
+            (0..3).all(|k| p[k] >= b.min[k] - 1e-9 && p[k] <= b.max[k] + 1e-9),
+            "{p:?}"
+        );
+    }
     // read_cameras sees the same cameras.
     let cams = read_cameras(&tmp.path().join("transforms.json")).expect("cameras");
     assert_eq!(cams[1].0, "view1");

@@ -34,7 +34,9 @@
 //!
 //! Scene box: with a point cloud of at least
 //! [`MIN_BOX_POINTS`] points, the robust box of the points (2nd to 98th
-//! percentile on each axis, plus the margin): the points are the surfaces
+//! percentile on each axis), grown to hold what every camera sees at the
+//! depth of its points (as for COLMAP, see [`crate::colmap::frame`]), plus
+//! the margin: the points are the surfaces
 //! the capture reconstructed, whether the cameras look in at an object,
 //! forward at a scene or out from inside a room, and the percentiles drop
 //! the stray points of structure from motion. The cameras are left out: in
@@ -64,7 +66,8 @@ use crate::poses::{checked_pose, checked_similarity};
 use crate::scene::{Frame, Scene, SceneSource, WorldFrame};
 use keys::{FrameEntry, Transforms, intrinsics, read_transforms};
 pub use scene_box::{
-    BOX_PERCENTILES, MIN_BOX_POINTS, focus_point, robust_points_box, viewed_region_box,
+    BOX_PERCENTILES, MIN_BOX_POINTS, focus_point, robust_points_box, seen_points_box,
+    viewed_region_box,
 };
 pub use targets::DEFAULT_DEPTH_UNIT_SCALE;
 
@@ -128,17 +131,15 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
         Some(p) => Some(read_points(&root.join(p), &tpath)?),
         None => None,
     };
+    let cameras: Vec<Camera> = frames.iter().map(|f| f.camera).collect();
     let scene_box = match points
         .as_ref()
-        .and_then(|p| robust_points_box(&p.positions, options.box_margin))
+        .and_then(|p| seen_points_box(&p.positions, &cameras, options.box_margin))
     {
         Some(b) => b,
-        None => {
-            let cameras: Vec<Camera> = frames.iter().map(|f| f.camera).collect();
-            viewed_region_box(&cameras, options.box_margin).ok_or_else(|| {
-                DatasetError::invalid(&tpath, "cameras do not look at a common region")
-            })?
-        }
+        None => viewed_region_box(&cameras, options.box_margin).ok_or_else(|| {
+            DatasetError::invalid(&tpath, "cameras do not look at a common region")
+        })?,
     };
     Ok(Scene {
         name: root

@@ -36,6 +36,28 @@ pub fn robust_points_box(points: &[Vec3], margin: f64) -> Option<SceneBox> {
     SceneBox::from_points([min, max], margin)
 }
 
+/// [`robust_points_box`] grown to hold what each camera sees at the
+/// median depth of the points in its view (its image corners there): the
+/// region of the capture, where sparse points cover only its textured
+/// surfaces. `None` with fewer than [`MIN_BOX_POINTS`] finite points.
+pub fn seen_points_box(points: &[Vec3], cameras: &[Camera], margin: f64) -> Option<SceneBox> {
+    let finite: Vec<Vec3> = points
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .copied()
+        .collect();
+    let robust = robust_points_box(&finite, 0.0)?;
+    let (mut lo, mut hi) = (robust.min, robust.max);
+    let corners = crate::colmap::frame::seen_corners(cameras, &finite);
+    if let Some((clo, chi)) = crate::colmap::frame::robust_box(&corners) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(clo[k]);
+            hi[k] = hi[k].max(chi[k]);
+        }
+    }
+    SceneBox::from_points([lo, hi], margin)
+}
+
 /// The point minimising the summed squared distance to all optical axes.
 /// `None` when the axes are (nearly) parallel.
 pub fn focus_point(cameras: &[Camera]) -> Option<Vec3> {
