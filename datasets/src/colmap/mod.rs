@@ -16,14 +16,17 @@
 //!
 //! Scene frame ([`frame`]): COLMAP's world frame is arbitrary, so every
 //! pose, point and depth is moved by a similarity into a frame where up
-//! (the cameras' mean up vector) is +z, the origin is the centre of the
-//! sparse points' robust box (per-axis 2nd to 98th percentiles) and that
-//! box's largest side is 3 units, like the synthetic scenes of a few units
-//! the sampler is tuned for. The map is recorded as the scene's
-//! [`WorldFrame`] `colmap`. The scene box is that robust box grown by
-//! [`ColmapOptions::box_margin`] of its largest extent; cameras may lie
+//! (the cameras' mean up vector) is +z, and the region the capture sees
+//! (the sparse points' robust box, per-axis 2nd to 98th percentiles, grown
+//! to hold every image's footprint at the median depth of its points) is
+//! centred on the origin with largest side 3 units, like the synthetic
+//! scenes of a few units the sampler is tuned for. The map is recorded as
+//! the scene's [`WorldFrame`] `colmap`. The scene box is that region grown
+//! by [`ColmapOptions::box_margin`] of its largest extent; cameras may lie
 //! outside it (their rays start where they enter it). The frame is computed
-//! from every registered image and point, whatever the stride.
+//! from every registered image and point, whatever the stride. With
+//! [`ColmapOptions::features`], the feature maps `<image stem>.npy` are
+//! loaded for the frames kept.
 //!
 //! Frames are sorted by image name, then `stride` and `max_frames` apply;
 //! a frame's name is its image file's stem.

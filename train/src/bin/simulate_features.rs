@@ -2,7 +2,9 @@
 //! built-in simulated VLM (class probabilities from colour prototypes,
 //! mixed from real class text embeddings, at a quarter of the image's
 //! resolution, with noise) run on every frame, written as
-//! `<frame name>.npy` for `train --features DIR`.
+//! `<frame name>.npy` for `train --features DIR`, and the simulated
+//! classes' embeddings as `classes/embeddings.npy` + `classes/names.txt`
+//! for `eval segment --embeddings --names`.
 //!
 //! It stands in for a real 2D open-vocabulary model where none is at hand,
 //! so the whole pipeline (training the feature head, `eval segment` on the
@@ -86,7 +88,7 @@ fn classes(spec: &str, all: &TextEmbeddings) -> Result<(TextEmbeddings, Vec<[f32
 fn run(args: &Args) -> Result<()> {
     let texts = TextEmbeddings::load(&args.embeddings, &args.names)?;
     let (texts, colours) = classes(&args.classes, &texts)?;
-    let extractor = SimulatedExtractor::new(texts, colours, args.seed)?;
+    let extractor = SimulatedExtractor::new(texts.clone(), colours, args.seed)?;
     let format = datasets::detect::detect(&args.data)?.format;
     let loader: LoaderOptions =
         serde_json::from_value(serde_json::json!({ "format": format.name(), "options": null }))
@@ -108,11 +110,19 @@ fn run(args: &Args) -> Result<()> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    let classes = args.out.join("classes");
+    std::fs::create_dir_all(&classes)
+        .with_context(|| format!("{}: cannot create", classes.display()))?;
+    let (npy, names) = (classes.join("embeddings.npy"), classes.join("names.txt"));
+    texts.save(&npy, &names)?;
     println!(
-        "wrote {} maps of {} channels to {}",
+        "wrote {} maps of {} channels to {}, and the {} classes' embeddings to {} and {}",
         scene.frames.len(),
         extractor.dim(),
-        args.out.display()
+        args.out.display(),
+        texts.names.len(),
+        npy.display(),
+        names.display()
     );
     Ok(())
 }
