@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use datasets::{SceneMeta, SceneSource};
+use datasets::{LoaderOptions, SceneMeta, SceneSource};
 use field_ops::run_dir::RunDir;
 
 /// Printed when the scene has no feature maps.
@@ -47,8 +47,16 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
         out.push(format!(
             "{eval} query --run {run} --query NAME --embeddings EMBEDDINGS.npy --names NAMES.txt"
         ));
+        // COLMAP's sparse points are the scene's cloud; others need one.
+        let points = match meta.as_ref().map(|m| &m.source) {
+            Some(SceneSource::Disk {
+                loader: LoaderOptions::Colmap(_),
+                ..
+            }) => "",
+            _ => " --points CLOUD.ply",
+        };
         out.push(format!(
-            "{eval} segment --run {run} --points CLOUD.ply --embeddings EMBEDDINGS.npy --names NAMES.txt"
+            "{eval} segment --run {run}{points} --embeddings EMBEDDINGS.npy --names NAMES.txt"
         ));
     }
     out.push(format!("{eval} render --run {run}"));
