@@ -104,11 +104,21 @@ pub fn decode(hex: &str, path: &Path) -> Result<OccupancyGrid, TrainError> {
     if !hex.len().is_multiple_of(2) {
         return Err(bad("odd number of hex digits".into()));
     }
-    let bytes = (0..hex.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(&hex[i..i + 2], 16))
-        .collect::<Result<Vec<u8>, _>>()
-        .map_err(|e| bad(e.to_string()))?;
+    // Pairs of bytes, not of characters: a damaged state may hold any text,
+    // and slicing a `str` inside a multi-byte character would panic.
+    let digit = |c: u8| (c as char).to_digit(16);
+    let bytes = hex
+        .as_bytes()
+        .chunks_exact(2)
+        .enumerate()
+        .map(|(i, pair)| match (digit(pair[0]), digit(pair[1])) {
+            (Some(h), Some(l)) => Ok((h * 16 + l) as u8),
+            _ => Err(bad(format!(
+                "byte {i}: {:?} is not two hex digits",
+                String::from_utf8_lossy(pair)
+            ))),
+        })
+        .collect::<Result<Vec<u8>, _>>()?;
     OccupancyGrid::from_bytes(&bytes).map_err(bad)
 }
 
@@ -209,6 +219,18 @@ mod tests {
         let path = Path::new("ckpt");
         assert_eq!(decode(&encode(&grid), path).unwrap(), grid);
         assert!(decode("abc", path).is_err() && decode("zz", path).is_err());
+    }
+
+    /// Minimised from a fuzzed checkpoint state: a non-ASCII character
+    /// inside the hex of the occupancy grid made decoding panic.
+    #[test]
+    fn non_hex_text_is_an_error_naming_the_checkpoint() {
+        let path = Path::new("ckpt-00000010.onck");
+        for hex in ["4\u{e9}b", "\u{e9}\u{e9}", "+f00"] {
+            let msg = decode(hex, path).unwrap_err().to_string();
+            assert!(msg.contains("ckpt-00000010.onck"), "{msg}");
+            assert!(msg.contains("not two hex digits"), "{msg}");
+        }
     }
 
     #[test]
