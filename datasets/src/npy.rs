@@ -67,11 +67,12 @@ impl NpyInfo {
     /// Reads and validates the header of `path`: a float dtype, C order, and a
     /// file long enough to hold all elements.
     pub fn open(path: &Path) -> Result<Self, DatasetError> {
-        let file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
+        let mut file = File::open(path).map_err(|e| DatasetError::io(path, e))?;
         let file_len = file
             .metadata()
             .map_err(|e| DatasetError::io(path, e))?
             .len();
+        check_header_len(path, &mut file, file_len)?;
         let mut reader = Counting {
             inner: BufReader::new(file),
             count: 0,
@@ -206,6 +207,38 @@ impl NpyInfo {
         let bytes = self.read_bytes(start, count)?;
         Ok(decode(&bytes, self.dtype, |v| v, |h| h.to_f64()))
     }
+}
+
+/// Refuses a header whose announced length runs past the end of the file.
+/// `npyz` allocates the announced length (up to 4 GiB in format versions 2
+/// and 3) before reading any of it, so a damaged length must not reach it.
+/// Other preamble errors (magic, version) are left to `npyz`'s messages.
+fn check_header_len(path: &Path, file: &mut File, file_len: u64) -> Result<(), DatasetError> {
+    let mut pre = Vec::with_capacity(12);
+    let io = |e| DatasetError::io(path, e);
+    Read::by_ref(file)
+        .take(12)
+        .read_to_end(&mut pre)
+        .map_err(io)?;
+    file.seek(SeekFrom::Start(0)).map_err(io)?;
+    if pre.len() < 10 || &pre[..6] != b"\x93NUMPY" {
+        return Ok(());
+    }
+    let (len, start) = match (pre[6], pre.get(8..12)) {
+        (1, _) => (u16::from_le_bytes([pre[8], pre[9]]) as u64, 10),
+        (2 | 3, Some(b)) => (u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64, 12),
+        _ => return Ok(()),
+    };
+    if start + len > file_len {
+        return Err(DatasetError::invalid(
+            path,
+            format!(
+                "not a valid .npy header: it announces {len} bytes of header text, \
+                 but the file has {file_len} bytes in all (damaged header?)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Total physical memory in bytes (`MemTotal` of `/proc/meminfo`), where known.

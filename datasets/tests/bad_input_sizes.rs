@@ -47,6 +47,27 @@ fn npy_with_shape(path: &Path, shape: &[u64], body: &[u8], total_len: Option<u64
     }
 }
 
+/// Minimised from a fuzzed `.npy`: a version-2/3 header announcing up to
+/// 4 GiB of header text in a file of a few bytes. The header parser
+/// allocated the announced length before reading any of it.
+#[test]
+fn npy_header_longer_than_its_file_is_refused_before_allocating() {
+    let dir = tempfile::tempdir().expect("tmp");
+    for (name, bytes) in [
+        ("v3.npy", &b"\x93NUMPY\x03\x00F\x00{'descr': '<f8', }"[..]),
+        ("v2.npy", &b"\x93NUMPY\x02\x00\xff\xff\xff\xff{}"[..]),
+        ("v1.npy", &b"\x93NUMPY\x01\x00\xff\xff{}"[..]),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).expect("write");
+        assert_err(
+            datasets::npy::NpyInfo::open(&p),
+            name,
+            &["header", "announces"],
+        );
+    }
+}
+
 /// A 4:3 map shape (the images are 80x60, and maps must keep the aspect
 /// ratio) whose element count is a multiple of 2^64: it wraps to 0.
 const WRAPPING_MAP: [u64; 3] = [3 << 60, 1 << 62, 16];
