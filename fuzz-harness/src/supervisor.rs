@@ -172,8 +172,9 @@ fn run_worker(
     }
     let status = child.wait().context("waiting for the worker")?;
     // A worker ended by its watchdog leaves its scratch directory behind.
-    let _ =
-        std::fs::remove_dir_all(std::env::temp_dir().join(format!("opennerf-fuzz-{}", child.id())));
+    let _ = std::fs::remove_dir_all(
+        crate::worker::scratch_root().join(format!("opennerf-fuzz-{}", child.id())),
+    );
     Ok((report, status.success()))
 }
 
