@@ -61,19 +61,29 @@ fn a_changed_config_or_tokenizer_recomputes_the_embeddings() {
 
     let first = embed();
     assert_eq!(first.cached, 0);
-    assert_eq!(embed().cached, 2, "the same directory again: from the cache");
+    assert_eq!(
+        embed().cached,
+        2,
+        "the same directory again: from the cache"
+    );
 
     // quick-GELU instead of exact GELU: same weights file, other embeddings.
     set_quick_gelu(&dir, true);
     let quick = embed();
-    assert_eq!(quick.cached, 0, "a changed open_clip_config.json kept old embeddings");
+    assert_eq!(
+        quick.cached, 0,
+        "a changed open_clip_config.json kept old embeddings"
+    );
     assert_ne!(quick.rows, first.rows);
     assert_eq!(embed().cached, 2);
 
     // "a" and "b" swap ids: the text "a b" becomes another token sequence.
     write_vocab(&dir, ["b", "a"]);
     let swapped = embed();
-    assert_eq!(swapped.cached, 0, "a changed vocab.json kept old embeddings");
+    assert_eq!(
+        swapped.cached, 0,
+        "a changed vocab.json kept old embeddings"
+    );
     assert_ne!(swapped.rows[0], quick.rows[0]);
 
     // Back to the first configuration and vocabulary: the first embeddings,
@@ -129,7 +139,11 @@ fn a_missing_config_is_refused_not_assumed() {
     let hf = tmp.path().join("hf");
     std::fs::create_dir_all(&hf).expect("mkdir");
     let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hf_tiny");
-    std::fs::copy(fixture.join("model.safetensors"), hf.join("model.safetensors")).expect("copy");
+    std::fs::copy(
+        fixture.join("model.safetensors"),
+        hf.join("model.safetensors"),
+    )
+    .expect("copy");
     let e = clip::model_dir::load_encoder(&hf, &device)
         .unwrap_err()
         .to_string();

@@ -14,7 +14,10 @@ use datasets::data_dir;
 fn statue() -> Option<PathBuf> {
     let root = data_dir();
     if !root.is_dir() {
-        println!("SKIP: no data directory {} (set OPENNERF_DATA)", root.display());
+        println!(
+            "SKIP: no data directory {} (set OPENNERF_DATA)",
+            root.display()
+        );
         return None;
     }
     let p = root.join("colmap_statue");

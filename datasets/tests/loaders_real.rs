@@ -17,7 +17,10 @@ use model::geometry::norm;
 fn dataset(name: &str) -> Option<PathBuf> {
     let root = data_dir();
     if !root.is_dir() {
-        println!("SKIP: no data directory {} (set OPENNERF_DATA)", root.display());
+        println!(
+            "SKIP: no data directory {} (set OPENNERF_DATA)",
+            root.display()
+        );
         return None;
     }
     let p = root.join(name);
@@ -275,7 +278,11 @@ fn detection_recognises_every_shared_scene() {
     let mut seen = 0;
     for (name, format) in want {
         let dir = root.join(name);
-        assert!(dir.is_dir(), "{}: missing from the shared data", dir.display());
+        assert!(
+            dir.is_dir(),
+            "{}: missing from the shared data",
+            dir.display()
+        );
         seen += 1;
         match (detect(&dir), format) {
             (Ok(d), Some(f)) => assert_eq!(d.format, f, "{name}: {}", d.evidence),

@@ -315,10 +315,7 @@ fn a_split_outside_the_scene_or_without_training_frames_is_refused_naming_the_fi
     let split = tmp.path().join("split.json");
     std::fs::write(&split, r#"{"train": [1, 2, 4000], "heldout": [0]}"#).expect("write");
     let err = refused(run, &["--views", "0"]);
-    assert!(
-        err.contains("split.json") && err.contains("4000"),
-        "{err}"
-    );
+    assert!(err.contains("split.json") && err.contains("4000"), "{err}");
     // No training frames: refused before any file is written.
     std::fs::write(&split, r#"{"train": [], "heldout": [0]}"#).expect("write");
     let err = refused(run, &["--views", "2"]);

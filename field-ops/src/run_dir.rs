@@ -250,7 +250,10 @@ mod tests {
             .check(3, Path::new("run/split.json"))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("run/split.json") && e.contains("heldout frame 7"), "{e}");
+        assert!(
+            e.contains("run/split.json") && e.contains("heldout frame 7"),
+            "{e}"
+        );
     }
 
     #[test]

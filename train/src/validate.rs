@@ -412,8 +412,8 @@ mod tests {
 
     #[test]
     fn the_extractor_command_is_split_as_a_shell_splits_it() {
-        let words = extractor_words(r#"python3 '/my models/extract.py' --out "a b" c\ d"#)
-            .expect("split");
+        let words =
+            extractor_words(r#"python3 '/my models/extract.py' --out "a b" c\ d"#).expect("split");
         assert_eq!(
             words,
             ["python3", "/my models/extract.py", "--out", "a b", "c d"]

@@ -69,7 +69,9 @@ mod tests {
         assert!(scene.points.is_some());
         coarse_points(&scene, &[0, n - 1], 0.05).expect("all in the scene");
         for _ in 0..2 {
-            let e = coarse_points(&scene, &[0, n], 0.05).unwrap_err().to_string();
+            let e = coarse_points(&scene, &[0, n], 0.05)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(&format!("training frame {n}")), "{e}");
             // The same without the point cloud (depth is back-projected).
             scene.points = None;

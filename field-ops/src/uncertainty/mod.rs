@@ -257,11 +257,7 @@ pub fn uncertainty_map(
 /// seen fewer than twice, or whose factorisation fails, get the largest
 /// value), the same normalised to `[0, 1]` over the cloud, and how many
 /// points seen twice failed.
-fn log_dets(
-    stats: &[Welford],
-    k: usize,
-    opts: &UncertaintyOptions,
-) -> (Vec<f64>, Vec<f64>, usize) {
+fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>, Vec<f64>, usize) {
     let pooled = pooled_covariance(stats, k).unwrap_or_else(|| vec![0.0; k * k]);
     let raw: Vec<Option<f64>> = stats
         .iter()
