@@ -1,7 +1,9 @@
 //! The text model's configuration: sizes from the tensor shapes, the rest
 //! (heads, activation, layer-norm epsilon, pooling) from Hugging Face's
 //! `config.json` or OpenCLIP's `open_clip_config.json`, with CLIP's
-//! defaults where a file is silent.
+//! defaults where a file is silent about a field. A missing file is
+//! refused: the weights alone do not say which activation they were
+//! trained with.
 
 use std::path::Path;
 
@@ -95,25 +97,24 @@ pub fn hf_options(path: &Path, width: usize) -> Result<TextOptions, ClipError> {
 }
 
 /// Options from OpenCLIP's `open_clip_config.json` (`model_cfg.text_cfg`,
-/// `model_cfg.quick_gelu`), or, without one, OpenCLIP's conventions: 64
-/// channels per head, exact GELU, pooling at the highest id.
-pub fn open_clip_options(path: Option<&Path>, width: usize) -> Result<TextOptions, ClipError> {
-    let mut notes = Vec::new();
-    let Some(path) = path else {
-        notes.push(format!(
-            "no open_clip_config.json: assuming {} heads (64 channels each) and exact GELU \
-             (OpenAI's weights in OpenCLIP use quick-GELU: add an open_clip_config.json with \
-             \"quick_gelu\": true)",
-            (width / 64).max(1)
+/// `model_cfg.quick_gelu`). The file is required: OpenCLIP's weights do not
+/// tell exact GELU from quick-GELU (OpenAI's CLIP, also in OpenCLIP's
+/// layout, uses quick-GELU), and the wrong one gives wrong embeddings
+/// without any error.
+pub fn open_clip_options(path: &Path, width: usize) -> Result<TextOptions, ClipError> {
+    let notes = Vec::new();
+    if !path.is_file() {
+        return Err(ClipError::missing(
+            path,
+            format!(
+                "OpenCLIP weights need their open_clip_config.json: it decides the activation \
+                 (\"model_cfg\": {{\"quick_gelu\": true}} for OpenAI's CLIP, false for models \
+                 trained with exact GELU) and text_cfg.heads (CLIP has one per 64 channels, \
+                 {} here); OpenCLIP writes it next to the weights",
+                (width / 64).max(1)
+            ),
         ));
-        return Ok(TextOptions {
-            heads: (width / 64).max(1),
-            activation: ClipActivation::Gelu,
-            layer_norm_eps: 1e-5,
-            pooling: EotPooling::HighestId,
-            notes,
-        });
-    };
+    }
     let root = read_json(path)?;
     let cfg = root.get("model_cfg").unwrap_or(&root);
     let text = cfg.get("text_cfg").unwrap_or(&Value::Null);
@@ -241,9 +242,13 @@ mod tests {
     }
 
     #[test]
-    fn open_clip_defaults_are_noted() {
-        let o = open_clip_options(None, 768).unwrap();
-        assert_eq!((o.heads, o.activation), (12, ClipActivation::Gelu));
-        assert!(o.notes[0].contains("quick_gelu"));
+    fn a_missing_open_clip_config_is_refused_and_names_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("open_clip_config.json");
+        let e = open_clip_options(&p, 768).unwrap_err().to_string();
+        assert!(
+            e.contains("open_clip_config.json") && e.contains("quick_gelu"),
+            "{e}"
+        );
     }
 }

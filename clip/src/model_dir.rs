@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use model::clip::{ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling};
+use model::clip::{ClipTextConfig, ClipTextEncoder, EotPooling};
 use serde_json::Value;
 
 use crate::config::{build_config, hf_options, open_clip_options};
@@ -160,22 +160,17 @@ pub fn load_encoder(dir: &Path, device: &Device) -> Result<LoadedEncoder, ClipEr
     let options = match layout {
         Layout::HuggingFace => {
             let c = dir.join("config.json");
-            if c.is_file() {
-                hf_options(&c, sizes.width)?
-            } else {
-                let mut o = hf_options_default(sizes.width);
-                o.notes.push(format!(
-                    "{}: missing; assuming CLIP's defaults ({} heads, quick-GELU)",
-                    c.display(),
-                    o.heads
+            if !c.is_file() {
+                return Err(ClipError::missing(
+                    &c,
+                    "Hugging Face CLIP weights need their config.json: it decides the activation \
+                     (hidden_act: quick_gelu for OpenAI's CLIP, gelu for others), the heads and \
+                     the end-of-text id; it comes with the weights in the model's snapshot",
                 ));
-                o
             }
+            hf_options(&c, sizes.width)?
         }
-        Layout::OpenClip => {
-            let c = dir.join("open_clip_config.json");
-            open_clip_options(c.is_file().then_some(c.as_path()), sizes.width)?
-        }
+        Layout::OpenClip => open_clip_options(&dir.join("open_clip_config.json"), sizes.width)?,
     };
     let config = build_config(sizes, &options, &weights)?;
     let encoder = layout.build(&mut file, &config, device)?;
@@ -316,15 +311,5 @@ impl TextModel {
                 ClipError::invalid(&self.weights, format!("cannot read embeddings: {e:?}"))
             })?;
         Ok(out.chunks(self.dim()).map(<[f32]>::to_vec).collect())
-    }
-}
-
-fn hf_options_default(width: usize) -> crate::config::TextOptions {
-    crate::config::TextOptions {
-        heads: (width / 64).max(1),
-        activation: ClipActivation::QuickGelu,
-        layer_norm_eps: 1e-5,
-        pooling: EotPooling::HighestId,
-        notes: Vec::new(),
     }
 }

@@ -97,6 +97,25 @@ pub struct Split {
     pub heldout: Vec<usize>,
 }
 
+impl Split {
+    /// Refuses indices outside a scene of `frames` frames, naming `path`
+    /// (the split file they were read from): every later step indexes the
+    /// scene's frames with them.
+    pub fn check(&self, frames: usize, path: &Path) -> Result<(), OpsError> {
+        for (list, indices) in [("train", &self.train), ("heldout", &self.heldout)] {
+            if let Some(i) = indices.iter().find(|&&i| i >= frames) {
+                return Err(OpsError::Invalid(format!(
+                    "{}: {list} frame {i} is not in the scene, which has {frames} frames \
+                     (frames 0 to {}); the split does not belong to this scene",
+                    path.display(),
+                    frames.saturating_sub(1)
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// A trained run loaded back into memory.
 #[derive(Debug)]
 pub struct LoadedRun {
@@ -192,7 +211,8 @@ pub fn rebuild_scene(dir: &RunDir, meta: &SceneMeta) -> Result<RunScene, OpsErro
 }
 
 /// [`rebuild_scene`], with the novel views' indices added to
-/// `split.train` (they are training frames).
+/// `split.train` (they are training frames); indices of `split.json`
+/// outside the scene are refused.
 pub fn load_run_scene(
     dir: &RunDir,
     meta: &SceneMeta,
@@ -202,6 +222,7 @@ pub fn load_run_scene(
     if let Some(novel) = rebuilt.novel {
         split.train.extend(novel.frames);
     }
+    split.check(rebuilt.scene.frames.len(), &dir.split())?;
     Ok(rebuilt.scene)
 }
 
@@ -216,6 +237,23 @@ mod tests {
         assert_eq!(r.weights(), PathBuf::from("/tmp/x/model.bpk"));
         assert_eq!(r.scene(), PathBuf::from("/tmp/x/scene.json"));
         assert_eq!(r.split(), PathBuf::from("/tmp/x/split.json"));
+    }
+
+    #[test]
+    fn split_indices_outside_the_scene_name_the_file() {
+        let split = Split {
+            train: vec![0, 2],
+            heldout: vec![1, 7],
+        };
+        split.check(8, Path::new("run/split.json")).expect("all in");
+        let e = split
+            .check(3, Path::new("run/split.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("run/split.json") && e.contains("heldout frame 7"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -243,7 +243,8 @@ pub struct Cli {
     #[arg(long, value_enum)]
     pub novel_oracle: Option<field_ops::novel::oracle::NovelOracle>,
     /// For scenes on disk: the 2D feature extractor run on the rendered
-    /// views, as `PROGRAM [ARGS...]` (split at spaces); it is called as
+    /// views, as `PROGRAM [ARGS...]`, split into words as a shell would
+    /// (quote a path with spaces: `'/my models/extract' --fast`); it is called as
     /// `PROGRAM ARGS... IN_DIR OUT_DIR`, reads `IN_DIR/<name>.png` and must
     /// write `OUT_DIR/<name>.npy` (H x W x D). Synthetic scenes use their own.
     #[arg(long)]

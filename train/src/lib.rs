@@ -138,6 +138,7 @@ fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
         novel.oracle = Some(o);
     }
     if let Some(c) = &cli.extractor_command {
-        novel.extractor = Some(c.split_whitespace().map(str::to_string).collect());
+        // Refused before this point (`validate::cli`) when it cannot be split.
+        novel.extractor = validate::extractor_words(c).ok();
     }
 }

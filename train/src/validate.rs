@@ -17,6 +17,25 @@ fn flag_error(message: String) -> TrainError {
     TrainError::Config(message)
 }
 
+/// The words of `--extractor-command`, split as a POSIX shell splits them
+/// (quotes and backslashes keep spaces in a path), so that a program or
+/// argument path with spaces survives; unbalanced quotes and an empty
+/// command are refused.
+pub fn extractor_words(command: &str) -> Result<Vec<String>, TrainError> {
+    let words = shlex::split(command).ok_or_else(|| {
+        flag_error(format!(
+            "--extractor-command {command:?}: unbalanced quotes or a trailing backslash \
+             (it is split into words as a shell would)"
+        ))
+    })?;
+    if words.is_empty() {
+        return Err(flag_error(
+            "--extractor-command is empty: give the program (and its leading arguments)".into(),
+        ));
+    }
+    Ok(words)
+}
+
 /// Checks the options of `cli` against each other, before any file is read.
 pub fn cli(cli: &Cli) -> Result<(), TrainError> {
     value_flags(cli)?;
@@ -111,14 +130,8 @@ fn novel_and_grid_flags(cli: &Cli) -> Result<(), TrainError> {
                 .into(),
         ));
     }
-    if cli
-        .extractor_command
-        .as_deref()
-        .is_some_and(|c| c.trim().is_empty())
-    {
-        return Err(flag_error(
-            "--extractor-command is empty: give the program (and its leading arguments)".into(),
-        ));
+    if let Some(c) = &cli.extractor_command {
+        extractor_words(c)?;
     }
     let novel_given = cli.novel_after.is_some()
         || cli.novel_views_mode.is_some()
@@ -395,6 +408,20 @@ mod tests {
         assert!(holdout_split(5, 0).is_err());
         let s = holdout_split(10, 4).unwrap();
         assert_eq!(s.heldout, vec![0, 4, 8]);
+    }
+
+    #[test]
+    fn the_extractor_command_is_split_as_a_shell_splits_it() {
+        let words =
+            extractor_words(r#"python3 '/my models/extract.py' --out "a b" c\ d"#).expect("split");
+        assert_eq!(
+            words,
+            ["python3", "/my models/extract.py", "--out", "a b", "c d"]
+        );
+        for bad in ["", "  ", "python3 'unclosed", "trailing\\"] {
+            let e = extractor_words(bad).unwrap_err().to_string();
+            assert!(e.contains("--extractor-command"), "{bad:?}: {e}");
+        }
     }
 
     #[test]

@@ -197,11 +197,21 @@ fn broken_colmap_models_are_refused_by_file() {
 /// COLMAP's binary model of a real capture, cut short.
 #[test]
 fn a_truncated_binary_model_is_refused() {
-    let statue = datasets::data_dir().join("colmap_statue");
-    if !statue.is_dir() {
-        println!("skipped: {} not found", statue.display());
+    // Skipped only on a machine without the shared data at all.
+    let root = datasets::data_dir();
+    if !root.is_dir() {
+        println!(
+            "SKIP: no data directory {} (set OPENNERF_DATA)",
+            root.display()
+        );
         return;
     }
+    let statue = root.join("colmap_statue");
+    assert!(
+        statue.is_dir(),
+        "{}: missing from the shared data",
+        statue.display()
+    );
     let tmp = tempfile::tempdir().expect("tmp");
     let data = tmp.path().join("statue");
     let sparse = data.join("sparse");

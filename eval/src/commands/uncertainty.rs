@@ -48,6 +48,12 @@ pub struct UncertaintyArgs {
     /// Voxel size (metres) the point cloud is thinned to (0 keeps every point).
     #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     pub voxel: f64,
+    /// Most memory (GiB) the per-point statistics may take: each point of
+    /// the thinned cloud keeps k + k^2 f64 of covariance and about 12 bytes
+    /// per feature channel. A --k or --voxel that needs more is refused
+    /// (with what it would need) instead of exhausting the machine's memory.
+    #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
+    pub max_memory: f64,
     /// Novel cameras to propose at uncertain points (0: none). Needs the
     /// run's weights, to keep cameras out of matter and their targets in view.
     #[arg(long, default_value_t = 8)]
@@ -90,6 +96,9 @@ pub struct UncertaintySummary {
     pub pearson_r: Option<f64>,
     /// Points the correlation is computed on.
     pub correlated_points: usize,
+    /// Points seen twice whose covariance could not be factorised: they are
+    /// given the largest `log det` (a larger `--eps` avoids this).
+    pub failed_factorisations: usize,
 }
 
 /// The coarse cloud of the uncertainty map (see
@@ -113,8 +122,8 @@ fn labelled_coarse_points(
     Ok((cloud.positions, labelled))
 }
 
-/// Runs `eval uncertainty` and returns the files written.
-pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsError> {
+/// Refuses flag values that cannot give a map, before any file is read.
+fn check_flags(args: &UncertaintyArgs) -> Result<(), OpsError> {
     if args.k == 0 {
         return Err(OpsError::Invalid("--k must be at least 1".into()));
     }
@@ -136,12 +145,34 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
             args.voxel
         )));
     }
+    if !(args.max_memory.is_finite() && args.max_memory > 0.0) {
+        return Err(OpsError::Invalid(format!(
+            "--max-memory must be a positive number of GiB, got {}",
+            args.max_memory
+        )));
+    }
+    Ok(())
+}
+
+/// Runs `eval uncertainty` and returns the files written.
+pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsError> {
+    check_flags(args)?;
     let dir = RunDir::new(&args.run);
     let meta: datasets::SceneMeta = read_json(&dir.scene())?;
     let mut split: Split = read_json(&dir.split())?;
     let scene = field_ops::run_dir::load_run_scene(&dir, &meta, &mut split)?;
+    // Without training views every point is unseen: nothing to measure, and
+    // no camera to take novel cameras' intrinsics from.
+    if split.train.is_empty() {
+        return Err(OpsError::Invalid(format!(
+            "{}: the run has no training frames; the uncertainty map is made of the training \
+             views' feature maps",
+            dir.split().display()
+        )));
+    }
     let frame = args.frame.resolve(&meta)?;
     let (points, labelled) = labelled_coarse_points(&scene, &split.train, args.voxel)?;
+    check_memory(args, &scene, points.len())?;
     let opts = UncertaintyOptions {
         k: args.k,
         eps: args.eps,
@@ -193,6 +224,14 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
         summary.log_det_max,
         summary.log_det_median
     );
+    if summary.failed_factorisations > 0 {
+        eprintln!(
+            "warning: the covariance of {} of the {} points seen twice could not be factorised \
+             (Cholesky failed); they are given the largest uncertainty. A larger --eps (now {}) \
+             avoids this",
+            summary.failed_factorisations, summary.seen_twice, args.eps
+        );
+    }
     if args.views > 0 {
         written.extend(super::proposals::write_proposals(
             ProposalRequest {
@@ -218,6 +257,26 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
         }
     }
     Ok(written)
+}
+
+/// Refuses a map whose per-point statistics would take more than
+/// `--max-memory` (see [`field_ops::uncertainty::memory_needed`]).
+fn check_memory(args: &UncertaintyArgs, scene: &Scene, points: usize) -> Result<(), OpsError> {
+    let dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let needed = field_ops::uncertainty::memory_needed(points, args.k, dim);
+    let gib = |b: f64| b / (1u64 << 30) as f64;
+    if gib(needed as f64) > args.max_memory {
+        return Err(OpsError::Invalid(format!(
+            "--k {} and --voxel {} would need {:.2} GiB for the statistics of {points} points \
+             ({dim} feature channels), more than --max-memory {} GiB: use a smaller --k, a \
+             larger --voxel, or raise --max-memory if the machine has the memory",
+            args.k,
+            args.voxel,
+            gib(needed as f64),
+            args.max_memory
+        )));
+    }
+    Ok(())
 }
 
 /// `1 - cos(mean feature, class embedding of the point's label)` per point;
@@ -279,6 +338,7 @@ fn summarise(
         log_det_max: pick(1.0),
         pearson_r: errors.and_then(|_| pearson(&xs, &ys)),
         correlated_points: xs.len(),
+        failed_factorisations: map.failed_factorisations,
     }
 }
 

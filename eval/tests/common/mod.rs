@@ -55,3 +55,23 @@ pub fn write_tiny_run(dir: &Path) {
         serde_json::json!({ "train": (1..n).collect::<Vec<_>>(), "heldout": [0] }),
     );
 }
+
+/// Rewrites the tiny run's weights in `dir` so that its field is empty
+/// everywhere (the density layer's weights and bias -50: density about
+/// `softplus(-51)` whatever the trunk gives): every camera there is free
+/// and sees every point, so proposals are never rejected by the field.
+// Not every test binary that shares this module proposes novel views.
+#[allow(dead_code)]
+pub fn make_field_empty(dir: &Path) {
+    use burn::nn::{Initializer, LinearConfig};
+    let scene = generate(0, SceneSize::Ci).expect("CI scene");
+    let dim = scene.features.as_ref().expect("features").dim();
+    let device = Device::flex();
+    let mut model = tiny_config(dim).init(&device);
+    let [width, out] = model.mlp.density.weight.dims();
+    model.mlp.density = LinearConfig::new(width, out)
+        .with_initializer(Initializer::Constant { value: -50.0 })
+        .init(&device);
+    let bytes = model.into_record().into_bytes().expect("serialise");
+    std::fs::write(dir.join("model.bpk"), bytes.to_vec()).expect("weights");
+}

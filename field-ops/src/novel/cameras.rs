@@ -91,6 +91,13 @@ pub fn choose_cameras(
                 },
                 |_, _| {},
             )?;
+            if map.failed_factorisations > 0 {
+                eprintln!(
+                    "warning: the feature covariance of {} points could not be factorised; \
+                     they count as the most uncertain",
+                    map.failed_factorisations
+                );
+            }
             let centre = mean_centre(scene, train);
             guided_proposals(
                 &map, &points, intrinsics, up, centre, &probe, &opts, &mut rng,

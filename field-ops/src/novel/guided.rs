@@ -417,6 +417,7 @@ mod tests {
             mean_view_centres: vec![None; 4],
             mean_colors: vec![None; 4],
             k: 1,
+            failed_factorisations: 0,
         };
         assert_eq!(target_chances(&map), vec![0.0, 1.0, 0.25, 0.0]);
         let pos: Vec<Vec3> = (0..4).map(|i| [i as f64, 0.0, 0.0]).collect();
@@ -442,6 +443,7 @@ mod tests {
             mean_view_centres: vec![Some([0.0, 0.0, 4.0]), Some([3.0, 4.0, 0.0])],
             mean_colors: vec![None, None],
             k: 1,
+            failed_factorisations: 0,
         };
         let k = Intrinsics::from_fov_x(64, 48, 1.0);
         let opts = ProposalOptions::default();

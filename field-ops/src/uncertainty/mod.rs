@@ -6,7 +6,11 @@
 //! point, Welford's single-pass update keeps the mean and covariance of the
 //! observed features in the scene's top-`k` principal subspace, and the
 //! uncertainty is `u = log det(Sigma + eps I)`. Points seen fewer than twice
-//! get the largest uncertainty observed.
+//! get the largest uncertainty observed, and so do points whose covariance
+//! cannot be factorised (non-finite, or not positive definite after
+//! rounding with a tiny `eps`); those are counted in
+//! [`UncertaintyMap::failed_factorisations`] so that callers report them
+//! rather than pass them off as measured.
 //!
 //! `Sigma` is shrunk towards the covariance pooled over all points, worth
 //! `prior_weight` observations (16 by default). The plain sample covariance
@@ -80,6 +84,9 @@ pub struct UncertaintyMap {
     pub mean_colors: Vec<Option<[f32; 3]>>,
     /// Dimension of the subspace the covariances live in.
     pub k: usize,
+    /// Points seen at least twice whose `log det` could not be computed
+    /// (the Cholesky factorisation failed): they hold the largest value.
+    pub failed_factorisations: usize,
 }
 
 /// The subspace the covariances are kept in: the maps' own leading PCA
@@ -127,6 +134,17 @@ impl Subspace {
             Self::Fitted(p) => p.project(f),
         }
     }
+}
+
+/// Bytes the uncertainty map of `points` points holds per point while it is
+/// computed, for features of `dim` channels and a `k`-dimensional subspace
+/// (at most `dim`): the Welford mean and scatter (`k + k^2` f64), the
+/// feature sum (`dim` f64) and mean (`dim` f32), camera centre and colour
+/// sums, and the outputs. Saturates rather than overflows.
+pub fn memory_needed(points: usize, k: usize, dim: usize) -> u64 {
+    let k = k.min(dim) as u64;
+    let per_point = 8 * (k + k * k) + 12 * dim as u64 + 160;
+    per_point.saturating_mul(points as u64)
 }
 
 /// Projects the feature maps of `frames` onto `points` and computes the
@@ -200,7 +218,7 @@ pub fn uncertainty_map(
         }
         progress(n + 1, frames.len());
     }
-    let (log_det, normalised) = log_dets(&stats, k, opts);
+    let (log_det, normalised, failed_factorisations) = log_dets(&stats, k, opts);
     let counts: Vec<u64> = stats.iter().map(|w| w.count).collect();
     let mean_features = counts
         .iter()
@@ -231,13 +249,15 @@ pub fn uncertainty_map(
         normalised,
         mean_features,
         k,
+        failed_factorisations,
     })
 }
 
 /// Each point's `log det(Sigma + eps I)` of its shrunk covariance (points
-/// seen fewer than twice get the largest value) and the same normalised to
-/// `[0, 1]` over the cloud.
-fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>, Vec<f64>) {
+/// seen fewer than twice, or whose factorisation fails, get the largest
+/// value), the same normalised to `[0, 1]` over the cloud, and how many
+/// points seen twice failed.
+fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>, Vec<f64>, usize) {
     let pooled = pooled_covariance(stats, k).unwrap_or_else(|| vec![0.0; k * k]);
     let raw: Vec<Option<f64>> = stats
         .iter()
@@ -255,6 +275,11 @@ fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
     let min = raw.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+    let failed = raw
+        .iter()
+        .zip(stats)
+        .filter(|(u, w)| u.is_none() && w.count >= 2)
+        .count();
     // With no point seen twice there is nothing to compare: all maximal.
     let (max, min) = if max.is_finite() {
         (max, min)
@@ -267,7 +292,7 @@ fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>
         .iter()
         .map(|&u| if span > 0.0 { (u - min) / span } else { 1.0 })
         .collect();
-    (log_det, normalised)
+    (log_det, normalised, failed)
 }
 
 /// Points on a grid of `voxel` metres: the first point of every occupied
@@ -323,6 +348,32 @@ mod tests {
         assert!(pearson(&c, &sq).expect("r").abs() < 1e-12);
         assert!(pearson(&x, &vec![1.0; 50]).is_none());
         assert!(pearson(&[1.0], &[2.0]).is_none());
+    }
+
+    #[test]
+    fn failed_factorisations_are_counted_and_get_the_largest_value() {
+        let seen = |xs: &[[f32; 2]]| {
+            let mut w = Welford::new(2);
+            xs.iter().for_each(|x| w.push(x));
+            w
+        };
+        let stats = [
+            seen(&[[0.0, 1.0], [1.0, 0.5], [0.2, 0.3]]),
+            seen(&[[0.0, 0.0], [0.1, 0.0]]),
+            // A non-finite feature: no covariance to factorise.
+            seen(&[[f32::NAN, 0.0], [0.1, 0.0]]),
+            // Seen once: the largest value, but not a failure.
+            seen(&[[0.5, 0.5]]),
+        ];
+        let opts = UncertaintyOptions {
+            prior_weight: 0.0,
+            ..UncertaintyOptions::default()
+        };
+        let (log_det, normalised, failed) = log_dets(&stats, 2, &opts);
+        assert_eq!(failed, 1);
+        assert_eq!(log_det[2], log_det[0].max(log_det[1]));
+        assert_eq!(normalised[2], 1.0);
+        assert!(log_det.iter().all(|u| u.is_finite()));
     }
 
     #[test]

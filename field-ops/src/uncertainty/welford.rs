@@ -104,11 +104,15 @@ impl Welford {
 
 /// The pooled within-group covariance of `stats` (`k x k`): the sum of their
 /// scatters over the sum of their degrees of freedom (`n - 1` each); `None`
-/// when no group has two samples.
+/// when no group has two samples. Groups with a non-finite scatter are left
+/// out: one of them would make every shrunk covariance non-finite.
 pub fn pooled_covariance(stats: &[Welford], k: usize) -> Option<Vec<f64>> {
     let mut sum = vec![0.0; k * k];
     let mut dof = 0.0;
-    for w in stats.iter().filter(|w| w.count >= 2) {
+    for w in stats
+        .iter()
+        .filter(|w| w.count >= 2 && w.scatter.iter().all(|x| x.is_finite()))
+    {
         sum.iter_mut().zip(&w.scatter).for_each(|(s, x)| *s += x);
         dof += (w.count - 1) as f64;
     }
