@@ -87,3 +87,25 @@ pub fn data_dir() -> PathBuf {
         None => PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")),
     }
 }
+
+/// `name` under [`data_dir`], for tests and benchmarks on real data: `None`
+/// (saying so) only where the data directory itself is absent; with the
+/// directory there, a missing dataset panics, so that a test fails instead
+/// of passing unexamined.
+pub fn shared_dataset(name: &str) -> Option<PathBuf> {
+    let root = data_dir();
+    if !root.is_dir() {
+        println!(
+            "SKIP: no data directory {} (set OPENNERF_DATA)",
+            root.display()
+        );
+        return None;
+    }
+    let path = root.join(name);
+    assert!(
+        path.is_dir(),
+        "{}: missing from the shared data",
+        path.display()
+    );
+    Some(path)
+}

@@ -6,23 +6,10 @@
 use std::path::{Path, PathBuf};
 
 use datasets::colmap::{CameraModel, ColmapOptions, load_colmap, read_model};
-use datasets::data_dir;
 
-/// `name` in the shared data: `None` (saying so) only where the data
-/// directory itself is absent; with the directory there, a missing dataset
-/// fails the test instead of passing it unexamined.
+/// The statue capture (see [`datasets::shared_dataset`]).
 fn statue() -> Option<PathBuf> {
-    let root = data_dir();
-    if !root.is_dir() {
-        println!(
-            "SKIP: no data directory {} (set OPENNERF_DATA)",
-            root.display()
-        );
-        return None;
-    }
-    let p = root.join("colmap_statue");
-    assert!(p.is_dir(), "{}: missing from the shared data", p.display());
-    Some(p)
+    datasets::shared_dataset("colmap_statue")
 }
 
 /// A little-endian reader over a file's bytes (the test's own, not the

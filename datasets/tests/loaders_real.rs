@@ -1,32 +1,13 @@
 //! Loaders on the real shared data (skipped with a message when absent).
 //! Run with `--nocapture` to see the figures.
 
-use std::path::PathBuf;
-
 use datasets::blender::{BlenderOptions, load_blender};
 use datasets::llff::{LlffOptions, load_llff};
 use datasets::points::{ClassMap, IGNORE_LABEL};
 use datasets::replica::{ReplicaOptions, load_replica};
 use datasets::text::TextEmbeddings;
-use datasets::{Scene, data_dir};
+use datasets::{Scene, shared_dataset};
 use model::geometry::norm;
-
-/// `name` in the shared data: `None` (saying so) only where the data
-/// directory itself is absent; with the directory there, a missing dataset
-/// fails the test instead of passing it unexamined.
-fn dataset(name: &str) -> Option<PathBuf> {
-    let root = data_dir();
-    if !root.is_dir() {
-        println!(
-            "SKIP: no data directory {} (set OPENNERF_DATA)",
-            root.display()
-        );
-        return None;
-    }
-    let p = root.join(name);
-    assert!(p.is_dir(), "{}: missing from the shared data", p.display());
-    Some(p)
-}
 
 fn print_scene(label: &str, s: &Scene) {
     let k = &s.frames[0].camera.intrinsics;
@@ -49,7 +30,7 @@ fn print_scene(label: &str, s: &Scene) {
 
 #[test]
 fn replica_room0_at_640x360() {
-    let Some(dir) = dataset("replica_room0_20f") else {
+    let Some(dir) = shared_dataset("replica_room0_20f") else {
         return;
     };
     let opts = ReplicaOptions {
@@ -83,7 +64,7 @@ fn replica_room0_at_640x360() {
 fn replica_poses_are_opencv_camera_to_world() {
     // Independent check of the pose convention: surface points seen by frame
     // 0 reproject into frame 3 at the depth frame 3 measures there.
-    let Some(dir) = dataset("replica_room0_20f") else {
+    let Some(dir) = shared_dataset("replica_room0_20f") else {
         return;
     };
     let opts = ReplicaOptions {
@@ -127,7 +108,7 @@ fn replica_poses_are_opencv_camera_to_world() {
 
 #[test]
 fn lego_downscaled_by_8() {
-    let Some(dir) = dataset("lego_train") else {
+    let Some(dir) = shared_dataset("lego_train") else {
         return;
     };
     let opts = BlenderOptions {
@@ -161,7 +142,7 @@ fn lego_downscaled_by_8() {
 
 #[test]
 fn fern_at_images_8() {
-    let Some(dir) = dataset("llff_fern") else {
+    let Some(dir) = shared_dataset("llff_fern") else {
         return;
     };
     let s = load_llff(&dir, &LlffOptions::default()).expect("fern loads");
@@ -183,7 +164,7 @@ fn fern_at_images_8() {
 
 #[test]
 fn clip_text_embeddings() {
-    let Some(dir) = dataset("clip_text") else {
+    let Some(dir) = shared_dataset("clip_text") else {
         return;
     };
     let t = TextEmbeddings::load(
@@ -202,7 +183,7 @@ fn clip_text_embeddings() {
 
 #[test]
 fn replica_class_map() {
-    let Some(dir) = dataset("replica_classes") else {
+    let Some(dir) = shared_dataset("replica_classes") else {
         return;
     };
     let m = ClassMap::load_replica(&dir.join("replica_class_id_to_names.txt")).expect("loads");
@@ -216,7 +197,7 @@ fn replica_class_map() {
 
 #[test]
 fn load_scene_dispatches_on_the_source() {
-    let Some(dir) = dataset("lego_train") else {
+    let Some(dir) = shared_dataset("lego_train") else {
         return;
     };
     // A source as `scene.json` records it, options as JSON.
@@ -266,7 +247,9 @@ fn load_scene_dispatches_on_the_source() {
 #[test]
 fn detection_recognises_every_shared_scene() {
     use datasets::detect::{Format, detect};
-    let Some(root) = dataset("") else { return };
+    let Some(root) = shared_dataset("") else {
+        return;
+    };
     let want = [
         ("colmap_statue", Some(Format::Colmap)),
         ("lego_train", Some(Format::Blender)),

@@ -90,20 +90,9 @@ fn agreement(got: &DepthImage, want: &DepthImage, tol: f32) -> (f64, f64, f32) {
 #[test]
 fn replica_frames_in_scannet_layout_load_back() {
     // Skipped only on a machine without the shared data at all.
-    let root = datasets::data_dir();
-    if !root.is_dir() {
-        println!(
-            "SKIP: no data directory {} (set OPENNERF_DATA)",
-            root.display()
-        );
+    let Some(src) = datasets::shared_dataset("replica_room0_20f") else {
         return;
-    }
-    let src = root.join("replica_room0_20f");
-    assert!(
-        src.is_dir(),
-        "{}: missing from the shared data",
-        src.display()
-    );
+    };
     let replica = load_replica(
         &src,
         &ReplicaOptions {

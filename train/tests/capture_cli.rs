@@ -198,20 +198,9 @@ fn broken_colmap_models_are_refused_by_file() {
 #[test]
 fn a_truncated_binary_model_is_refused() {
     // Skipped only on a machine without the shared data at all.
-    let root = datasets::data_dir();
-    if !root.is_dir() {
-        println!(
-            "SKIP: no data directory {} (set OPENNERF_DATA)",
-            root.display()
-        );
+    let Some(statue) = datasets::shared_dataset("colmap_statue") else {
         return;
-    }
-    let statue = root.join("colmap_statue");
-    assert!(
-        statue.is_dir(),
-        "{}: missing from the shared data",
-        statue.display()
-    );
+    };
     let tmp = tempfile::tempdir().expect("tmp");
     let data = tmp.path().join("statue");
     let sparse = data.join("sparse");
