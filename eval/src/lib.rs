@@ -11,7 +11,8 @@ pub mod checks;
 pub mod commands;
 pub mod figures;
 pub mod metrics;
-pub mod query;
 pub mod segment;
-pub mod similarity;
-pub mod text_query;
+
+// Scoring and relevancy are shared with training's viewer: they live in
+// `field_ops` and keep their paths here.
+pub use field_ops::{query, similarity, text_query};

@@ -5,6 +5,7 @@ use eval::commands::query::{QueryArgs, query_command};
 use eval::commands::render::{RenderArgs, render_command};
 use eval::commands::segment::{SegmentArgs, segment_command};
 use eval::commands::uncertainty::{UncertaintyArgs, uncertainty_command};
+use eval::commands::view::{ViewArgs, view_command};
 
 /// Zero-shot 3D semantic segmentation, relevancy queries and rendering of trained runs.
 #[derive(Parser)]
@@ -26,6 +27,10 @@ enum Command {
     /// covariance), its correlation with the feature error, a scatter plot
     /// and a point cloud coloured by uncertainty.
     Uncertainty(UncertaintyArgs),
+    /// Serve a web page of the run on this machine: the points by class,
+    /// error or uncertainty, relevancy of typed text, the cameras, renders
+    /// at the browser's camera. Runs until Ctrl-C.
+    View(ViewArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -59,6 +64,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             for p in uncertainty_command(&a)? {
                 println!("wrote {}", p.display());
             }
+        }
+        Command::View(a) => {
+            let why = view_command(&a)?;
+            println!("viewer stopped: {why}");
         }
     }
     Ok(())

@@ -3,7 +3,8 @@
 //! views), backend choice, rendering views, projecting points into views
 //! with an occlusion test, the uncertainty map of the 2D feature maps,
 //! novel cameras with their rendering and re-extraction (and the
-//! ground-truth oracle), images and plots.
+//! ground-truth oracle), class scores and relevancy of field features
+//! (with text embedded by a CLIP model), images and plots.
 #![warn(missing_docs)]
 
 pub mod backend;
@@ -17,9 +18,13 @@ pub mod novel;
 pub mod plot;
 pub mod progress;
 pub mod project;
+pub mod query;
 pub mod render;
 pub mod run_dir;
+pub mod sample;
 pub mod scores;
+pub mod similarity;
+pub mod text_query;
 pub mod uncertainty;
 
 pub use error::OpsError;

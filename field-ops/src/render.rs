@@ -125,11 +125,64 @@ pub fn render_rays(
     mode: FeatureMode,
     device: &Device,
 ) -> RenderedRays {
+    render_rays_observed(model, rays, background, chunk, mode, device, &mut |_, _| {
+        true
+    })
+    .unwrap_or_default()
+}
+
+/// [`render_view`] that reports its progress after every chunk to `go`
+/// (`(rays done, rays to render)`) and stops, returning `None`, as soon as
+/// `go` returns `false` (a cancelled request).
+#[allow(clippy::too_many_arguments)]
+pub fn render_view_observed(
+    model: &OpenNerf,
+    camera: &Camera,
+    scene_box: &SceneBox,
+    background: Option<[f32; 3]>,
+    chunk: usize,
+    features: bool,
+    device: &Device,
+    go: &mut dyn FnMut(usize, usize) -> bool,
+) -> Option<RenderedView> {
+    let mode = if features {
+        FeatureMode::Composited
+    } else {
+        FeatureMode::None
+    };
+    let rays = camera_rays(camera, scene_box);
+    let r = render_rays_observed(model, &rays, background, chunk, mode, device, go)?;
+    Some(RenderedView {
+        width: camera.intrinsics.width,
+        height: camera.intrinsics.height,
+        rgb: r.rgb,
+        depth: r.depth,
+        acc: r.acc,
+        feature: r.feature,
+        feature_dim: r.feature_dim,
+    })
+}
+
+/// [`render_rays`] with progress and cancellation (see
+/// [`render_view_observed`]).
+fn render_rays_observed(
+    model: &OpenNerf,
+    rays: &[NormalizedRay],
+    background: Option<[f32; 3]>,
+    chunk: usize,
+    mode: FeatureMode,
+    device: &Device,
+    go: &mut dyn FnMut(usize, usize) -> bool,
+) -> Option<RenderedRays> {
     let clipped = model.occupancy().map(|g| g.clip(rays));
     let to_render: &[NormalizedRay] = clipped.as_ref().map_or(rays, |c| &c.rays);
     let chunk = chunk.max(1);
     let mut out = RenderedRays::default();
-    for part in to_render.chunks(chunk) {
+    let total = to_render.len();
+    for (i, part) in to_render.chunks(chunk).enumerate() {
+        if !go((i * chunk).min(total), total) {
+            return None;
+        }
         let batch = Rays::from_normalized(part, device);
         let fine = model.render_inference(&batch, chunk, background, mode).fine;
         out.rgb.extend(tensor_to_vec(fine.rgb));
@@ -140,11 +193,14 @@ pub fn render_rays(
             out.feature.extend(tensor_to_vec(f));
         }
     }
+    if !go(total, total) {
+        return None;
+    }
     let Some(clipped) = clipped else {
-        return out;
+        return Some(out);
     };
     if clipped.kept.len() == rays.len() {
-        return out;
+        return Some(out);
     }
     let dim = match mode {
         FeatureMode::None => 0,
@@ -168,5 +224,5 @@ pub fn render_rays(
                 .copy_from_slice(&out.feature[j * dim..(j + 1) * dim]);
         }
     }
-    full
+    Some(full)
 }

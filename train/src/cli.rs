@@ -278,6 +278,23 @@ pub struct Cli {
     /// No progress bar (log lines only).
     #[arg(long)]
     pub quiet: bool,
+    /// Serve the run's web viewer while training (the page of `eval view`:
+    /// the points by class, text queries, renders), refreshed from the
+    /// current field every --viewer-every seconds. It stops with the
+    /// training.
+    #[arg(long)]
+    pub viewer: bool,
+    /// Port of --viewer (0: any free port).
+    #[arg(long, default_value_t = 7007, requires = "viewer")]
+    pub viewer_port: u16,
+    /// Address --viewer listens on: 127.0.0.1 keeps it on this machine (the
+    /// printed `ssh -L` line reaches it); 0.0.0.0 opens it to every interface.
+    #[arg(long, default_value = "127.0.0.1", requires = "viewer")]
+    pub viewer_host: String,
+    /// Seconds between refreshes of --viewer's field (each refresh costs
+    /// the page's points one field query when the page asks for them).
+    #[arg(long, default_value_t = 10.0, requires = "viewer")]
+    pub viewer_every: f64,
 }
 
 #[cfg(test)]

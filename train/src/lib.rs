@@ -49,6 +49,11 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         progress: !cli.quiet,
         final_render: !cli.no_final_render,
         fit_schedule_to_budget: cli.time_budget.is_some() && cli.iters.is_none(),
+        viewer: cli.viewer.then(|| training::ViewerSettings {
+            host: cli.viewer_host.clone(),
+            port: cli.viewer_port,
+            every: cli.viewer_every,
+        }),
     };
     if let Some(dir) = &cli.resume {
         return resume(dir, cli.iters, &session);

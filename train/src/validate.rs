@@ -46,6 +46,24 @@ pub fn cli(cli: &Cli) -> Result<(), TrainError> {
     new_run_flags(cli)
 }
 
+/// `--viewer-host` and `--viewer-every`.
+fn viewer_flags(cli: &Cli) -> Result<(), TrainError> {
+    if cli.viewer_host.parse::<std::net::IpAddr>().is_err() {
+        return Err(flag_error(format!(
+            "--viewer-host {:?}: not an IP address (127.0.0.1 for this machine only, 0.0.0.0 \
+             for every interface)",
+            cli.viewer_host
+        )));
+    }
+    if !(cli.viewer_every.is_finite() && cli.viewer_every > 0.0) {
+        return Err(flag_error(format!(
+            "--viewer-every {}: must be a positive number of seconds",
+            cli.viewer_every
+        )));
+    }
+    Ok(())
+}
+
 /// Numbers out of their range, and the device.
 fn value_flags(cli: &Cli) -> Result<(), TrainError> {
     for (flag, value) in [
@@ -59,6 +77,9 @@ fn value_flags(cli: &Cli) -> Result<(), TrainError> {
         if value == Some(0) {
             return Err(flag_error(format!("--{flag} 0: must be at least 1")));
         }
+    }
+    if cli.viewer {
+        viewer_flags(cli)?;
     }
     if let Some(b) = cli.time_budget
         && !(b.is_finite() && b > 0.0)

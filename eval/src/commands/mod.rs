@@ -7,3 +7,4 @@ pub mod query;
 pub mod render;
 pub mod segment;
 pub mod uncertainty;
+pub mod view;

@@ -2,7 +2,7 @@
 //! point, or projected from rendered (or 2D) feature images with the
 //! occlusion test.
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use datasets::FeatureMap;
 use datasets::features::FeatureSet;
 use model::OpenNerf;
@@ -10,33 +10,9 @@ use model::geometry::{SceneBox, Vec3};
 
 use field_ops::OpsError;
 use field_ops::project::{DepthRef, FeatureAccumulator, Hit, ProjectOptions};
-use field_ops::render::{render_view, tensor_to_vec};
+use field_ops::render::render_view;
 
 use super::{SegmentOptions, View};
-
-/// Field features at world points, `[n, k]` row-major: points are
-/// normalised into `scene_box` and encoded as isotropic Gaussians of
-/// standard deviation `radius` metres.
-pub fn sampled_features(
-    model: &OpenNerf,
-    points: &[Vec3],
-    scene_box: &SceneBox,
-    radius: f64,
-    chunk: usize,
-    device: &Device,
-) -> Vec<f32> {
-    let r = (radius * scene_box.scale()) as f32;
-    let mut out = Vec::new();
-    for part in points.chunks(chunk.max(1)) {
-        let flat: Vec<f32> = part
-            .iter()
-            .flat_map(|&p| scene_box.normalize_point(p).map(|x| x as f32))
-            .collect();
-        let t = Tensor::<2>::from_data(TensorData::new(flat, [part.len(), 3]), device);
-        out.extend(tensor_to_vec(model.query_features(t, r)));
-    }
-    out
-}
 
 /// Index of the pixel of a `fw x fh` image at image point `(u, v)` of a
 /// `w x h` camera (pixel centres at integers; nearest after scaling).

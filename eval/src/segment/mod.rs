@@ -25,7 +25,8 @@ use field_ops::scores::SegmentationScores;
 
 pub mod features;
 
-pub use features::{projected_2d_features, projected_features, sampled_features, scaled_index};
+pub use features::{projected_2d_features, projected_features, scaled_index};
+pub use field_ops::sample::sampled_features;
 
 /// How per-point features are obtained from the field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

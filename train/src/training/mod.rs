@@ -7,12 +7,14 @@ mod budget;
 mod console;
 mod finish;
 mod heldout;
+mod live_viewer;
 mod novel;
 mod session;
 mod snapshot;
 mod start;
 mod train_loop;
 
+pub use live_viewer::ViewerSettings;
 pub use session::{RunOutcome, SessionOptions};
 pub use snapshot::{model_bytes, restore};
 pub use start::{resume, train_new};

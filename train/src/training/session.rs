@@ -26,6 +26,8 @@ pub struct SessionOptions {
     /// `config.json`), so that the learning rate decays over the whole
     /// budget instead of the run ending early or being cut mid-schedule.
     pub fit_schedule_to_budget: bool,
+    /// Serve the run's web viewer while training.
+    pub viewer: Option<super::ViewerSettings>,
 }
 
 impl Default for SessionOptions {
@@ -38,6 +40,7 @@ impl Default for SessionOptions {
             progress: false,
             final_render: true,
             fit_schedule_to_budget: false,
+            viewer: None,
         }
     }
 }

@@ -18,6 +18,7 @@ use super::budget::ScheduleFit;
 use super::console::{Clock, RayRate, describe, grid_line, show_step};
 use super::finish::{Trained, finish};
 use super::heldout::HeldOut;
+use super::live_viewer::LiveViewer;
 use super::novel::SessionViews;
 use super::session::{RunOutcome, SessionOptions};
 use super::snapshot::save_checkpoint;
@@ -76,6 +77,8 @@ pub(super) struct TrainLoop<'a> {
     skipping: ClipStats,
     consecutive_bad: usize,
     last_checkpoint: Option<PathBuf>,
+    /// The web viewer served while training (`--viewer`).
+    viewer: Option<LiveViewer>,
 }
 
 /// What one step did.
@@ -116,6 +119,9 @@ impl<'a> TrainLoop<'a> {
             session.account(it, &step)?;
             session.log_step(&model, &step)?;
             session.evaluate_and_save(&model)?;
+            if let Some(v) = session.viewer.as_mut() {
+                v.refresh(&model, session.state.iteration);
+            }
         }
         session.finish(&model)
     }
@@ -148,6 +154,18 @@ impl<'a> TrainLoop<'a> {
         )?;
         let bar = crate::progress::bar(s.session.progress, s.state.iteration, end);
         let last_checkpoint = list_checkpoints(&s.run.checkpoints())?.pop().map(|c| c.1);
+        let viewer = match &s.session.viewer {
+            Some(settings) => Some(LiveViewer::start(
+                settings,
+                s.scene,
+                s.split,
+                s.run,
+                &s.model,
+                s.state.iteration,
+                &inference,
+            )?),
+            None => None,
+        };
         let session = Self {
             config,
             split: s.split,
@@ -171,6 +189,7 @@ impl<'a> TrainLoop<'a> {
             skipping: ClipStats::default(),
             consecutive_bad: 0,
             last_checkpoint,
+            viewer,
         };
         Ok((session, s.model))
     }
@@ -399,6 +418,9 @@ impl<'a> TrainLoop<'a> {
     /// Ends the session: the bar, then [`finish`].
     fn finish(mut self, model: &OpenNerf) -> Result<RunOutcome, TrainError> {
         self.bar.finish_and_clear();
+        if let Some(v) = self.viewer.take() {
+            v.stop();
+        }
         self.state.wall_seconds = self.clock.wall();
         let trained = Trained {
             run: self.run,

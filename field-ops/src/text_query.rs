@@ -7,7 +7,7 @@ use burn::tensor::Device;
 use datasets::SceneMeta;
 use datasets::text::TextEmbeddings;
 
-use field_ops::OpsError;
+use crate::OpsError;
 
 /// The class names of `--classes "a, b, c"`: comma-separated, trimmed, each
 /// non-empty and given once.

@@ -15,7 +15,7 @@
 
 use datasets::features::PcaBasis;
 
-use field_ops::OpsError;
+use crate::OpsError;
 
 /// Scores features (in the field's output space) against class embeddings.
 #[derive(Debug, Clone, PartialEq)]

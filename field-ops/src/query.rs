@@ -8,10 +8,10 @@ use datasets::features::PcaBasis;
 use datasets::npy::read_npy_f32;
 use datasets::text::TextEmbeddings;
 
+use crate::OpsError;
+use crate::colormap::{to_u8, turbo};
+use crate::render::RenderedView;
 use crate::similarity::ClassScorer;
-use field_ops::OpsError;
-use field_ops::colormap::{to_u8, turbo};
-use field_ops::render::RenderedView;
 
 /// Relevancy below this (after scaling to `[0, 1]`) leaves the rendered colour.
 pub const RELEVANCY_THRESHOLD: f32 = 0.5;
