@@ -97,9 +97,11 @@ fn start_view(run: &Path, seconds: &str) -> (Child, String, mpsc::Receiver<Strin
         }
     });
     loop {
-        let line = rx
-            .recv_timeout(Duration::from_secs(180))
-            .expect("eval view prints its address");
+        let Ok(line) = rx.recv_timeout(Duration::from_secs(180)) else {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("eval view did not print its address");
+        };
         if let Some(url) = line.strip_prefix("viewer at ") {
             return (child, url.trim().to_string(), rx);
         }
@@ -136,6 +138,25 @@ fn view_serves_the_run_prints_the_ssh_line_and_stops_after_its_seconds() {
         printed.iter().any(|l| l.contains("ssh -N -L")),
         "{printed:?}"
     );
+    assert!(
+        printed.iter().any(|l| l.contains("viewer stopped")),
+        "{printed:?}"
+    );
+}
+
+#[test]
+fn ctrl_c_stops_the_viewer_cleanly() {
+    let run = tiny_run();
+    let (mut child, url, rx) = start_view(run.path(), "600");
+    assert!(get(&url, "/api/classes").starts_with("HTTP/1.1 200"));
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(sent.success());
+    let status = child.wait().expect("eval view exits");
+    assert!(status.success(), "{status:?}");
+    let printed: Vec<String> = rx.try_iter().collect();
     assert!(
         printed.iter().any(|l| l.contains("viewer stopped")),
         "{printed:?}"

@@ -1,6 +1,6 @@
 // OpenNeRF viewer page: point cloud, cameras, open-vocabulary queries and renders.
 // Plain ES2020 + hand-written WebGL2; no libraries, works offline. The HTTP API it
-// talks to is described in notes/viewer-api.md (GET /api/summary, /api/points, ...).
+// talks to is listed in the README, section "The viewer" (GET /api/summary, /api/points, ...).
 'use strict';
 (function () {
 

@@ -81,7 +81,7 @@ impl PointSet {
         if step == 1 {
             return self;
         }
-        let keep = |i: &usize| i % step == 0;
+        let keep = |i: &usize| i.is_multiple_of(step);
         Self {
             positions: every(&self.positions, keep),
             colours: every(&self.colours, keep),

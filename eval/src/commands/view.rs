@@ -127,7 +127,12 @@ pub fn view_command(args: &ViewArgs) -> Result<String, OpsError> {
     let data = ViewerData::build(
         dir, run.meta, &scene, &run.split, &novel, classes, &run.model, &device, options,
     )?;
-    let viewer = Arc::new(Viewer::new(data, run.model, None, device));
+    // The iterations the weights were trained for, when the run finished.
+    let iteration = field_ops::json::read_json::<serde_json::Value>(&run.dir.summary())
+        .ok()
+        .and_then(|v| v["iterations"].as_u64())
+        .map(|i| i as usize);
+    let viewer = Arc::new(Viewer::new(data, run.model, iteration, device));
     // The points' classes are computed before the page asks for them.
     viewer.point_features();
     busy.finish_and_clear();
