@@ -21,6 +21,12 @@ pub trait FeatureExtractor {
     fn dim(&self) -> usize;
     /// The feature map of one colour image (possibly at a lower resolution).
     fn extract(&self, image: &RgbImage) -> Result<FeatureMap, DatasetError>;
+    /// The feature maps of several images, in their order. An extractor
+    /// with a start-up cost pays it once here (a command runs once for all
+    /// of them, a model loads once); the default extracts one at a time.
+    fn extract_batch(&self, images: &[&RgbImage]) -> Result<Vec<FeatureMap>, DatasetError> {
+        images.iter().map(|image| self.extract(image)).collect()
+    }
 }
 
 /// Checks that an image's buffer matches its size.
@@ -440,5 +446,19 @@ impl FeatureExtractor for CommandExtractor {
         self.extract_many(&[("image", image)])?
             .pop()
             .ok_or_else(|| DatasetError::invalid(&self.program, "no feature map returned"))
+    }
+
+    /// One run of the command for every image (`image_0000.png`, ...).
+    fn extract_batch(&self, images: &[&RgbImage]) -> Result<Vec<FeatureMap>, DatasetError> {
+        if images.is_empty() {
+            return Ok(Vec::new());
+        }
+        let names: Vec<String> = (0..images.len()).map(|i| format!("image_{i:04}")).collect();
+        let named: Vec<(&str, &RgbImage)> = names
+            .iter()
+            .map(String::as_str)
+            .zip(images.iter().copied())
+            .collect();
+        self.extract_many(&named)
     }
 }

@@ -133,3 +133,45 @@ fn clear_errors_for_missing_command_failure_and_missing_output() {
     let e = ex.extract(&img).unwrap_err().to_string();
     assert!(e.contains("dim 4"), "{e}");
 }
+
+#[test]
+fn a_batch_runs_the_command_once_and_keeps_the_images_order() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Counts its runs, and writes each image's map with its size in it, so
+    // that maps coming back in another order would show.
+    let script = tmp.path().join("count.sh");
+    let runs = tmp.path().join("runs.txt");
+    std::fs::write(
+        &script,
+        "#!/bin/sh\nset -e\nruns=\"$1\"; npydir=\"$2\"; in=\"$3\"; out=\"$4\"\necho run >> \"$runs\"\n\
+         for f in \"$in\"/*.png; do n=$(basename \"$f\" .png); \
+         w=$(od -An -tu1 -j16 -N4 \"$f\" | awk '{print $4}'); \
+         cp \"$npydir/w$w.npy\" \"$out/$n.npy\"; done\n",
+    )
+    .unwrap();
+    for w in [16u32, 17, 18] {
+        write_npy_f32(
+            &tmp.path().join(format!("w{w}.npy")),
+            &[1, 1, 1],
+            &[w as f32],
+        )
+        .unwrap();
+    }
+    let ex = CommandExtractor::new(
+        "sh",
+        vec![
+            script.display().to_string(),
+            runs.display().to_string(),
+            tmp.path().display().to_string(),
+        ],
+        1,
+    );
+    let images = [image(18, 12), image(16, 12), image(17, 12)];
+    let refs: Vec<&RgbImage> = images.iter().collect();
+    let maps = ex.extract_batch(&refs).unwrap();
+    let widths: Vec<f32> = maps.iter().map(|m| m.data[0].to_f32()).collect();
+    assert_eq!(widths, vec![18.0, 16.0, 17.0]);
+    assert_eq!(std::fs::read_to_string(&runs).unwrap().lines().count(), 1);
+    assert!(ex.extract_batch(&[]).unwrap().is_empty());
+    assert_eq!(std::fs::read_to_string(&runs).unwrap().lines().count(), 1);
+}

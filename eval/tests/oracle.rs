@@ -162,3 +162,81 @@ fn label_features_refuse_a_label_without_embedding_and_disk_scenes_have_no_oracl
         .expect("refused before training");
     assert!(err.to_string().contains("renders"), "{err}");
 }
+
+/// Counts how the extractor is asked: one image at a time, or in batches.
+struct CountingExtractor {
+    inner: Box<dyn datasets::extractor::FeatureExtractor>,
+    single: std::cell::Cell<usize>,
+    batches: std::cell::RefCell<Vec<usize>>,
+}
+
+impl datasets::extractor::FeatureExtractor for CountingExtractor {
+    fn dim(&self) -> usize {
+        self.inner.dim()
+    }
+
+    fn extract(
+        &self,
+        image: &datasets::RgbImage,
+    ) -> Result<datasets::FeatureMap, datasets::DatasetError> {
+        self.single.set(self.single.get() + 1);
+        self.inner.extract(image)
+    }
+
+    fn extract_batch(
+        &self,
+        images: &[&datasets::RgbImage],
+    ) -> Result<Vec<datasets::FeatureMap>, datasets::DatasetError> {
+        self.batches.borrow_mut().push(images.len());
+        images.iter().map(|i| self.inner.extract(i)).collect()
+    }
+}
+
+#[test]
+fn the_field_s_novel_views_are_read_by_the_extractor_in_one_batch() {
+    let scene = ci_scene();
+    let config = NovelViewConfig {
+        views: 3,
+        scale: 0.5,
+        ..NovelViewConfig::default()
+    };
+    let extractor = CountingExtractor {
+        inner: scene_extractor(&scene, &config).expect("extractor"),
+        single: std::cell::Cell::new(0),
+        batches: std::cell::RefCell::new(Vec::new()),
+    };
+    let model =
+        common::tiny_config(scene.features.as_ref().expect("features").dim()).init(&Device::flex());
+    let cameras: Vec<AimedCamera> = [2, 5, 9]
+        .iter()
+        .map(|&i| AimedCamera {
+            camera: scene.frames[i].camera.scaled(48, 27),
+            target: None,
+            uncertainty: None,
+        })
+        .collect();
+    let mut progress = Vec::new();
+    let views = render_views(
+        &model,
+        &cameras,
+        &scene,
+        &extractor,
+        &config,
+        4096,
+        &Device::flex(),
+        |done, total| progress.push((done, total)),
+    )
+    .expect("views");
+    assert_eq!(views.len(), 3);
+    assert_eq!(
+        *extractor.batches.borrow(),
+        vec![3],
+        "one batch of every view"
+    );
+    assert_eq!(extractor.single.get(), 0, "no view read on its own");
+    assert_eq!(progress, vec![(1, 3), (2, 3), (3, 3)]);
+    // Each view's map is the extractor's reading of that view's render.
+    for v in &views {
+        assert_eq!(v.features, extractor.inner.extract(&v.rgb).expect("map"));
+    }
+}

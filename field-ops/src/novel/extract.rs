@@ -60,7 +60,8 @@ pub fn scene_extractor(
 /// the accumulated opacity reaches `config.min_acc` (0 elsewhere: no target).
 /// With `config.oracle`, a synthetic scene's ground truth stands in for the
 /// field's render (and for the extractor's reading with
-/// [`NovelOracle::Labels`](super::oracle::NovelOracle::Labels)). `progress(done, total)` is called per view.
+/// [`NovelOracle::Labels`](super::oracle::NovelOracle::Labels)). `progress(done, total)` is called per view rendered;
+/// the extractor then reads every rendered view in one batch.
 #[allow(clippy::too_many_arguments)]
 pub fn render_views(
     model: &OpenNerf,
@@ -77,24 +78,57 @@ pub fn render_views(
         .oracle
         .map(|o| GroundTruth::of(scene, o))
         .transpose()?;
+    let extracted: Vec<ExtractedView> = match &truth {
+        Some(truth) => {
+            let mut views = Vec::with_capacity(cameras.len());
+            for (i, aimed) in cameras.iter().enumerate() {
+                views.push(truth.view(&aimed.camera, extractor)?);
+                progress(i + 1, cameras.len());
+            }
+            views
+        }
+        None => {
+            // Every view is rendered first, then read by the extractor in
+            // one batch: an external command starts once, not per view.
+            let mut rendered = Vec::with_capacity(cameras.len());
+            for (i, aimed) in cameras.iter().enumerate() {
+                rendered.push(field_render(
+                    model,
+                    &aimed.camera,
+                    scene,
+                    config,
+                    chunk,
+                    device,
+                ));
+                progress(i + 1, cameras.len());
+            }
+            let images: Vec<&RgbImage> = rendered.iter().map(|(rgb, _)| rgb).collect();
+            let maps = extractor.extract_batch(&images)?;
+            if maps.len() != rendered.len() {
+                return Err(OpsError::Invalid(format!(
+                    "the extractor returned {} feature maps for {} views",
+                    maps.len(),
+                    rendered.len()
+                )));
+            }
+            rendered
+                .into_iter()
+                .zip(maps)
+                .map(|((rgb, depth), features)| ExtractedView {
+                    rgb,
+                    depth,
+                    features,
+                })
+                .collect()
+        }
+    };
     let mut out = Vec::with_capacity(cameras.len());
-    for (i, aimed) in cameras.iter().enumerate() {
+    for (i, (aimed, view)) in cameras.iter().zip(extracted).enumerate() {
         let ExtractedView {
             rgb,
             depth,
             features: full,
-        } = match &truth {
-            Some(truth) => truth.view(&aimed.camera, extractor)?,
-            None => field_view(
-                model,
-                &aimed.camera,
-                scene,
-                extractor,
-                config,
-                chunk,
-                device,
-            )?,
-        };
+        } = view;
         let features = match pca {
             Some(basis) => compress_map(&full, basis),
             None => full,
@@ -109,23 +143,20 @@ pub fn render_views(
             target: aimed.target,
             uncertainty: aimed.uncertainty,
         });
-        progress(i + 1, cameras.len());
     }
     Ok(out)
 }
 
-/// The field's render of `camera` (colour clamped to [0, 1], depth kept
-/// where the opacity reaches `config.min_acc`) and the extractor's reading
-/// of it, before compression.
-fn field_view(
+/// The field's render of `camera`: colour clamped to [0, 1], depth kept
+/// where the opacity reaches `config.min_acc` (0 elsewhere).
+fn field_render(
     model: &OpenNerf,
     camera: &Camera,
     scene: &Scene,
-    extractor: &dyn FeatureExtractor,
     config: &NovelViewConfig,
     chunk: usize,
     device: &Device,
-) -> Result<ExtractedView, OpsError> {
+) -> (RgbImage, DepthImage) {
     let view = render_view(
         model,
         camera,
@@ -156,10 +187,5 @@ fn field_view(
             })
             .collect(),
     };
-    let features = extractor.extract(&rgb)?;
-    Ok(ExtractedView {
-        rgb,
-        depth,
-        features,
-    })
+    (rgb, depth)
 }

@@ -1,0 +1,105 @@
+//! The viewer's points for a scene without a cloud: back-projected from the
+//! depth the field renders, they project back onto their pixels at that
+//! depth; and the binary layout the page reads.
+
+use burn::nn::{Initializer, LinearConfig};
+use burn::tensor::Device;
+use datasets::synthetic::{SceneSize, generate};
+use field_ops::render::render_view;
+use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+use viewer::points::{NO_CLASS, PointSource, encode, from_rendered_depth};
+
+#[test]
+fn points_from_rendered_depth_project_back_onto_their_pixels_at_that_depth() {
+    let scene = generate(0, SceneSize::Ci).expect("CI scene");
+    let device = Device::flex();
+    let dim = scene.features.as_ref().expect("features").dim();
+    let mut model = OpenNerfConfig::new(FeatureHeadConfig::new(dim).with_width(8).with_layers(1))
+        .with_mlp(
+            MipMlpConfig::new()
+                .with_width(16)
+                .with_depth(2)
+                .with_skip_layer(1)
+                .with_max_deg(4),
+        )
+        .with_num_samples(4)
+        .init(&device);
+    // A dense field: every ray stops in its first samples (opacity ~1).
+    let [width, out] = model.mlp.density.weight.dims();
+    model.mlp.density = LinearConfig::new(width, out)
+        .with_initializer(Initializer::Constant { value: 5.0 })
+        .init(&device);
+    let camera = scene.frames[3].camera;
+    let set = from_rendered_depth(
+        &model,
+        &[camera],
+        &scene.scene_box,
+        scene.background,
+        (1, 32),
+        &device,
+    );
+    let small = camera.scaled(32, 18);
+    let view = render_view(
+        &model,
+        &small,
+        &scene.scene_box,
+        scene.background,
+        4096,
+        false,
+        &device,
+    );
+    let solid: Vec<usize> = (0..view.acc.len())
+        .filter(|&i| view.acc[i] >= 0.5)
+        .collect();
+    assert_eq!(set.source, PointSource::RenderedDepth);
+    assert!(
+        solid.len() > 500,
+        "the dense field fills the view: {}",
+        solid.len()
+    );
+    assert_eq!(set.len(), solid.len());
+    for (p, &i) in set.positions.iter().zip(&solid) {
+        let (x, y) = ((i % 32) as f64, (i / 32) as f64);
+        let q = small.project(*p).expect("in front of the camera");
+        assert!(
+            (q.u - x).abs() < 1e-3 && (q.v - y).abs() < 1e-3,
+            "{q:?} vs ({x}, {y})"
+        );
+        assert!(
+            (q.z - view.depth[i] as f64).abs() < 1e-3,
+            "{} vs {}",
+            q.z,
+            view.depth[i]
+        );
+    }
+    assert!(set.truth.iter().all(|&t| t == NO_CLASS));
+    assert!(set.uncertainty.iter().all(|u| u.is_nan()));
+}
+
+#[test]
+fn the_binary_layout_holds_every_array_where_the_page_reads_it() {
+    let set = viewer::points::PointSet {
+        positions: vec![[1.0, 2.0, 3.0], [-4.0, 5.5, 6.25], [0.0, 0.0, 1e3]],
+        colours: vec![[1, 2, 3], [4, 5, 6], [7, 8, 9]],
+        truth: vec![0, NO_CLASS, 2],
+        uncertainty: vec![0.5, f32::NAN, 1.0],
+        source: PointSource::Labelled,
+    };
+    let b = encode(&set, &[2, 1], 7);
+    let n = 3;
+    assert_eq!(b.len(), 16 + 24 * n);
+    let f = |o: usize| f32::from_le_bytes(b[o..o + 4].try_into().expect("4"));
+    let h = |o: usize| u16::from_le_bytes(b[o..o + 2].try_into().expect("2"));
+    assert_eq!(&b[..4], b"ONPT");
+    assert_eq!(u32::from_le_bytes(b[12..16].try_into().expect("4")), 7);
+    assert_eq!(f(16 + 12 + 8), 6.25);
+    assert_eq!(&b[16 + 12 * n + 4..16 + 12 * n + 8], &[4, 5, 6, 255]);
+    // Predictions shorter than the cloud leave the rest without a class.
+    assert_eq!(
+        [h(16 + 16 * n), h(16 + 16 * n + 2), h(16 + 16 * n + 4)],
+        [2, 1, NO_CLASS]
+    );
+    assert_eq!([h(16 + 18 * n), h(16 + 18 * n + 2)], [0, NO_CLASS]);
+    assert!(f(16 + 20 * n + 4).is_nan());
+    assert_eq!(f(16 + 20 * n + 8), 1.0);
+}
