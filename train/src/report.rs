@@ -28,7 +28,8 @@ pub fn shell_word(path: &Path) -> String {
 /// The commands to run next on the run in `dir`, from the repository root:
 /// segmentation when the scene carries labelled points and classes (the
 /// synthetic scene), a relevancy query when it only has features, and the
-/// held-out renders next to their ground truth in any case.
+/// held-out renders next to their ground truth in any case, and the web
+/// viewer of a run whose scene file is there.
 pub fn next_commands(dir: &Path) -> Vec<String> {
     let run = shell_word(dir);
     let eval = "cargo run -p eval --release --";
@@ -60,6 +61,9 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
         ));
     }
     out.push(format!("{eval} render --run {run}"));
+    if meta.is_some() {
+        out.push(format!("{eval} view --run {run}"));
+    }
     out
 }
 

@@ -241,6 +241,14 @@ fn training_without_features_warns_that_segmentation_is_impossible() {
         "{stdout}"
     );
     assert!(!stdout.contains("-- segment"), "{stdout}");
+    // The viewer shows any run (points from rendered depth without a cloud).
+    assert!(
+        stdout.contains(&format!(
+            "cargo run -p eval --release -- view --run {}",
+            out.display()
+        )),
+        "{stdout}"
+    );
 }
 
 /// A new run, resumed with bad options (nothing rewritten), with a damaged
