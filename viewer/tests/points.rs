@@ -103,3 +103,34 @@ fn the_binary_layout_holds_every_array_where_the_page_reads_it() {
     assert!(f(16 + 20 * n + 4).is_nan());
     assert_eq!(f(16 + 20 * n + 8), 1.0);
 }
+
+#[test]
+fn uncertainty_is_taken_from_the_nearest_csv_point_within_the_radius() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let csv = dir.path().join("uncertainty.csv");
+    std::fs::write(
+        &csv,
+        "x,y,z,views,log_det,uncertainty,feature_error\n\
+         0.0000,0.0000,0.0000,3,-1.0,0.25,\n\
+         0.0500,0.0000,0.0000,2,-0.5,0.75,0.1\n\
+         5.0000,5.0000,5.0000,1,0.0,1.00,\n",
+    )
+    .expect("csv");
+    let mut set = viewer::points::PointSet {
+        // Nearest to the first, nearest to the second, and far from all.
+        positions: vec![[0.01, 0.0, 0.0], [0.04, 0.01, 0.0], [1.0, 1.0, 1.0]],
+        colours: vec![[0; 3]; 3],
+        truth: vec![NO_CLASS; 3],
+        uncertainty: vec![f32::NAN; 3],
+        source: PointSource::Labelled,
+    };
+    let matched = viewer::points::attach_uncertainty(&mut set, &csv, 0.1).expect("attach");
+    assert_eq!(matched, 2);
+    assert_eq!(set.uncertainty[..2], [0.25, 0.75]);
+    assert!(set.uncertainty[2].is_nan(), "no CSV point within 0.1 m");
+    std::fs::write(&csv, "x,y,z,views,log_det,uncertainty\n1,2,3,4,5\n").expect("csv");
+    let e = viewer::points::attach_uncertainty(&mut set, &csv, 0.1)
+        .expect_err("a short line")
+        .to_string();
+    assert!(e.contains("uncertainty.csv") && e.contains("line 2"), "{e}");
+}
