@@ -10,7 +10,7 @@ use model::{FeatureMode, OpenNerf, Rays};
 pub const RENDER_MIN_NEAR: f64 = 0.05;
 
 /// One rendered view, row-major images of `height x width` pixels.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct RenderedView {
     /// Width in pixels.
     pub width: u32,
@@ -79,22 +79,18 @@ pub fn render_view(
     features: bool,
     device: &Device,
 ) -> RenderedView {
-    let mode = if features {
-        FeatureMode::Composited
-    } else {
-        FeatureMode::None
-    };
-    let rays = camera_rays(camera, scene_box);
-    let r = render_rays(model, &rays, background, chunk, mode, device);
-    RenderedView {
-        width: camera.intrinsics.width,
-        height: camera.intrinsics.height,
-        rgb: r.rgb,
-        depth: r.depth,
-        acc: r.acc,
-        feature: r.feature,
-        feature_dim: r.feature_dim,
-    }
+    let mut always = |_, _| true;
+    render_view_observed(
+        model,
+        camera,
+        scene_box,
+        background,
+        chunk,
+        features,
+        device,
+        &mut always,
+    )
+    .unwrap_or_default()
 }
 
 /// Fine-level outputs of a list of rays, on the host.

@@ -142,14 +142,13 @@ fn route(
         ("GET", ["api", "render", id, file]) => {
             let job = job(jobs, id)?;
             let name = file.strip_suffix(".png").unwrap_or(file);
-            let png = job.images().into_iter().find(|(n, _)| n == name);
-            png.map(|(_, bytes)| Reply::bytes("image/png", bytes))
+            job.image(name)
+                .map(|bytes| Reply::bytes("image/png", bytes))
                 .ok_or_else(|| {
+                    let status = job.status();
                     ViewerError::NotFound(format!(
                         "render {}: no image {file} (state {:?}; images {:?})",
-                        job.id,
-                        job.status().state,
-                        job.status().images
+                        job.id, status.state, status.images
                     ))
                 })
         }

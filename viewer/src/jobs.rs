@@ -11,7 +11,7 @@ use image::ImageEncoder;
 use model::geometry::{Camera, Distortion, Intrinsics, Pose};
 
 use crate::ViewerError;
-use crate::query::{QueryRequest, query_points, resolve, scores};
+use crate::query::{QueryRequest, resolve, score_points, scores};
 use crate::state::Viewer;
 use field_ops::colormap::{to_u8, turbo};
 use field_ops::query::{RelevancyScale, relevancy_overlay};
@@ -156,16 +156,23 @@ impl Job {
             state,
             progress: f32::from_bits(self.progress.load(Ordering::Relaxed)),
             error,
-            images: self.images().into_iter().map(|(n, _)| n).collect(),
+            images: self.image_names(),
         }
     }
 
-    /// The finished images as PNG bytes.
-    pub fn images(&self) -> Vec<(String, Vec<u8>)> {
-        self.images
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .clone()
+    /// Names of the finished images.
+    pub fn image_names(&self) -> Vec<String> {
+        let images = self.images.lock().unwrap_or_else(|e| e.into_inner());
+        images.iter().map(|(n, _)| n.clone()).collect()
+    }
+
+    /// The finished image `name` as PNG bytes.
+    pub fn image(&self, name: &str) -> Option<Vec<u8>> {
+        let images = self.images.lock().unwrap_or_else(|e| e.into_inner());
+        images
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, b)| b.clone())
     }
 
     /// Asks the job to stop; a queued one never starts.
@@ -282,7 +289,10 @@ fn render(viewer: &Viewer, job: &Job) -> Result<bool, ViewerError> {
     let d = &viewer.data;
     let query = match &job.request.query {
         Some(q) if !q.positives.trim().is_empty() => {
-            Some((resolve(viewer, q)?, query_points(viewer, q)?))
+            // Embedded once, for the points' scale and the pixels alike.
+            let q = resolve(viewer, q)?;
+            let on_points = score_points(viewer, &q)?;
+            Some((q, on_points))
         }
         _ => None,
     };

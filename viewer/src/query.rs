@@ -70,10 +70,12 @@ fn embed(viewer: &Viewer, texts: &[String]) -> Result<Vec<Vec<f32>>, ViewerError
         let i = c.names.iter().position(|n| n.eq_ignore_ascii_case(t))?;
         Some(c.data[i * c.dim..(i + 1) * c.dim].to_vec())
     };
+    let known: Vec<Option<Vec<f32>>> = texts.iter().map(|t| class(t)).collect();
     let unknown: Vec<String> = texts
         .iter()
-        .filter(|t| class(t).is_none())
-        .cloned()
+        .zip(&known)
+        .filter(|(_, k)| k.is_none())
+        .map(|(t, _)| t.clone())
         .collect();
     let mut free = Vec::new();
     if !unknown.is_empty() {
@@ -97,9 +99,9 @@ fn embed(viewer: &Viewer, texts: &[String]) -> Result<Vec<Vec<f32>>, ViewerError
     let mut free = free.into_iter();
     texts
         .iter()
-        .map(|t| {
-            class(t)
-                .or_else(|| free.next())
+        .zip(known)
+        .map(|(t, k)| {
+            k.or_else(|| free.next())
                 .ok_or_else(|| ViewerError::BadRequest(format!("{t:?} could not be embedded")))
         })
         .collect()
@@ -192,14 +194,19 @@ pub struct QueryResult {
 
 /// Scores the viewer's points for `req` under the current field.
 pub fn query_points(viewer: &Viewer, req: &QueryRequest) -> Result<QueryResult, ViewerError> {
-    let q = resolve(viewer, req)?;
+    score_points(viewer, &resolve(viewer, req)?)
+}
+
+/// Scores the viewer's points for the embedded query `q` under the current
+/// field.
+pub fn score_points(viewer: &Viewer, q: &ResolvedQuery) -> Result<QueryResult, ViewerError> {
     let f = viewer.point_features();
-    let s = scores(&f.features, &q, viewer.data.meta.pca.as_ref())?;
+    let s = scores(&f.features, q, viewer.data.meta.pca.as_ref())?;
     let scale = RelevancyScale::spanning([s.as_slice()]);
     Ok(QueryResult {
         positives: q.positives.iter().map(|p| p.0.clone()).collect(),
         negatives: q.negatives.iter().map(|p| p.0.clone()).collect(),
-        quantity: quantity(&q),
+        quantity: quantity(q),
         lo: scale.lo,
         hi: scale.hi,
         cut: scale.lo + RELEVANCY_THRESHOLD as f64 * (scale.hi - scale.lo),

@@ -2,6 +2,8 @@
 //! every endpoint, its answers checked against independent computations,
 //! and bad requests (JSON, classes, paths, sizes, concurrency, cancels).
 
+mod common;
+
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::sync::Arc;
@@ -13,7 +15,6 @@ use datasets::{Scene, SceneMeta};
 use field_ops::render::render_view;
 use field_ops::run_dir::{RunDir, Split};
 use field_ops::sample::sampled_features;
-use model::{FeatureHeadConfig, MipMlpConfig, OpenNerf, OpenNerfConfig};
 use viewer::{ServerHandle, ServerOptions, Viewer, ViewerData, ViewerOptions};
 
 struct Served {
@@ -23,19 +24,6 @@ struct Served {
     _dir: tempfile::TempDir,
 }
 
-fn tiny_model(dim: usize, device: &Device) -> OpenNerf {
-    OpenNerfConfig::new(FeatureHeadConfig::new(dim).with_width(8).with_layers(1))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1)
-                .with_max_deg(4),
-        )
-        .with_num_samples(4)
-        .init(device)
-}
-
 /// An untrained tiny field on the CI scene, served on a free port; `chunk`
 /// rays a forward pass (small: renders take many chunks).
 fn serve(chunk: usize) -> Served {
@@ -43,7 +31,7 @@ fn serve(chunk: usize) -> Served {
     let scene = generate(0, SceneSize::Ci).expect("CI scene");
     let features = scene.features.as_ref().expect("features");
     let device = Device::flex();
-    let model = tiny_model(features.dim(), &device);
+    let model = common::tiny_model(features.dim(), &device);
     let meta = SceneMeta {
         source: scene.source.clone(),
         scene_box: scene.scene_box,
@@ -520,7 +508,8 @@ fn publishing_a_field_changes_the_version_and_the_predictions() {
     let (_, a) = json(addr, "GET", "/api/summary", "");
     let (_, _, before) = call(addr, "GET", "/api/points", b"");
     let dim = s.scene.features.as_ref().expect("features").dim();
-    s.viewer.publish(tiny_model(dim, &s.viewer.device), 42);
+    s.viewer
+        .publish(common::tiny_model(dim, &s.viewer.device), 42);
     let (_, b) = json(addr, "GET", "/api/summary", "");
     assert_eq!(
         b["field_version"].as_u64(),

@@ -2,11 +2,12 @@
 //! depth the field renders, they project back onto their pixels at that
 //! depth; and the binary layout the page reads.
 
+mod common;
+
 use burn::nn::{Initializer, LinearConfig};
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
 use field_ops::render::render_view;
-use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 use viewer::points::{NO_CLASS, PointSource, encode, from_rendered_depth};
 
 #[test]
@@ -14,16 +15,7 @@ fn points_from_rendered_depth_project_back_onto_their_pixels_at_that_depth() {
     let scene = generate(0, SceneSize::Ci).expect("CI scene");
     let device = Device::flex();
     let dim = scene.features.as_ref().expect("features").dim();
-    let mut model = OpenNerfConfig::new(FeatureHeadConfig::new(dim).with_width(8).with_layers(1))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1)
-                .with_max_deg(4),
-        )
-        .with_num_samples(4)
-        .init(&device);
+    let mut model = common::tiny_model(dim, &device);
     // A dense field: every ray stops in its first samples (opacity ~1).
     let [width, out] = model.mlp.density.weight.dims();
     model.mlp.density = LinearConfig::new(width, out)
