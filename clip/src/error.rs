@@ -56,6 +56,9 @@ pub enum ClipError {
     /// Text that cannot be encoded (empty, or a token the vocabulary lacks).
     #[error("{0}")]
     Text(String),
+    /// An image that cannot be turned into features (e.g. smaller than a patch).
+    #[error("{0}")]
+    Image(String),
 }
 
 impl ClipError {

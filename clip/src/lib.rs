@@ -1,4 +1,5 @@
-//! CLIP text models from files, for free-text queries: the byte-level BPE
+//! CLIP models from files: pixel-aligned image features from the vision
+//! tower ([`vision`]) and, for free-text queries, the byte-level BPE
 //! tokenizer ([`tokenizer`], with CLIP's text clean-up in [`clean`]),
 //! safetensors weights in Hugging Face or OpenCLIP naming ([`tensors`],
 //! [`layout`]), their configuration ([`config`]), a model directory loader
@@ -15,8 +16,10 @@ pub mod layout;
 pub mod model_dir;
 pub mod tensors;
 pub mod tokenizer;
+pub mod vision;
 
 pub use cache::{Embedded, embed_texts};
 pub use error::ClipError;
 pub use model_dir::{TextModel, load_tokenizer};
 pub use tokenizer::ClipTokenizer;
+pub use vision::{ClipExtractor, DenseOptions, VisionModel, Vlm};

@@ -1,12 +1,14 @@
-//! Multi-head self-attention with a causal mask, as in CLIP's text tower.
+//! Multi-head self-attention: with a causal mask in CLIP's text tower,
+//! over every token in its vision tower.
 
 use burn::module::Module;
 use burn::nn::{Linear, LinearConfig};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Bool, Device, Tensor};
 
-/// Causal multi-head self-attention: every position attends to itself and
-/// the positions before it. Queries are scaled by `1 / sqrt(head_dim)`.
+/// Multi-head self-attention. Causal (the text tower): every position
+/// attends to itself and the positions before it; otherwise (the vision
+/// tower) to every position. Queries are scaled by `1 / sqrt(head_dim)`.
 /// Four separate projections, as Hugging Face stores them (OpenCLIP's packed
 /// `in_proj_weight` is split into these when loading).
 #[derive(Module, Debug)]
@@ -21,12 +23,20 @@ pub struct CausalSelfAttention {
     pub out_proj: Linear,
     /// Number of heads.
     pub heads: usize,
+    /// Whether a position sees only itself and earlier ones.
+    #[module(skip)]
+    pub causal: bool,
 }
 
 impl CausalSelfAttention {
     /// An attention layer of `width` channels in `heads` heads (`heads`
     /// must divide `width`; see [`super::ClipTextConfig::problem`]).
     pub fn new(width: usize, heads: usize, device: &Device) -> Self {
+        Self::with_mask(width, heads, true, device)
+    }
+
+    /// [`CausalSelfAttention::new`], causal or not.
+    pub fn with_mask(width: usize, heads: usize, causal: bool, device: &Device) -> Self {
         let linear = || LinearConfig::new(width, width).init(device);
         Self {
             q_proj: linear(),
@@ -34,7 +44,27 @@ impl CausalSelfAttention {
             v_proj: linear(),
             out_proj: linear(),
             heads: heads.max(1),
+            causal,
         }
+    }
+
+    /// Splits channels into heads.
+    ///
+    /// # Shapes
+    /// - `t`: `[batch, seq, width]`; output: `[batch, heads, seq, width / heads]`.
+    pub fn split_heads(&self, t: Tensor<3>) -> Tensor<4> {
+        let [b, s, w] = t.dims();
+        t.reshape([b, s, self.heads, w / self.heads])
+            .swap_dims(1, 2)
+    }
+
+    /// The inverse of [`CausalSelfAttention::split_heads`].
+    ///
+    /// # Shapes
+    /// - `t`: `[batch, heads, seq, head_dim]`; output: `[batch, seq, heads * head_dim]`.
+    pub fn merge_heads(&self, t: Tensor<4>) -> Tensor<3> {
+        let [b, h, s, d] = t.dims();
+        t.swap_dims(1, 2).reshape([b, s, h * d])
     }
 
     /// Attention of every position over itself and the earlier positions.
@@ -42,22 +72,22 @@ impl CausalSelfAttention {
     /// # Shapes
     /// - `x`: `[batch, seq, width]`; output: `[batch, seq, width]`.
     pub fn forward(&self, x: Tensor<3>) -> Tensor<3> {
-        let [b, s, w] = x.dims();
+        let [_, s, w] = x.dims();
         let device = x.device();
-        let h = self.heads;
-        let d = w / h;
-        let split = |t: Tensor<3>| t.reshape([b, s, h, d]).swap_dims(1, 2); // [b, h, s, d]
-        let q = split(
+        let d = w / self.heads;
+        let q = self.split_heads(
             self.q_proj
                 .forward(x.clone())
                 .mul_scalar(1.0 / (d as f64).sqrt()),
         );
-        let k = split(self.k_proj.forward(x.clone()));
-        let v = split(self.v_proj.forward(x));
-        let scores = q.matmul(k.swap_dims(2, 3)) + causal_bias(s, &device);
+        let k = self.split_heads(self.k_proj.forward(x.clone()));
+        let v = self.split_heads(self.v_proj.forward(x));
+        let mut scores = q.matmul(k.swap_dims(2, 3));
+        if self.causal {
+            scores = scores + causal_bias(s, &device);
+        }
         let attn = softmax(scores, 3);
-        let out = attn.matmul(v).swap_dims(1, 2).reshape([b, s, w]);
-        self.out_proj.forward(out)
+        self.out_proj.forward(self.merge_heads(attn.matmul(v)))
     }
 }
 

@@ -1,4 +1,5 @@
-//! The pre-LN residual attention block of CLIP's text transformer.
+//! The pre-LN residual attention block of CLIP's transformers (text and
+//! vision).
 
 use burn::module::Module;
 use burn::nn::{LayerNorm, LayerNormConfig, Linear, LinearConfig};
@@ -33,6 +34,23 @@ impl ClipMlp {
     }
 }
 
+/// The sizes and options of one block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BlockSizes {
+    /// Channels.
+    pub width: usize,
+    /// Attention heads (dividing `width`).
+    pub heads: usize,
+    /// Hidden width of the MLP.
+    pub mlp_width: usize,
+    /// MLP activation.
+    pub activation: ClipActivation,
+    /// Epsilon of both layer norms.
+    pub layer_norm_eps: f64,
+    /// Causal attention (text) or not (vision).
+    pub causal: bool,
+}
+
 /// `x + attn(ln1(x))`, then `x + mlp(ln2(x))`.
 #[derive(Module, Debug)]
 pub struct ResidualAttentionBlock {
@@ -47,21 +65,36 @@ pub struct ResidualAttentionBlock {
 }
 
 impl ResidualAttentionBlock {
-    /// A block of `config`'s sizes, randomly initialised.
+    /// A causal block of `config`'s sizes, randomly initialised.
     pub fn new(config: &ClipTextConfig, device: &Device) -> Self {
+        Self::with_sizes(
+            &BlockSizes {
+                width: config.width,
+                heads: config.heads,
+                mlp_width: config.mlp_width,
+                activation: config.activation,
+                layer_norm_eps: config.layer_norm_eps,
+                causal: true,
+            },
+            device,
+        )
+    }
+
+    /// A block of these sizes, randomly initialised.
+    pub fn with_sizes(sizes: &BlockSizes, device: &Device) -> Self {
         let ln = || {
-            LayerNormConfig::new(config.width)
-                .with_epsilon(config.layer_norm_eps)
+            LayerNormConfig::new(sizes.width)
+                .with_epsilon(sizes.layer_norm_eps)
                 .init(device)
         };
         Self {
             ln1: ln(),
-            attn: CausalSelfAttention::new(config.width, config.heads, device),
+            attn: CausalSelfAttention::with_mask(sizes.width, sizes.heads, sizes.causal, device),
             ln2: ln(),
             mlp: ClipMlp {
-                fc1: LinearConfig::new(config.width, config.mlp_width).init(device),
-                fc2: LinearConfig::new(config.mlp_width, config.width).init(device),
-                activation: config.activation,
+                fc1: LinearConfig::new(sizes.width, sizes.mlp_width).init(device),
+                fc2: LinearConfig::new(sizes.mlp_width, sizes.width).init(device),
+                activation: sizes.activation,
             },
         }
     }

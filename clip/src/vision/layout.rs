@@ -1,0 +1,321 @@
+//! The two naming schemes of CLIP vision weights and how each maps onto
+//! [`ClipVisionEncoder`]: Hugging Face (`CLIPModel`,
+//! `CLIPVisionModelWithProjection`) and OpenCLIP / OpenAI (`visual.*`,
+//! packed attention projections, a `visual.proj` matrix).
+
+use burn::module::Param;
+use burn::nn::{LayerNorm, Linear};
+use burn::tensor::{Device, Tensor, TensorData};
+use model::clip::{ClipVisionConfig, ClipVisionEncoder};
+
+use crate::error::ClipError;
+use crate::tensors::{HostTensor, TensorFile, transpose};
+
+/// A naming scheme of vision weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VisionLayout {
+    /// `vision_model.embeddings.patch_embedding.weight`,
+    /// `vision_model.encoder.layers.N...`, `visual_projection.weight`.
+    HuggingFace,
+    /// `visual.conv1.weight`, `visual.transformer.resblocks.N...`,
+    /// `visual.proj`.
+    OpenClip,
+}
+
+const HF_PATCH: &str = "vision_model.embeddings.patch_embedding.weight";
+const OC_PATCH: &str = "visual.conv1.weight";
+
+/// Sizes the tensor shapes give.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct VisionSizes {
+    /// Transformer width.
+    pub width: usize,
+    /// Patch side in pixels.
+    pub patch_size: usize,
+    /// Native input side in pixels (grid times patch).
+    pub image_size: usize,
+    /// Number of blocks.
+    pub layers: usize,
+    /// MLP hidden width.
+    pub mlp_width: usize,
+    /// Projection output dimension.
+    pub embed_dim: usize,
+}
+
+/// Whether a tensor name belongs to a vision tower in some layout.
+pub fn is_vision_tensor(name: &str) -> bool {
+    name.starts_with("visual.")
+        || name.starts_with("vision_model.")
+        || name == "visual_projection.weight"
+}
+
+impl VisionLayout {
+    /// The name used in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::HuggingFace => "Hugging Face",
+            Self::OpenClip => "OpenCLIP",
+        }
+    }
+
+    /// The scheme of `file` (read with [`is_vision_tensor`]), told by its
+    /// patch embedding's name.
+    pub fn detect(file: &TensorFile) -> Result<Self, ClipError> {
+        if file.contains(HF_PATCH) {
+            return Ok(Self::HuggingFace);
+        }
+        if file.contains(OC_PATCH) {
+            return Ok(Self::OpenClip);
+        }
+        let names: Vec<&str> = file.names().collect();
+        let message = if names.is_empty() {
+            "no vision tower: this checkpoint holds a text model only; features need a whole \
+             CLIP model (Hugging Face CLIPModel or CLIPVisionModelWithProjection, or an OpenCLIP \
+             model saved with its visual.* tensors)"
+                .to_string()
+        } else if names.iter().any(|n| n.starts_with("visual.trunk.")) {
+            "a timm vision tower (visual.trunk.*) is not supported: only CLIP's own ViT \
+             (visual.conv1, visual.transformer.resblocks)"
+                .to_string()
+        } else {
+            format!(
+                "unknown vision layout: no {HF_PATCH} (Hugging Face) or {OC_PATCH} (OpenCLIP); \
+                 its vision tensors include {:?}",
+                &names[..names.len().min(5)]
+            )
+        };
+        Err(ClipError::invalid(&file.path, message))
+    }
+
+    fn block_prefix(self, i: usize) -> String {
+        match self {
+            Self::HuggingFace => format!("vision_model.encoder.layers.{i}."),
+            Self::OpenClip => format!("visual.transformer.resblocks.{i}."),
+        }
+    }
+
+    fn names(self) -> (&'static str, &'static str, &'static str) {
+        match self {
+            Self::HuggingFace => (
+                HF_PATCH,
+                "vision_model.embeddings.position_embedding.weight",
+                "mlp.fc1.weight",
+            ),
+            Self::OpenClip => (OC_PATCH, "visual.positional_embedding", "mlp.c_fc.weight"),
+        }
+    }
+
+    /// The sizes the tensor shapes give.
+    pub fn sizes(self, file: &TensorFile) -> Result<VisionSizes, ClipError> {
+        let (patch, positions, fc1) = self.names();
+        let shape = |name: &str| {
+            file.shape(name)
+                .map(<[usize]>::to_vec)
+                .ok_or_else(|| ClipError::MissingTensor {
+                    path: file.path.clone(),
+                    name: name.to_string(),
+                    layout: self.name(),
+                })
+        };
+        let bad = |name: &str, s: &[usize], want: &str| {
+            ClipError::invalid(
+                &file.path,
+                format!("tensor {name:?} has shape {s:?}, expected {want}"),
+            )
+        };
+        let p = shape(patch)?;
+        if p.len() != 4 || p[1] != 3 || p[2] != p[3] || p[2] == 0 {
+            return Err(bad(patch, &p, "[width, 3, patch, patch]"));
+        }
+        let (width, patch_size) = (p[0], p[2]);
+        let pos = shape(positions)?;
+        let g = (pos.first().copied().unwrap_or(0).saturating_sub(1) as f64)
+            .sqrt()
+            .round() as usize;
+        if pos.len() != 2 || pos[1] != width || g == 0 || g * g + 1 != pos[0] {
+            return Err(bad(positions, &pos, "[1 + grid * grid, width]"));
+        }
+        let layers = (0..)
+            .take_while(|&i| file.contains(&format!("{}{fc1}", self.block_prefix(i))))
+            .count();
+        if layers == 0 {
+            return Err(ClipError::MissingTensor {
+                path: file.path.clone(),
+                name: format!("{}{fc1}", self.block_prefix(0)),
+                layout: self.name(),
+            });
+        }
+        let mlp = shape(&format!("{}{fc1}", self.block_prefix(0)))?;
+        let embed_dim = match self {
+            Self::HuggingFace => match file.shape("visual_projection.weight") {
+                Some([e, w]) if *w == width => *e,
+                Some(s) => return Err(bad("visual_projection.weight", s, "[embed_dim, width]")),
+                None => {
+                    return Err(ClipError::invalid(
+                        &file.path,
+                        "no visual_projection.weight: a CLIPVisionModel without its projection \
+                         gives features outside the text space (save CLIPModel or \
+                         CLIPVisionModelWithProjection)",
+                    ));
+                }
+            },
+            Self::OpenClip => match file.shape("visual.proj") {
+                Some([w, e]) if *w == width => *e,
+                Some(s) => return Err(bad("visual.proj", s, "[width, embed_dim]")),
+                None => {
+                    return Err(ClipError::MissingTensor {
+                        path: file.path.clone(),
+                        name: "visual.proj".into(),
+                        layout: self.name(),
+                    });
+                }
+            },
+        };
+        Ok(VisionSizes {
+            width,
+            patch_size,
+            image_size: g * patch_size,
+            layers,
+            mlp_width: mlp[0],
+            embed_dim,
+        })
+    }
+
+    /// The encoder with `file`'s weights (every tensor checked against `config`).
+    pub fn build(
+        self,
+        file: &mut TensorFile,
+        config: &ClipVisionConfig,
+        device: &Device,
+    ) -> Result<ClipVisionEncoder, ClipError> {
+        let mut enc = config.init(device);
+        let (w, m, e, p) = (
+            config.width,
+            config.mlp_width,
+            config.embed_dim,
+            config.patch_size,
+        );
+        let g = config.grid();
+        let layout = self.name();
+        let mut take = |name: &str, shape: &[usize]| file.take(name, shape, layout);
+        let (patch_name, pos_name, _) = self.names();
+        let patch = take(patch_name, &[w, 3, p, p])?;
+        enc.patch_embedding = linear_from_torch(
+            HostTensor {
+                shape: vec![w, 3 * p * p],
+                data: patch.data,
+            },
+            None,
+            device,
+        );
+        enc.position_embedding = param2(take(pos_name, &[1 + g * g, w])?, device);
+        let (class, pre, post) = match self {
+            Self::HuggingFace => (
+                "vision_model.embeddings.class_embedding",
+                ("vision_model.", "pre_layrnorm"),
+                ("vision_model.", "post_layernorm"),
+            ),
+            Self::OpenClip => (
+                "visual.class_embedding",
+                ("visual.", "ln_pre"),
+                ("visual.", "ln_post"),
+            ),
+        };
+        enc.class_embedding = param1(take(class, &[w])?, device);
+        set_norm(&mut enc.pre_ln, pre.0, pre.1, w, &mut take, device)?;
+        set_norm(&mut enc.post_ln, post.0, post.1, w, &mut take, device)?;
+        for (i, block) in enc.blocks.iter_mut().enumerate() {
+            let pre = self.block_prefix(i);
+            let mut lin = |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
+                let weight = take(&format!("{pre}{name}.weight"), &[d_out, d_in])?;
+                let bias = take(&format!("{pre}{name}.bias"), &[d_out])?;
+                Ok(linear_from_torch(weight, Some(bias), device))
+            };
+            match self {
+                Self::HuggingFace => {
+                    block.attn.q_proj = lin("self_attn.q_proj", w, w)?;
+                    block.attn.k_proj = lin("self_attn.k_proj", w, w)?;
+                    block.attn.v_proj = lin("self_attn.v_proj", w, w)?;
+                    block.attn.out_proj = lin("self_attn.out_proj", w, w)?;
+                    block.mlp.fc1 = lin("mlp.fc1", w, m)?;
+                    block.mlp.fc2 = lin("mlp.fc2", m, w)?;
+                    set_norm(&mut block.ln1, &pre, "layer_norm1", w, &mut take, device)?;
+                    set_norm(&mut block.ln2, &pre, "layer_norm2", w, &mut take, device)?;
+                }
+                Self::OpenClip => {
+                    block.attn.out_proj = lin("attn.out_proj", w, w)?;
+                    block.mlp.fc1 = lin("mlp.c_fc", w, m)?;
+                    block.mlp.fc2 = lin("mlp.c_proj", m, w)?;
+                    let packed = take(&format!("{pre}attn.in_proj_weight"), &[3 * w, w])?;
+                    let bias = take(&format!("{pre}attn.in_proj_bias"), &[3 * w])?;
+                    let part = |t: &HostTensor, k: usize, shape: Vec<usize>| HostTensor {
+                        data: t.data[k * t.data.len() / 3..(k + 1) * t.data.len() / 3].to_vec(),
+                        shape,
+                    };
+                    let proj = |k| {
+                        linear_from_torch(
+                            part(&packed, k, vec![w, w]),
+                            Some(part(&bias, k, vec![w])),
+                            device,
+                        )
+                    };
+                    block.attn.q_proj = proj(0);
+                    block.attn.k_proj = proj(1);
+                    block.attn.v_proj = proj(2);
+                    set_norm(&mut block.ln1, &pre, "ln_1", w, &mut take, device)?;
+                    set_norm(&mut block.ln2, &pre, "ln_2", w, &mut take, device)?;
+                }
+            }
+        }
+        enc.projection = match self {
+            Self::HuggingFace => {
+                linear_from_torch(take("visual_projection.weight", &[e, w])?, None, device)
+            }
+            // `x @ proj`: already Burn's `[d_in, d_out]`.
+            Self::OpenClip => Linear {
+                weight: param2(take("visual.proj", &[w, e])?, device),
+                bias: None,
+            },
+        };
+        Ok(enc)
+    }
+}
+
+fn set_norm(
+    norm: &mut LayerNorm,
+    prefix: &str,
+    name: &str,
+    width: usize,
+    take: &mut impl FnMut(&str, &[usize]) -> Result<HostTensor, ClipError>,
+    device: &Device,
+) -> Result<(), ClipError> {
+    norm.gamma = param1(take(&format!("{prefix}{name}.weight"), &[width])?, device);
+    norm.beta = Some(param1(
+        take(&format!("{prefix}{name}.bias"), &[width])?,
+        device,
+    ));
+    Ok(())
+}
+
+fn param1(t: HostTensor, device: &Device) -> Param<Tensor<1>> {
+    let n = t.data.len();
+    Param::from_tensor(Tensor::from_data(TensorData::new(t.data, [n]), device))
+}
+
+fn param2(t: HostTensor, device: &Device) -> Param<Tensor<2>> {
+    let shape = [t.shape[0], t.shape[1]];
+    Param::from_tensor(Tensor::from_data(TensorData::new(t.data, shape), device))
+}
+
+/// A Burn linear layer from PyTorch's `[d_out, d_in]` weight.
+fn linear_from_torch(weight: HostTensor, bias: Option<HostTensor>, device: &Device) -> Linear {
+    let (d_out, d_in) = (weight.shape[0], weight.shape[1]);
+    let w = HostTensor {
+        shape: vec![d_in, d_out],
+        data: transpose(&weight.data, d_out, d_in),
+    };
+    Linear {
+        weight: param2(w, device),
+        bias: bias.map(|b| param1(b, device)),
+    }
+}
