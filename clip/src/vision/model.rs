@@ -100,6 +100,28 @@ impl VisionModel {
         })
     }
 
+    /// A model made in memory (e.g. random weights of a real size for
+    /// benchmarks), normalised with OpenAI's constants.
+    pub fn from_encoder(
+        encoder: ClipVisionEncoder,
+        config: ClipVisionConfig,
+        device: &Device,
+    ) -> Self {
+        Self {
+            dir: PathBuf::from("<in memory>"),
+            weights: PathBuf::from("<in memory>"),
+            encoder,
+            config,
+            norm: ImageNorm {
+                mean: super::config::OPENAI_MEAN,
+                std: super::config::OPENAI_STD,
+            },
+            layout: VisionLayout::HuggingFace,
+            notes: Vec::new(),
+            device: device.clone(),
+        }
+    }
+
     /// Output dimension.
     pub fn dim(&self) -> usize {
         self.config.embed_dim
