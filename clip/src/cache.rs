@@ -90,7 +90,7 @@ fn hex(digest: &[u8]) -> String {
 }
 
 /// SHA-256 of a whole file, read in pieces (weights do not fit twice in memory).
-fn hash_file(path: &Path) -> Result<String, ClipError> {
+pub fn hash_file(path: &Path) -> Result<String, ClipError> {
     let mut file = std::fs::File::open(path).map_err(|e| ClipError::io(path, e))?;
     let mut hasher = Sha256::new();
     std::io::copy(&mut file, &mut hasher).map_err(|e| ClipError::io(path, e))?;

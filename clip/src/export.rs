@@ -9,17 +9,58 @@ use burn::module::Param;
 use burn::nn::{LayerNorm, Linear};
 use burn::tensor::Tensor;
 use model::clip::{ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling};
+use serde_json::{Map, Value, json};
 
 use crate::error::ClipError;
 use crate::tensors::{HostTensor, transpose, write_f32};
 
-fn host<const D: usize>(t: &Param<Tensor<D>>, path: &Path) -> Result<HostTensor, ClipError> {
+/// A parameter's values on the host, with its shape.
+pub(crate) fn host<const D: usize>(
+    t: &Param<Tensor<D>>,
+    path: &Path,
+) -> Result<HostTensor, ClipError> {
     let v = t.val();
     let shape = v.dims().to_vec();
     let data = v
         .try_into_vec_as::<f32>()
         .map_err(|e| ClipError::invalid(path, format!("cannot read a tensor back: {e:?}")))?;
     Ok(HostTensor { shape, data })
+}
+
+/// Inserts `name.weight` (PyTorch's `[out, in]`) and `name.bias`, if any.
+pub(crate) fn put_linear(
+    out: &mut BTreeMap<String, HostTensor>,
+    name: &str,
+    l: &Linear,
+    path: &Path,
+) -> Result<(), ClipError> {
+    let w = host(&l.weight, path)?;
+    let (d_in, d_out) = (w.shape[0], w.shape[1]);
+    out.insert(
+        format!("{name}.weight"),
+        HostTensor {
+            shape: vec![d_out, d_in],
+            data: transpose(&w.data, d_in, d_out),
+        },
+    );
+    if let Some(b) = &l.bias {
+        out.insert(format!("{name}.bias"), host(b, path)?);
+    }
+    Ok(())
+}
+
+/// Inserts `name.weight` and `name.bias` (if any) of a layer norm.
+pub(crate) fn put_norm(
+    out: &mut BTreeMap<String, HostTensor>,
+    name: &str,
+    n: &LayerNorm,
+    path: &Path,
+) -> Result<(), ClipError> {
+    out.insert(format!("{name}.weight"), host(&n.gamma, path)?);
+    if let Some(b) = &n.beta {
+        out.insert(format!("{name}.bias"), host(b, path)?);
+    }
+    Ok(())
 }
 
 /// The encoder's tensors under Hugging Face names (PyTorch's `[out, in]`
@@ -30,26 +71,10 @@ pub fn hf_tensors(
 ) -> Result<BTreeMap<String, HostTensor>, ClipError> {
     let mut out = BTreeMap::new();
     let put_linear = |out: &mut BTreeMap<String, HostTensor>, name: &str, l: &Linear| {
-        let w = host(&l.weight, path)?;
-        let (d_in, d_out) = (w.shape[0], w.shape[1]);
-        out.insert(
-            format!("{name}.weight"),
-            HostTensor {
-                shape: vec![d_out, d_in],
-                data: transpose(&w.data, d_in, d_out),
-            },
-        );
-        if let Some(b) = &l.bias {
-            out.insert(format!("{name}.bias"), host(b, path)?);
-        }
-        Ok::<(), ClipError>(())
+        put_linear(out, name, l, path)
     };
     let put_norm = |out: &mut BTreeMap<String, HostTensor>, name: &str, n: &LayerNorm| {
-        out.insert(format!("{name}.weight"), host(&n.gamma, path)?);
-        if let Some(b) = &n.beta {
-            out.insert(format!("{name}.bias"), host(b, path)?);
-        }
-        Ok::<(), ClipError>(())
+        put_norm(out, name, n, path)
     };
     out.insert(
         "text_model.embeddings.token_embedding.weight".into(),
@@ -88,29 +113,52 @@ pub fn save_hf_model(
     std::fs::create_dir_all(dir).map_err(|e| ClipError::io(dir, e))?;
     let weights = dir.join("model.safetensors");
     write_f32(&weights, &hf_tensors(enc, &weights)?)?;
+    let mut json = Map::new();
+    json.insert(
+        "architectures".into(),
+        json!(["CLIPTextModelWithProjection"]),
+    );
+    json.extend(text_config_json(config));
+    write_json(&dir.join("config.json"), &Value::Object(json))
+}
+
+/// Writes `value` as pretty-printed JSON.
+pub(crate) fn write_json(path: &Path, value: &Value) -> Result<(), ClipError> {
+    let text =
+        serde_json::to_string_pretty(value).map_err(|e| ClipError::invalid(path, e.to_string()))?;
+    std::fs::write(path, text).map_err(|e| ClipError::io(path, e))
+}
+
+/// The text tower's Hugging Face configuration (`model_type`
+/// `clip_text_model`): the top level of a `CLIPTextModelWithProjection`'s
+/// `config.json`, or a `CLIPModel`'s `text_config`.
+pub(crate) fn text_config_json(config: &ClipTextConfig) -> Map<String, Value> {
     let eos = match config.pooling {
         EotPooling::HighestId => 2,
         EotPooling::EosId(id) => id as u64,
     };
-    let json = serde_json::json!({
-        "architectures": ["CLIPTextModelWithProjection"],
-        "model_type": "clip_text_model",
-        "vocab_size": config.vocab_size,
-        "max_position_embeddings": config.context_length,
-        "hidden_size": config.width,
-        "num_hidden_layers": config.layers,
-        "num_attention_heads": config.heads,
-        "intermediate_size": config.mlp_width,
-        "projection_dim": config.embed_dim,
-        "hidden_act": match config.activation {
-            ClipActivation::QuickGelu => "quick_gelu",
-            ClipActivation::Gelu => "gelu",
-        },
-        "layer_norm_eps": config.layer_norm_eps,
-        "eos_token_id": eos,
-    });
-    let path = dir.join("config.json");
-    let text = serde_json::to_string_pretty(&json)
-        .map_err(|e| ClipError::invalid(&path, e.to_string()))?;
-    std::fs::write(&path, text).map_err(|e| ClipError::io(&path, e))
+    [
+        ("model_type", json!("clip_text_model")),
+        ("vocab_size", json!(config.vocab_size)),
+        ("max_position_embeddings", json!(config.context_length)),
+        ("hidden_size", json!(config.width)),
+        ("num_hidden_layers", json!(config.layers)),
+        ("num_attention_heads", json!(config.heads)),
+        ("intermediate_size", json!(config.mlp_width)),
+        ("projection_dim", json!(config.embed_dim)),
+        ("hidden_act", json!(hf_activation(config.activation))),
+        ("layer_norm_eps", json!(config.layer_norm_eps)),
+        ("eos_token_id", json!(eos)),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect()
+}
+
+/// Hugging Face's `hidden_act` name of `a`.
+pub(crate) fn hf_activation(a: ClipActivation) -> &'static str {
+    match a {
+        ClipActivation::QuickGelu => "quick_gelu",
+        ClipActivation::Gelu => "gelu",
+    }
 }

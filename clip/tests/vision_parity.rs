@@ -5,9 +5,13 @@
 //! pooled image embeddings, the three dense variants at a 5x7 patch grid
 //! (position embeddings stretched from the native 4x4), the image resizing
 //! both ways and the sliding-window assembly, computed in PyTorch from the
-//! formulas.
+//! formulas. Two more tests need Python packages and are ignored by default
+//! (see the README's testing section); run with `--ignored`, a missing
+//! package fails them rather than skips them.
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
 use clip::vision::{DenseOptions, VisionModel};
@@ -158,4 +162,113 @@ fn hugging_face_vision_tower_matches_transformers() {
 #[test]
 fn open_clip_vision_tower_in_openai_layout_matches_open_clip() {
     check_model(&fixtures().join("openclip_tiny"));
+}
+
+/// The Python the tests run: `$OPENNERF_PYTHON` (e.g. a virtual
+/// environment's), else `python3`.
+fn python() -> String {
+    std::env::var("OPENNERF_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+const REFERENCE_PACKAGES: &str = "pip install torch transformers open_clip_torch safetensors";
+
+/// Fails (with how to install them) unless `python()` can import the
+/// reference script's packages.
+fn require_python() {
+    let modules = "torch, transformers, open_clip, safetensors";
+    let ok = Command::new(python())
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    assert!(
+        ok,
+        "{} cannot import {modules}: {REFERENCE_PACKAGES} (or set OPENNERF_PYTHON)",
+        python()
+    );
+}
+
+/// Runs `tests/clip_vision_reference.py ARGS`, failing with its stderr.
+fn run_reference_script(args: &[&std::ffi::OsStr]) {
+    require_python();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/clip_vision_reference.py");
+    let run = Command::new(python())
+        .arg(&script)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("{}: {e}", python()));
+    assert!(
+        run.status.success(),
+        "{}: {}",
+        script.display(),
+        String::from_utf8_lossy(&run.stderr)
+    );
+}
+
+#[test]
+#[ignore = "needs torch, transformers and open_clip_torch (several GB of Python packages)"]
+fn regenerated_vision_references_match() {
+    let out = tempfile::tempdir().expect("tmp");
+    run_reference_script(&[out.path().as_os_str()]);
+    check_model(&out.path().join("hf_tiny"));
+    check_model(&out.path().join("openclip_tiny"));
+}
+
+/// A random Hugging Face `CLIPModel` with a ViT-B/16 vision tower (width
+/// 768, 12 layers, 224 px, 16-px patches, 512-d) against `transformers`:
+/// the pooled image embedding at 224 x 224 and NACLIP's dense features at
+/// 224 x 336 (a 14 x 21 grid, position embeddings stretched). Ignored by
+/// default (it writes 340 MB): `cargo test --release --workspace --test
+/// vision_parity -- --ignored full_size`. `CLIP_VISION_FULL_SIZE_DIR` reuses
+/// a directory made by `tests/clip_vision_reference.py --full-size DIR`.
+#[test]
+#[ignore = "writes and loads a 340 MB model"]
+fn full_size_vit_b16_matches_transformers() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let root = match std::env::var_os("CLIP_VISION_FULL_SIZE_DIR") {
+        Some(d) => PathBuf::from(d),
+        None => {
+            run_reference_script(&["--full-size".as_ref(), tmp.path().as_os_str()]);
+            tmp.path().to_path_buf()
+        }
+    };
+    let dir = root.join("hf_vit_b16");
+    let r = read_json(&dir.join("reference.json"));
+    let native = floats(&r["native_pixels"]);
+    let dense = floats(&r["dense_pixels"]);
+    for (backend, device) in devices() {
+        let start = Instant::now();
+        let m = VisionModel::load(&dir, &device).unwrap_or_else(|e| panic!("{backend}: {e}"));
+        let loaded = start.elapsed().as_secs_f64();
+        assert!(m.notes.is_empty(), "nothing assumed: {:?}", m.notes);
+        let c = &m.config;
+        assert_eq!(
+            (
+                c.width,
+                c.layers,
+                c.heads,
+                c.patch_size,
+                c.image_size,
+                m.dim()
+            ),
+            (768, 12, 12, 16, 224, 512)
+        );
+        let start = Instant::now();
+        let t = Tensor::<4>::from_data(TensorData::new(native.clone(), [1, 3, 224, 224]), &device);
+        let got = m.encoder.forward(t).try_into_vec_as::<f32>().expect("read");
+        let pooled = start.elapsed().as_secs_f64();
+        let d_pooled = max_abs_diff(&got, &floats(&r["image_embeds"]));
+        let start = Instant::now();
+        let got = m
+            .dense_pixels(dense.clone(), [1, 3, 224, 336], DenseVariant::Naclip)
+            .expect("dense");
+        let densed = start.elapsed().as_secs_f64();
+        let d_dense = max_abs_diff(&got, &floats(&r["dense"]["naclip"]));
+        println!(
+            "hf_vit_b16, {backend}: load {loaded:.1} s; image_embeds (224x224) {pooled:.2} s, \
+             max abs difference {d_pooled:.2e}; dense naclip (224x336, 14x21) {densed:.2} s, \
+             max abs difference {d_dense:.2e}"
+        );
+        assert!(d_pooled <= 1e-4, "{backend}: image_embeds: {d_pooled}");
+        assert!(d_dense <= 1e-4, "{backend}: dense naclip: {d_dense}");
+    }
 }

@@ -33,7 +33,9 @@ pub mod writer;
 pub use error::DatasetError;
 pub use features::FeatureMap;
 pub use options::LoaderOptions;
-pub use scene::{DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource, WorldFrame};
+pub use scene::{
+    DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource, VlmSource, WorldFrame,
+};
 
 use std::path::PathBuf;
 
@@ -50,6 +52,17 @@ pub fn load_scene_with_basis(
     basis: Option<&features::PcaBasis>,
 ) -> Result<Scene, DatasetError> {
     match source {
+        SceneSource::WithFeatures {
+            base,
+            features,
+            pca,
+            ..
+        } => {
+            let mut scene = load_scene_with_basis(base, None)?;
+            overlay_features(&mut scene, features, *pca, basis)?;
+            scene.source = source.clone();
+            Ok(scene)
+        }
         SceneSource::Synthetic { seed, size, pca } => {
             let size: synthetic::SceneSize = size.parse()?;
             let pca = pca.unwrap_or(size.default_pca());
@@ -77,6 +90,43 @@ pub fn load_scene_with_basis(
             LoaderOptions::Scannet(o) => scannet::load_scannet(path, o),
         },
     }
+}
+
+/// Replaces `scene`'s feature maps by those in `dir` (`<frame name>.npy`
+/// each), compressed with `basis` when given, else as `pca` says; and its
+/// class embeddings, when it has classes, by `dir/classes.npy` +
+/// `dir/classes.txt` (the same names, in the maps' space).
+pub fn overlay_features(
+    scene: &mut Scene,
+    dir: &std::path::Path,
+    pca: features::PcaSetting,
+    basis: Option<&features::PcaBasis>,
+) -> Result<(), DatasetError> {
+    scene.features = None;
+    scene.features = Some(features::load_frame_features(
+        dir,
+        &scene.frames,
+        pca,
+        basis,
+        0,
+    )?);
+    if let Some(old) = &scene.classes {
+        let (npy, txt) = (dir.join("classes.npy"), dir.join("classes.txt"));
+        let classes = text::TextEmbeddings::load(&npy, &txt)?;
+        if classes.names != old.names {
+            return Err(DatasetError::invalid(
+                &txt,
+                format!(
+                    "the class names differ from the scene's ({} vs {} classes): the maps were \
+                     made for another scene",
+                    classes.names.len(),
+                    old.names.len()
+                ),
+            ));
+        }
+        scene.classes = Some(classes);
+    }
+    Ok(())
 }
 
 /// Directory of the shared real data: `$OPENNERF_DATA`, else `shared/data`

@@ -108,13 +108,56 @@ pub enum SceneSource {
         /// Scene directory.
         path: std::path::PathBuf,
     },
+    /// Another scene with its feature maps (and class embeddings) taken from
+    /// a directory instead: maps a vision-language model made for it.
+    WithFeatures {
+        /// The scene the maps belong to (its own maps, if any, are dropped).
+        base: Box<SceneSource>,
+        /// `<frame name>.npy` per frame (`H x W x D`), and `classes.npy` +
+        /// `classes.txt` when the base scene has classes.
+        features: std::path::PathBuf,
+        /// Compression of the maps.
+        pca: crate::features::PcaSetting,
+        /// How the maps were made, when a model of this toolkit made them.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vlm: Option<VlmSource>,
+    },
+}
+
+/// The vision-language model that made a scene's feature maps.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct VlmSource {
+    /// The CLIP model directory (both towers).
+    pub model: std::path::PathBuf,
+    /// The dense variant of its last block.
+    pub dense: model::clip::DenseVariant,
+    /// Short side images were resized to, in pixels.
+    pub short_side: usize,
 }
 
 impl SceneSource {
+    /// The scene under any feature overlay.
+    pub fn base(&self) -> &SceneSource {
+        match self {
+            Self::WithFeatures { base, .. } => base.base(),
+            other => other,
+        }
+    }
+
+    /// The model that made the maps, for a scene whose maps a
+    /// vision-language model of this toolkit made.
+    pub fn vlm(&self) -> Option<&VlmSource> {
+        match self {
+            Self::WithFeatures { vlm, .. } => vlm.as_ref(),
+            _ => None,
+        }
+    }
+
     /// The scene's kind for names and messages: `synthetic` or the format
     /// on disk (`replica`, `blender`, `llff`).
     pub fn kind_name(&self) -> &'static str {
         match self {
+            Self::WithFeatures { base, .. } => base.kind_name(),
             Self::Synthetic { .. } => "synthetic",
             Self::Disk { loader, .. } => loader.format(),
         }

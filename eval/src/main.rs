@@ -1,6 +1,7 @@
 //! `eval`: segment, query and render trained OpenNeRF runs.
 
 use clap::{Parser, Subcommand};
+use eval::commands::extract::{ExtractArgs, extract_command};
 use eval::commands::query::{QueryArgs, query_command};
 use eval::commands::render::{RenderArgs, render_command};
 use eval::commands::segment::{SegmentArgs, segment_command};
@@ -31,6 +32,11 @@ enum Command {
     /// error or uncertainty, relevancy of typed text, the cameras, renders
     /// at the browser's camera. Runs until Ctrl-C.
     View(ViewArgs),
+    /// Pixel-aligned CLIP feature maps of a capture's frames (dense
+    /// NACLIP / ClearCLIP / MaskCLIP features of a CLIP model's vision
+    /// tower), as `.npy` with PNG previews; `train --vlm MODEL
+    /// --features-out DIR` reuses them.
+    Extract(ExtractArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -64,6 +70,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             for p in uncertainty_command(&a)? {
                 println!("wrote {}", p.display());
             }
+        }
+        Command::Extract(a) => {
+            let written = extract_command(&a)?;
+            println!(
+                "wrote {} feature maps and previews into {}",
+                written
+                    .iter()
+                    .filter(|p| p.extension().is_some_and(|e| e == "npy"))
+                    .count(),
+                a.out.display()
+            );
         }
         Command::View(a) => {
             let why = view_command(&a)?;

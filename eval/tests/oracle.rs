@@ -26,7 +26,7 @@ fn oracle_views(
         oracle: Some(oracle),
         ..NovelViewConfig::default()
     };
-    let extractor = scene_extractor(scene, &config).expect("extractor");
+    let extractor = scene_extractor(scene, &config, &Device::flex()).expect("extractor");
     let model =
         common::tiny_config(scene.features.as_ref().expect("features").dim()).init(&Device::flex());
     let cameras: Vec<AimedCamera> = frames
@@ -157,7 +157,7 @@ fn label_features_refuse_a_label_without_embedding_and_disk_scenes_have_no_oracl
         extractor: Some(vec!["extract".into()]),
         ..NovelViewConfig::default()
     };
-    let err = scene_extractor(&scene, &config)
+    let err = scene_extractor(&scene, &config, &Device::flex())
         .err()
         .expect("refused before training");
     assert!(err.to_string().contains("renders"), "{err}");
@@ -201,7 +201,7 @@ fn the_field_s_novel_views_are_read_by_the_extractor_in_one_batch() {
         ..NovelViewConfig::default()
     };
     let extractor = CountingExtractor {
-        inner: scene_extractor(&scene, &config).expect("extractor"),
+        inner: scene_extractor(&scene, &config, &Device::flex()).expect("extractor"),
         single: std::cell::Cell::new(0),
         batches: std::cell::RefCell::new(Vec::new()),
     };

@@ -26,5 +26,6 @@ pub mod scores;
 pub mod similarity;
 pub mod text_query;
 pub mod uncertainty;
+pub mod vlm_maps;
 
 pub use error::OpsError;

@@ -60,6 +60,24 @@ pub fn check_flags(
     Ok(())
 }
 
+/// The text model for `flag`'s texts: `--text-model` when given, else the
+/// CLIP model a `--vlm` run made its maps with.
+pub fn model_for(
+    text_model: Option<&Path>,
+    meta: &SceneMeta,
+    flag: &str,
+) -> Result<std::path::PathBuf, OpsError> {
+    if let Some(dir) = text_model {
+        return Ok(dir.to_path_buf());
+    }
+    meta.source.vlm().map(|v| v.model.clone()).ok_or_else(|| {
+        OpsError::Invalid(format!(
+            "{flag} needs --text-model DIR (the CLIP model whose image features the field \
+                 was trained on); a run trained with --vlm uses its own"
+        ))
+    })
+}
+
 /// Unit-length embeddings of `texts` by the model in `model_dir`, as
 /// class embeddings named by the texts. Cached in `run`; checked against the
 /// run's feature dimension.

@@ -125,6 +125,34 @@ pub struct Cli {
     /// (Replica `frameNNNNNN.npy`, COLMAP the image stem) [default: none].
     #[arg(long)]
     pub features: Option<PathBuf>,
+    /// Make the feature maps in process with this CLIP model directory
+    /// (both towers, one checkpoint: Hugging Face `CLIPModel` files or
+    /// OpenCLIP's `open_clip_model.safetensors` + `open_clip_config.json`,
+    /// with the tokenizer files): dense patch features of every frame, for any
+    /// scene (on disk, or the synthetic one instead of its simulated
+    /// extractor). The maps are written once, as f16 `.npy`, to
+    /// --features-out (default `<out>/features`) and reused when they exist
+    /// for the same model, variant and size; the text tower embeds the
+    /// classes here and the queries in `eval`; novel views are extracted
+    /// with it too.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["features", "extractor_command"])]
+    pub vlm: Option<PathBuf>,
+    /// --vlm's training-free dense variant of the last block: `naclip`
+    /// (key-key attention plus a Gaussian window over the patches),
+    /// `clearclip` (query-query attention) or `maskclip` (values only)
+    /// [default: naclip].
+    #[arg(long, requires = "vlm")]
+    pub dense: Option<model::clip::DenseVariant>,
+    /// --vlm resizes each image's short side to this many pixels (at least
+    /// the model's input size) before sliding windows of the input size over
+    /// it every half window; the maps have one cell per patch, so larger is
+    /// finer and slower (time grows with its square) [default: 336, or the
+    /// model's input size if larger].
+    #[arg(long, requires = "vlm")]
+    pub vlm_short_side: Option<usize>,
+    /// Where --vlm writes (or finds) its maps [default: <out>/features].
+    #[arg(long, value_name = "DIR", requires = "vlm")]
+    pub features_out: Option<PathBuf>,
     /// Compression of the feature maps: `auto` keeps the principal
     /// components explaining 99% of their variance, `K` keeps K components,
     /// `off` trains on the full dimension D. The basis is fitted on a sample

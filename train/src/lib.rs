@@ -29,6 +29,7 @@ pub mod summary;
 pub mod sweep;
 pub mod training;
 pub mod validate;
+pub mod vlm;
 
 pub use backend::BackendKind;
 pub use config::TrainConfig;
@@ -61,9 +62,40 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     if let Some(path) = &cli.config {
         validate::config_keys(path, &TrainConfig::default_run(0))?;
     }
-    let source = data::source_from_cli(cli)?;
+    // With --vlm, the scene's own maps (if any) are replaced and --pca
+    // applies to the model's maps.
+    let source = data::source_from_cli(&cli::Cli {
+        pca: if cli.vlm.is_some() { None } else { cli.pca },
+        ..cli.clone()
+    })?;
+    let out = cli.out.clone().unwrap_or_else(|| {
+        let secs = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        PathBuf::from("runs").join(format!("{}-{secs}", data::run_name(&source)))
+    });
     eprintln!("loading scene ({})", data::run_name(&source));
-    let scene = data::load(&source)?;
+    let scene = match &cli.vlm {
+        Some(model) => vlm::prepare(
+            &source,
+            &vlm::VlmRequest {
+                model: model.clone(),
+                options: clip::DenseOptions {
+                    variant: cli.dense.unwrap_or(model::clip::DenseVariant::Naclip),
+                    short_side: cli.vlm_short_side,
+                    ..clip::DenseOptions::default()
+                },
+                features: cli
+                    .features_out
+                    .clone()
+                    .unwrap_or_else(|| out.join("features")),
+                pca: cli.pca.unwrap_or(datasets::features::PcaSetting::Auto),
+                backend: cli.backend,
+                device_index: cli.device,
+            },
+        )?,
+        None => data::load(&source)?,
+    };
     if scene.features.is_none() {
         eprintln!("{}", report::NO_FEATURES_WARNING);
     }
@@ -88,12 +120,6 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         seed: cli.seed,
     });
     apply_novel_and_grid_flags(cli, &mut config);
-    let out = cli.out.clone().unwrap_or_else(|| {
-        let secs = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs());
-        PathBuf::from("runs").join(format!("{}-{secs}", data::run_name(&source)))
-    });
     eprintln!(
         "scene {}: {} frames, features: {}; training {} iterations on {} into {}",
         scene.name,

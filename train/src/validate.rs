@@ -229,6 +229,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("dataset", cli.dataset.is_some()),
         ("colmap-depth", cli.colmap_depth),
         ("features", cli.features.is_some()),
+        ("vlm", cli.vlm.is_some()),
         ("stride", cli.stride.is_some()),
         ("resolution", cli.resolution.is_some()),
         ("downscale", cli.downscale.is_some()),

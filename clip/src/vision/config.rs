@@ -12,9 +12,12 @@ use serde_json::Value;
 use super::layout::VisionSizes;
 use crate::error::{ClipError, read_text};
 
-/// OpenAI's CLIP pixel mean (RGB), used by every CLIP checkpoint we know.
+/// OpenAI's CLIP pixel mean (RGB), used by every CLIP checkpoint we know
+/// (written with the digits OpenAI published).
+#[allow(clippy::excessive_precision)]
 pub const OPENAI_MEAN: [f32; 3] = [0.481_454_66, 0.457_827_5, 0.408_210_73];
 /// OpenAI's CLIP pixel standard deviation (RGB).
+#[allow(clippy::excessive_precision)]
 pub const OPENAI_STD: [f32; 3] = [0.268_629_54, 0.261_302_58, 0.275_777_11];
 
 /// Per-channel pixel normalisation, `(x - mean) / std` on `[0, 1]` values.

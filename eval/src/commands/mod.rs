@@ -2,6 +2,7 @@
 //! subcommand with its arguments (clap), their checks and what it does.
 
 pub mod common;
+pub mod extract;
 pub mod proposals;
 pub mod query;
 pub mod render;

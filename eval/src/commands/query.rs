@@ -33,14 +33,15 @@ pub struct QueryArgs {
     #[arg(long)]
     pub query_npy: Option<PathBuf>,
     /// Free-text query (e.g. "something to sit on"), embedded by --text-model
-    /// instead of --query or --query-npy.
-    #[arg(long, requires = "text_model", conflicts_with_all = ["query", "query_npy"])]
+    /// (default: the run's --vlm model) instead of --query or --query-npy.
+    #[arg(long, conflicts_with_all = ["query", "query_npy"])]
     pub text: Option<String>,
     /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
     /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
     /// vocabulary) that embeds --text. It must be the CLIP model whose image
-    /// features the field was trained on. Embeddings are cached in the run
-    /// directory (text_embeddings_cache.json).
+    /// features the field was trained on, which a run trained with --vlm
+    /// uses by default. Embeddings are cached in the run directory
+    /// (text_embeddings_cache.json).
     #[arg(long, value_name = "DIR", requires = "text")]
     pub text_model: Option<PathBuf>,
     /// Class embeddings to look the name up in.
@@ -66,13 +67,15 @@ fn query_embedding(
     device: &Device,
 ) -> Result<(Vec<f32>, String), OpsError> {
     let r = &args.render;
-    let from_text = match (&args.text, &args.text_model) {
-        (Some(text), Some(dir)) => {
+    let from_text = match &args.text {
+        Some(text) => {
+            let dir =
+                crate::text_query::model_for(args.text_model.as_deref(), &ctx.run.meta, "--text")?;
             let texts = [text.clone()];
-            let e = crate::text_query::embed(dir, &texts, &r.run, &ctx.run.meta, device)?;
+            let e = crate::text_query::embed(&dir, &texts, &r.run, &ctx.run.meta, device)?;
             Some((e.data, crate::text_query::label(text)))
         }
-        _ => None,
+        None => None,
     };
     let (query, label) = match (&args.query, &args.query_npy) {
         (_, Some(p)) => (

@@ -77,15 +77,17 @@ pub struct SegmentArgs {
     #[arg(long)]
     pub compare: bool,
     /// Classes to segment into, in free text, comma-separated (e.g. "chair,
-    /// wooden table, something to sit on"); embedded by --text-model instead
-    /// of --embeddings/--names. Points of other classes are not scored.
-    #[arg(long, requires = "text_model", conflicts_with_all = ["embeddings", "names"])]
+    /// wooden table, something to sit on"); embedded by --text-model
+    /// (default: the run's --vlm model) instead of --embeddings/--names.
+    /// Points of other classes are not scored.
+    #[arg(long, conflicts_with_all = ["embeddings", "names"])]
     pub classes: Option<String>,
     /// CLIP text model directory (Hugging Face: model.safetensors, config.json,
     /// vocab.json, merges.txt; or OpenCLIP: open_clip_model.safetensors and its
     /// vocabulary) that embeds --classes. It must be the CLIP model whose image
-    /// features the field was trained on. Embeddings are cached in the run
-    /// directory (text_embeddings_cache.json).
+    /// features the field was trained on, which a run trained with --vlm
+    /// uses by default. Embeddings are cached in the run directory
+    /// (text_embeddings_cache.json).
     #[arg(long, value_name = "DIR", requires = "classes")]
     pub text_model: Option<PathBuf>,
     /// Frame of the written point clouds (and of a --points file).
@@ -244,18 +246,23 @@ fn asked_classes(
     ctx: &Context,
     device: &Device,
 ) -> Result<Option<TextEmbeddings>, OpsError> {
-    match (&args.classes, &args.text_model) {
-        (Some(list), Some(dir)) => {
+    match &args.classes {
+        Some(list) => {
             let names = crate::text_query::parse_classes(list)?;
+            let dir = crate::text_query::model_for(
+                args.text_model.as_deref(),
+                &ctx.run.meta,
+                "--classes",
+            )?;
             Ok(Some(crate::text_query::embed(
-                dir,
+                &dir,
                 &names,
                 &args.run,
                 &ctx.run.meta,
                 device,
             )?))
         }
-        _ => Ok(None),
+        None => Ok(None),
     }
 }
 

@@ -29,13 +29,14 @@ pub struct ViewArgs {
     /// CLIP text model directory (Hugging Face or OpenCLIP layout, as for
     /// `eval query`) that embeds free text typed in the page; without it
     /// the text box takes class names only. It must be the CLIP model whose
-    /// image features the field was trained on.
+    /// image features the field was trained on [default: the run's --vlm
+    /// model, if it was trained with one].
     #[arg(long, value_name = "DIR")]
     pub text_model: Option<PathBuf>,
     /// Classes of the legend and the class colours, comma-separated free
     /// text embedded by --text-model, for scenes without classes of their
     /// own (a capture) or to replace them.
-    #[arg(long, requires = "text_model")]
+    #[arg(long)]
     pub classes: Option<String>,
     /// Points sent to the page at most (the cloud is thinned evenly).
     #[arg(long, default_value_t = 200_000)]
@@ -106,20 +107,26 @@ pub fn view_command(args: &ViewArgs) -> Result<String, OpsError> {
     run.split.train.extend(&novel);
     run.split.check(rebuilt.scene.frames.len(), &dir.split())?;
     let scene = rebuilt.scene;
-    let classes = match (&args.classes, &args.text_model) {
-        (Some(list), Some(model)) => {
+    let text_model = args
+        .text_model
+        .clone()
+        .or_else(|| run.meta.source.vlm().map(|v| v.model.clone()));
+    let classes = match &args.classes {
+        Some(list) => {
             let names = crate::text_query::parse_classes(list)?;
+            let model =
+                crate::text_query::model_for(text_model.as_deref(), &run.meta, "--classes")?;
             Some(crate::text_query::embed(
-                model, &names, &args.run, &run.meta, &device,
+                &model, &names, &args.run, &run.meta, &device,
             )?)
         }
-        _ => scene.classes.clone(),
+        None => scene.classes.clone(),
     };
     let options = ViewerOptions {
         max_points: args.max_points,
         chunk: args.chunk,
         radius: args.radius,
-        text_model: args.text_model.clone(),
+        text_model,
         training: false,
         max_render_side: args.max_render_side,
     };

@@ -16,12 +16,14 @@ use super::view::ExtractedView;
 use crate::error::OpsError;
 use crate::render::render_view;
 
-/// The scene's 2D feature extractor: the simulated one of a synthetic scene,
-/// the configured command for a scene on disk. Also refuses an oracle on a
+/// The scene's 2D feature extractor: the CLIP model that made its maps (in
+/// process, on `device`), the simulated one of a synthetic scene, the
+/// configured command for a scene on disk. Also refuses an oracle on a
 /// scene without ground truth.
 pub fn scene_extractor(
     scene: &Scene,
     config: &NovelViewConfig,
+    device: &Device,
 ) -> Result<Box<dyn FeatureExtractor>, OpsError> {
     let set = scene.features.as_ref().ok_or_else(|| {
         OpsError::Invalid(format!(
@@ -33,7 +35,21 @@ pub fn scene_extractor(
         // Refused here, before training, rather than half-way through it.
         GroundTruth::of(scene, oracle)?;
     }
-    match (&scene.source, &config.extractor) {
+    if let (Some(vlm), None) = (scene.source.vlm(), &config.extractor) {
+        let model = clip::VisionModel::load(&vlm.model, device).map_err(|e| {
+            OpsError::Invalid(format!("the run's --vlm {}: {e}", vlm.model.display()))
+        })?;
+        let options = clip::DenseOptions {
+            variant: vlm.dense,
+            short_side: Some(vlm.short_side),
+            ..clip::DenseOptions::default()
+        };
+        return Ok(Box::new(clip::ClipExtractor::new(
+            std::sync::Arc::new(model),
+            options,
+        )));
+    }
+    match (scene.source.base(), &config.extractor) {
         (_, Some(cmd)) => {
             let (program, args) = cmd
                 .split_first()
@@ -48,8 +64,8 @@ pub fn scene_extractor(
             let size: datasets::synthetic::SceneSize = size.parse()?;
             Ok(Box::new(datasets::synthetic::extractor_for(*seed, size)))
         }
-        (SceneSource::Disk { .. }, None) => Err(OpsError::Invalid(format!(
-            "novel views of scene {} need the 2D feature extractor that made its feature maps: give --extractor-command",
+        (_, None) => Err(OpsError::Invalid(format!(
+            "novel views of scene {} need the 2D feature extractor that made its feature maps: give --extractor-command (or train with --vlm)",
             scene.name
         ))),
     }

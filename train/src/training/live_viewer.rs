@@ -47,6 +47,8 @@ impl LiveViewer {
         let meta: SceneMeta = read_json(&run.scene())?;
         let options = ViewerOptions {
             training: true,
+            // A --vlm run's own model embeds the page's free text.
+            text_model: meta.source.vlm().map(|v| v.model.clone()),
             ..ViewerOptions::default()
         };
         let field = model.valid();

@@ -56,7 +56,7 @@ pub fn add_views(
 ) -> Result<AddReport, TrainError> {
     let start = Instant::now();
     let novel = &config.novel;
-    let extractor = field_ops::novel::scene_extractor(scene, novel)?;
+    let extractor = field_ops::novel::scene_extractor(scene, novel, device)?;
     let cameras = field_ops::novel::choose_cameras(
         novel.mode,
         novel.views,

@@ -39,7 +39,11 @@ pub fn train_new(
                 config.schedule.iterations
             )));
         }
-        field_ops::novel::scene_extractor(scene, &config.novel)?;
+        field_ops::novel::scene_extractor(
+            scene,
+            &config.novel,
+            &training_device(session.backend, session.device_index),
+        )?;
     }
     let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
     let run = RunDir::new(out);
