@@ -250,3 +250,74 @@ fn bad_vlm_input_is_refused_before_anything_is_written() {
         &["/nonexistent/clip"],
     );
 }
+
+#[derive(Parser)]
+struct Extract {
+    #[command(flatten)]
+    args: eval::commands::extract::ExtractArgs,
+}
+
+#[test]
+fn eval_extract_writes_maps_and_previews_that_train_reuses() {
+    let _guard = serial();
+    let tmp = scratch_dir();
+    let model = tiny_clip(tmp.path(), 12);
+    let m = model.to_str().expect("utf-8");
+    let maps = tmp.path().join("maps");
+    let o = maps.to_str().expect("utf-8");
+    let run = |args: &[&str]| {
+        let mut all = vec!["extract", "--vlm", m, "--dataset", "synthetic", "--out", o];
+        all.extend_from_slice(args);
+        let a = Extract::try_parse_from(&all).map_err(|e| e.to_string())?;
+        eval::commands::extract::extract_command(&a.args).map_err(|e| e.to_string())
+    };
+    let written = run(&["--short-side", "32", "--text", "a sofa"]).expect("extract");
+    let npy = written
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "npy"))
+        .count();
+    assert_eq!(npy, 20);
+    for kind in ["pca", "relevancy"] {
+        let p = maps
+            .join("previews")
+            .join(format!("frame000000_{kind}.png"));
+        let img = image::open(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        assert_eq!((img.width(), img.height()), (7, 4));
+    }
+    let before = mtimes(&maps);
+    // train --vlm with the same model and size finds them.
+    train(&[
+        "--vlm",
+        m,
+        "--vlm-short-side",
+        "32",
+        "--features-out",
+        o,
+        "--iters",
+        "3",
+        "--pca",
+        "off",
+        "--out",
+        tmp.path().join("run").to_str().expect("utf-8"),
+    ])
+    .expect("train reuses the maps");
+    assert_eq!(mtimes(&maps), before);
+    // Bad flags.
+    assert!(run(&["--text", " "]).expect_err("blank").contains("--text"));
+    let e = run(&["--data", "/x"]).expect_err("synthetic with --data");
+    assert!(e.contains("--data"), "{e}");
+    let a = Extract::try_parse_from([
+        "extract",
+        "--vlm",
+        "/nonexistent",
+        "--data",
+        "/x",
+        "--out",
+        o,
+    ])
+    .expect("args");
+    let e = eval::commands::extract::extract_command(&a.args)
+        .expect_err("no model")
+        .to_string();
+    assert!(e.contains("/nonexistent"), "{e}");
+}
