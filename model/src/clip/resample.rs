@@ -87,17 +87,21 @@ pub fn resample_chw(
     cols: &[f32],
 ) -> Vec<f32> {
     debug_assert_eq!(chw.len(), c * h_in * w_in);
-    // Columns first (every input row), then rows; zero weights skipped.
+    // Columns first (every input row), then rows. Each output column reads
+    // only the span of its non-zero weights (a few taps of a wide row).
+    let spans: Vec<(usize, usize)> = cols
+        .chunks_exact(w_in)
+        .map(|row| {
+            let lo = row.iter().position(|w| *w != 0.0).unwrap_or(0);
+            let hi = row.iter().rposition(|w| *w != 0.0).map_or(lo, |i| i + 1);
+            (lo, hi)
+        })
+        .collect();
     let mut wide = vec![0f32; c * h_in * w_out];
     for (src, dst) in chw.chunks_exact(w_in).zip(wide.chunks_exact_mut(w_out)) {
-        for (x, d) in dst.iter_mut().enumerate() {
-            let weights = &cols[x * w_in..(x + 1) * w_in];
-            *d = weights
-                .iter()
-                .zip(src)
-                .filter(|(w, _)| **w != 0.0)
-                .map(|(w, s)| w * s)
-                .sum();
+        for (x, (d, &(lo, hi))) in dst.iter_mut().zip(&spans).enumerate() {
+            let weights = &cols[x * w_in + lo..x * w_in + hi];
+            *d = weights.iter().zip(&src[lo..hi]).map(|(w, s)| w * s).sum();
         }
     }
     let mut out = vec![0f32; c * h_out * w_out];

@@ -19,11 +19,12 @@ use clap::Parser;
 use clip::vision::DenseOptions;
 use model::clip::{ClipVisionConfig, DenseVariant};
 use serde::Serialize;
+mod breakdown;
 mod pytorch;
 mod timing;
 
 use pytorch::{pytorch_row, run_pytorch};
-use timing::{cpu_model, logical_cpus, random_frame, time_backend, window_flops};
+use timing::{BackendTiming, cpu_model, logical_cpus, random_frame, time_backend, window_flops};
 use train::backend::BackendKind;
 
 /// Benchmark options.
@@ -66,12 +67,19 @@ struct Args {
     /// baseline (`--torch-script`) with the same sizes in this run.
     #[arg(long)]
     python: Option<PathBuf>,
-    /// The PyTorch baseline script run by `--python`.
-    #[arg(long, default_value = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/bench_vlm_torch.py"))]
-    torch_script: PathBuf,
+    /// The PyTorch baseline script run by `--python` [default:
+    /// scripts/bench_vlm_torch.py under the current directory, else in the
+    /// source tree this binary was built from].
+    #[arg(long)]
+    torch_script: Option<PathBuf>,
     /// Skip timing the tower's matrix products alone (the "GEMM s" column).
     #[arg(long)]
     no_gemm: bool,
+    /// Also print where a frame's time goes: its stages (resize, tower,
+    /// averaging) and each operation of one block timed alone at the
+    /// frame's batch shape, with the cores each kept busy.
+    #[arg(long)]
+    breakdown: bool,
     /// Directory for bench_vlm.csv and bench_vlm.json (created if missing).
     #[arg(long, default_value = "runs/bench-vlm")]
     out: PathBuf,
@@ -109,6 +117,9 @@ struct Row {
     ratio_to_pytorch: Option<f64>,
     /// Seconds per frame of the tower's matrix products alone.
     gemm_seconds_per_frame: Option<f64>,
+    /// Process CPU seconds (all threads) over wall seconds while timing:
+    /// the cores kept busy on average.
+    cores_busy: Option<f64>,
     per_frame: Vec<f64>,
 }
 
@@ -126,20 +137,15 @@ struct Report {
     pytorch: Option<serde_json::Value>,
 }
 
-/// Matrix-product FLOPs (2 per multiply-add) of one window through the
-/// tower: patch embedding, every block (q, k, v and output projections,
-/// the two attention products, the MLP), the last block as `variant` runs
-/// it (no MLP; NACLIP and ClearCLIP project two of q/k/v plus the output,
-/// MaskCLIP only v and the output, without attention), and the projection
-/// of the patch tokens. Element-wise work (norms, softmax, GELU) is not
-/// counted.
+/// Writes `bench_vlm.csv` (one row per implementation) and
+/// `bench_vlm.json` (the whole report) under `dir`.
 fn write_outputs(dir: &Path, report: &Report) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let g = &report.geometry;
     let mut csv = String::from(
         "implementation,threads,cpu,width,height,short_side,batch,dense,windows,grid_rows,\
          grid_cols,gflop_per_frame,seconds_per_frame,frames_per_s,gflop_per_s,\
-         ratio_to_pytorch,gemm_seconds_per_frame,per_frame\n",
+         ratio_to_pytorch,gemm_seconds_per_frame,cores_busy,per_frame\n",
     );
     let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.6}"));
     for r in &report.rows {
@@ -147,7 +153,7 @@ fn write_outputs(dir: &Path, report: &Report) -> Result<()> {
         // Writing to a String cannot fail.
         let _ = writeln!(
             csv,
-            "{},{},\"{}\",{},{},{},{},{},{},{},{},{:.3},{:.6},{:.6},{:.3},{},{},{}",
+            "{},{},\"{}\",{},{},{},{},{},{},{},{},{:.3},{:.6},{:.6},{:.3},{},{},{},{}",
             r.implementation,
             r.threads,
             report.cpu.replace('"', "'"),
@@ -165,6 +171,7 @@ fn write_outputs(dir: &Path, report: &Report) -> Result<()> {
             r.gflop_per_s,
             opt(r.ratio_to_pytorch),
             opt(r.gemm_seconds_per_frame),
+            opt(r.cores_busy),
             per.join(";")
         );
     }
@@ -211,14 +218,22 @@ fn print_table(
         per_window / 1e9
     );
     println!(
-        "{:<26} {:>7} {:>9} {:>9} {:>9} {:>10} {:>8}",
-        "implementation", "threads", "s/frame", "frames/s", "GFLOP/s", "vs PyTorch", "GEMM s"
+        "{:<26} {:>7} {:>6} {:>9} {:>9} {:>9} {:>10} {:>8}",
+        "implementation",
+        "threads",
+        "busy",
+        "s/frame",
+        "frames/s",
+        "GFLOP/s",
+        "vs PyTorch",
+        "GEMM s"
     );
     for r in rows {
         println!(
-            "{:<26} {:>7} {:>9.3} {:>9.3} {:>9.1} {:>10} {:>8}",
+            "{:<26} {:>7} {:>6} {:>9.3} {:>9.3} {:>9.1} {:>10} {:>8}",
             r.implementation,
             r.threads,
+            r.cores_busy.map_or("-".into(), |x| format!("{x:.2}")),
             r.seconds_per_frame,
             r.frames_per_s,
             r.gflop_per_s,
@@ -229,8 +244,9 @@ fn print_table(
         );
     }
     println!(
-        "vs PyTorch: throughput ratio (ours / PyTorch frames per second); GEMM s: the tower's \
-         matrix products alone, same shapes, per frame"
+        "busy: CPU seconds / wall seconds while timing (cores kept busy); vs PyTorch: \
+         throughput ratio (ours / PyTorch frames per second); GEMM s: the tower's matrix \
+         products alone, same shapes, per frame"
     );
 }
 
@@ -260,7 +276,12 @@ fn main() -> Result<()> {
     let mut rows = Vec::new();
     let mut geometry = None;
     for &kind in &args.backend {
-        let (times, geo, gemm) = time_backend(kind, &args, &frame, &options)
+        let BackendTiming {
+            per_frame: times,
+            geometry: geo,
+            gemm,
+            cores_busy,
+        } = time_backend(kind, &args, &frame, &options)
             .with_context(|| format!("timing the {kind} backend"))?;
         let secs = times.iter().sum::<f64>() / times.len().max(1) as f64;
         let flops = per_window * geo.windows as f64;
@@ -275,6 +296,7 @@ fn main() -> Result<()> {
             gflop_per_s: flops / secs / 1e9,
             ratio_to_pytorch: None,
             gemm_seconds_per_frame: gemm,
+            cores_busy,
             per_frame: times,
         });
         geometry = Some(geo);
@@ -359,7 +381,7 @@ mod tests {
         assert_ne!(a, random_frame(4, 5, 2));
         assert!(
             a.iter()
-                .all(|v| (0.0..=1.0).contains(v) && (v * 255.0).fract().abs() < 1e-3)
+                .all(|v| (0.0..=1.0).contains(v) && ((v * 255.0).round() - v * 255.0).abs() < 1e-3)
         );
     }
 }

@@ -1,26 +1,46 @@
 //! The PyTorch baseline: `scripts/bench_vlm_torch.py` run in the same process tree.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use anyhow::{Context, Result, ensure};
 
 use super::{Args, Row};
 
+/// The PyTorch script: `--torch-script`, else the first that exists of
+/// `scripts/bench_vlm_torch.py` under the current directory and in the
+/// source tree this binary was built from.
+fn torch_script(args: &Args) -> Result<PathBuf> {
+    let candidates = match &args.torch_script {
+        Some(p) => vec![p.clone()],
+        None => vec![
+            PathBuf::from("scripts/bench_vlm_torch.py"),
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/bench_vlm_torch.py"),
+        ],
+    };
+    candidates
+        .iter()
+        .find(|p| p.is_file())
+        .cloned()
+        .with_context(|| {
+            let tried: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+            format!(
+                "the PyTorch script is not at {} (set --torch-script)",
+                tried.join(" or ")
+            )
+        })
+}
+
 /// Runs the PyTorch baseline and returns its JSON line.
 pub(crate) fn run_pytorch(python: &Path, args: &Args) -> Result<serde_json::Value> {
-    ensure!(
-        args.torch_script.is_file(),
-        "the PyTorch script {} does not exist (set --torch-script)",
-        args.torch_script.display()
-    );
+    let script = torch_script(args)?;
     eprintln!(
         "pytorch: {} {} (progress on stderr)",
         python.display(),
-        args.torch_script.display()
+        script.display()
     );
     let output = Command::new(python)
-        .arg(&args.torch_script)
+        .arg(&script)
         .args(["--width", &args.width.to_string()])
         .args(["--height", &args.height.to_string()])
         .args(["--short-side", &args.short_side.to_string()])
@@ -35,7 +55,7 @@ pub(crate) fn run_pytorch(python: &Path, args: &Args) -> Result<serde_json::Valu
         output.status.success(),
         "{} {} failed ({}); stdout: {}",
         python.display(),
-        args.torch_script.display(),
+        script.display(),
         output.status,
         stdout.trim()
     );
@@ -81,6 +101,10 @@ pub(crate) fn pytorch_row(v: &serde_json::Value, flops: f64) -> Result<Row> {
         gflop_per_s: flops / secs / 1e9,
         ratio_to_pytorch: Some(1.0),
         gemm_seconds_per_frame: None,
+        cores_busy: v
+            .get("cpu_seconds_per_frame")
+            .and_then(serde_json::Value::as_f64)
+            .map(|cpu| cpu / secs),
         per_frame,
     })
 }

@@ -8,8 +8,15 @@ use clip::vision::{DenseOptions, VisionModel};
 use model::clip::{ClipVisionConfig, DenseVariant};
 use train::backend::{BackendKind, device, vulkan_available};
 
-use super::{Args, Geometry};
+use super::{Args, Geometry, breakdown};
 
+/// Matrix-product FLOPs (2 per multiply-add) of one window through the
+/// tower: patch embedding, every block (q, k, v and output projections,
+/// the two attention products, the MLP), the last block as `variant` runs
+/// it (no MLP; NACLIP and ClearCLIP project two of q/k/v plus the output,
+/// MaskCLIP only v and the output, without attention), and the projection
+/// of the patch tokens. Element-wise work (norms, softmax, GELU) is not
+/// counted.
 pub(crate) fn window_flops(c: &ClipVisionConfig, variant: DenseVariant) -> f64 {
     let g = (c.image_size / c.patch_size) as f64;
     let patches = g * g;
@@ -27,21 +34,51 @@ pub(crate) fn window_flops(c: &ClipVisionConfig, variant: DenseVariant) -> f64 {
     embed + (c.layers as f64 - 1.0) * block + last + projection
 }
 
-/// The CPU's model name from `/proc/cpuinfo` ("unknown" elsewhere).
+/// The CPU's model name from `/proc/cpuinfo`, with its family and model
+/// numbers where the name alone is vague ("unknown" elsewhere).
 pub(crate) fn cpu_model() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, v)| v.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".into())
+    let Ok(info) = std::fs::read_to_string("/proc/cpuinfo") else {
+        return "unknown".into();
+    };
+    let field = |key: &str| {
+        info.lines()
+            .filter_map(|l| l.split_once(':'))
+            .find(|(k, _)| k.trim() == key)
+            .map(|(_, v)| v.trim().to_string())
+    };
+    let name = field("model name").unwrap_or_else(|| "unknown".into());
+    match (field("cpu family"), field("model")) {
+        (Some(f), Some(m)) => format!("{name} (family {f}, model {m})"),
+        _ => name,
+    }
 }
 
 pub(crate) fn logical_cpus() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// CPU seconds this process has used, user and system, all threads
+/// (`/proc/self/stat`, 100 ticks a second); `None` where it cannot be read.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which may hold spaces) start at the state.
+    let rest = stat.get(stat.rfind(')')? + 1..)?;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i)?.parse::<f64>().ok();
+    Some((ticks(11)? + ticks(12)?) / 100.0)
+}
+
+/// `f`'s result, wall seconds and cores kept busy (CPU seconds / wall
+/// seconds; `None` without `/proc`).
+pub(crate) fn timed<T>(f: impl FnOnce() -> T) -> (T, f64, Option<f64>) {
+    let cpu0 = cpu_seconds();
+    let start = Instant::now();
+    let out = f();
+    let wall = start.elapsed().as_secs_f64();
+    let busy = cpu0
+        .zip(cpu_seconds())
+        .map(|(a, b)| (b - a) / wall.max(1e-9));
+    (out, wall, busy)
 }
 
 /// `height x width x 3` random values `k / 255` (`k` a seeded uint8), HWC.
@@ -68,6 +105,12 @@ pub(crate) fn checked_device(kind: BackendKind, index: Option<usize>) -> Result<
              /usr/share/vulkan/icd.d or /etc/vulkan/icd.d); without one wgpu falls back to \
              OpenGL, which deadlocks on software renderers. Install a GPU driver (or \
              mesa-vulkan-drivers for lavapipe on the CPU), or leave wgpu out of --backend"
+        );
+    }
+    if kind == BackendKind::Wgpu {
+        eprintln!(
+            "wgpu: the warm-up frame compiles and autotunes kernels (minutes; \
+             CUBECL_AUTOTUNE_LEVEL=minimal shortens it); on lavapipe (no GPU) a frame takes minutes"
         );
     }
     Ok(device(kind, index))
@@ -144,9 +187,25 @@ pub(crate) fn gemm_seconds(
         acc.into_scalar::<f32>()
     };
     let _ = run(); // warm-up
-    let start = Instant::now();
-    let _ = run();
-    Ok(start.elapsed().as_secs_f64())
+    // The faster of two runs: one run alone varies by 20% on a shared machine.
+    let mut best = f64::INFINITY;
+    for _ in 0..2 {
+        let start = Instant::now();
+        let _ = run();
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    Ok(best)
+}
+
+/// What one backend measured.
+pub(crate) struct BackendTiming {
+    /// Seconds of each timed frame.
+    pub(crate) per_frame: Vec<f64>,
+    pub(crate) geometry: Geometry,
+    /// Seconds per frame of the matrix products alone.
+    pub(crate) gemm: Option<f64>,
+    /// Cores kept busy over the timed frames.
+    pub(crate) cores_busy: Option<f64>,
 }
 
 /// Times the Burn extraction on `kind`.
@@ -155,7 +214,7 @@ pub(crate) fn time_backend(
     args: &Args,
     frame: &[f32],
     options: &DenseOptions,
-) -> Result<(Vec<f64>, Geometry, Option<f64>)> {
+) -> Result<BackendTiming> {
     let dev = checked_device(kind, args.device)?;
     dev.seed(args.seed);
     let config = ClipVisionConfig::vit_b_16();
@@ -175,8 +234,7 @@ pub(crate) fn time_backend(
         batch: options.batch,
         dense: options.variant.name().into(),
     };
-    let mut times = Vec::new();
-    for i in 0..=args.frames {
+    let one_frame = |i: u64| -> Result<f64> {
         let start = Instant::now();
         let map = model
             .dense_map(frame, (h, w), options)
@@ -193,13 +251,19 @@ pub(crate) fn time_backend(
             map.data.iter().all(|v| v.is_finite()),
             "{kind}: the dense map has non-finite values"
         );
-        if i == 0 {
-            eprintln!("{kind}: warm-up frame {secs:.3} s");
-        } else {
+        Ok(secs)
+    };
+    eprintln!("{kind}: warm-up frame {:.3} s", one_frame(0)?);
+    let (times, _, cores_busy) = timed(|| -> Result<Vec<f64>> {
+        let mut times = Vec::new();
+        for i in 1..=args.frames {
+            let secs = one_frame(i)?;
             eprintln!("{kind}: frame {i} {secs:.3} s");
             times.push(secs);
         }
-    }
+        Ok(times)
+    });
+    let times = times?;
     let gemm = if args.no_gemm {
         None
     } else {
@@ -214,5 +278,16 @@ pub(crate) fn time_backend(
         eprintln!("{kind}: matrix products alone {secs:.3} s per frame");
         Some(secs)
     };
-    Ok((times, geometry, gemm))
+    if args.breakdown {
+        breakdown::print_stages(kind, &model, frame, (h, w), options)
+            .with_context(|| format!("{kind}: per-stage breakdown"))?;
+        breakdown::print_operations(kind, &dev, &model, &config, &geometry)
+            .with_context(|| format!("{kind}: per-operation breakdown"))?;
+    }
+    Ok(BackendTiming {
+        per_frame: times,
+        geometry,
+        gemm,
+        cores_busy,
+    })
 }
