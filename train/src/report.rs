@@ -39,11 +39,27 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
     let features = meta.as_ref().is_some_and(|m| m.feature_dim.is_some());
     let synthetic = meta
         .as_ref()
-        .is_some_and(|m| matches!(m.source, SceneSource::Synthetic { .. }));
+        .is_some_and(|m| matches!(m.source.base(), SceneSource::Synthetic { .. }));
+    // A --vlm run embeds free text with its own model.
+    let vlm = meta.as_ref().is_some_and(|m| m.source.vlm().is_some());
     let mut out = Vec::new();
     if features && synthetic {
         out.push(format!("{eval} segment --run {run}"));
         out.push(format!("{eval} query --run {run} --query sofa"));
+    } else if features && vlm {
+        out.push(format!(
+            "{eval} query --run {run} --text \"something to sit on\""
+        ));
+        let points = match meta.as_ref().map(|m| m.source.base()) {
+            Some(SceneSource::Disk {
+                loader: LoaderOptions::Colmap(_),
+                ..
+            }) => "",
+            _ => " --points CLOUD.ply",
+        };
+        out.push(format!(
+            "{eval} segment --run {run}{points} --classes \"wall, floor, chair, table\""
+        ));
     } else if features {
         out.push(format!(
             "{eval} query --run {run} --query NAME --embeddings EMBEDDINGS.npy --names NAMES.txt"
@@ -139,6 +155,61 @@ mod tests {
         );
         assert_eq!(shell_word(Path::new("my runs/a")), "'my runs/a'");
         assert_eq!(shell_word(Path::new("it's")), r"'it'\''s'");
+    }
+
+    #[test]
+    fn a_vlm_capture_is_queried_with_free_text() {
+        let dir = tempfile::tempdir().unwrap();
+        let base = SceneSource::Disk {
+            loader: LoaderOptions::Llff(Default::default()),
+            path: "/fern".into(),
+        };
+        let mut meta = SceneMeta {
+            source: SceneSource::WithFeatures {
+                base: Box::new(base.clone()),
+                features: "/maps".into(),
+                pca: datasets::features::PcaSetting::Auto,
+                vlm: Some(datasets::VlmSource {
+                    model: "/clip".into(),
+                    dense: model::clip::DenseVariant::Naclip,
+                    short_side: 336,
+                }),
+            },
+            scene_box: model::geometry::SceneBox {
+                min: [0.0; 3],
+                max: [1.0; 3],
+            },
+            background: None,
+            pca: None,
+            feature_dim: Some(512),
+            world: None,
+        };
+        let write = |m: &SceneMeta| {
+            std::fs::write(
+                dir.path().join("scene.json"),
+                serde_json::to_string(m).unwrap(),
+            )
+            .unwrap();
+        };
+        write(&meta);
+        let cmds = next_commands(dir.path()).join("\n");
+        assert!(
+            cmds.contains("query --run") && cmds.contains("--text"),
+            "{cmds}"
+        );
+        assert!(
+            cmds.contains("--classes") && cmds.contains("--points CLOUD.ply"),
+            "{cmds}"
+        );
+        assert!(!cmds.contains("--embeddings"), "{cmds}");
+        // Without the model: embeddings must be given.
+        meta.source = base;
+        write(&meta);
+        let cmds = next_commands(dir.path()).join("\n");
+        assert!(
+            cmds.contains("--embeddings") && !cmds.contains("--text"),
+            "{cmds}"
+        );
     }
 
     #[test]
