@@ -244,6 +244,22 @@ fn bad_vlm_input_is_refused_before_anything_is_written() {
         &["--vlm", text_only.to_str().expect("utf-8"), "--out", o],
         &["no vision tower"],
     );
+    // A truncated weights file: named, with the reason.
+    let cut = tmp.path().join("cut");
+    std::fs::create_dir_all(&cut).expect("mkdir");
+    for entry in std::fs::read_dir(&model)
+        .expect("model dir")
+        .filter_map(Result::ok)
+    {
+        std::fs::copy(entry.path(), cut.join(entry.file_name())).expect("copy");
+    }
+    let weights = cut.join("model.safetensors");
+    let bytes = std::fs::read(&weights).expect("weights");
+    std::fs::write(&weights, &bytes[..bytes.len() / 2]).expect("truncate");
+    refused(
+        &["--vlm", cut.to_str().expect("utf-8"), "--out", o],
+        &["model.safetensors", "not a safetensors file"],
+    );
     // A directory that is not there.
     refused(
         &["--vlm", "/nonexistent/clip", "--out", o],
