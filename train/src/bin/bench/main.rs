@@ -6,8 +6,16 @@
 //! batch included in the step time; an object in the middle of the box, so
 //! a share of the rays is skipped and the rest sampled over a shorter span).
 //!
-//! `cargo run -p train --release --bin bench -- [--quick] [--steps N]`
+//! With `--peer PYTHON` (a Python with jax) it first runs
+//! `scripts/peer_step_jax.py`, the plain per-sample step written in JAX, with
+//! the same sizes, prints it as a `jax` row and every row's step time as a
+//! multiple of JAX's (`scripts/bench-peer.sh` makes such a Python).
+//!
+//! `cargo run -p train --release --bin bench -- [--quick] [--steps N] [--peer PYTHON]`
 
+mod peer;
+
+use std::path::PathBuf;
 use std::time::Instant;
 
 use burn::optim::AdamConfig;
@@ -43,6 +51,12 @@ struct Args {
     /// Backends to measure.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendKind::Flex, BackendKind::Ndarray])]
     backends: Vec<BackendKind>,
+    /// A Python interpreter with jax: first times `scripts/peer_step_jax.py`
+    /// (the plain per-sample step in JAX on the CPU) with the same sizes,
+    /// prints it as a `jax` row and adds a "vs JAX" column (each row's step
+    /// time divided by JAX's) to every row.
+    #[arg(long, value_name = "PYTHON")]
+    peer: Option<PathBuf>,
 }
 
 /// Sizes of one case.
@@ -256,7 +270,53 @@ fn time_case(
     }
 }
 
-fn main() {
+/// One row of the table.
+struct Row {
+    backend: String,
+    path: String,
+    secs: f64,
+    rays: usize,
+    flops: f64,
+    matmul: f64,
+    peak_mb: f64,
+}
+
+/// Prints the header (and the ratio's convention when there is a peer).
+fn print_header(peer: Option<&peer::Peer>) {
+    if let Some(p) = peer {
+        println!(
+            "vs JAX: this row's step time / the JAX step time (jax {}, {} threads): \
+             1.49x = takes 1.49 times as long as JAX, below 1 = faster",
+            p.version, p.threads
+        );
+    }
+    print!(
+        "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
+        "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
+    );
+    println!("{}", if peer.is_some() { "   vs JAX" } else { "" });
+}
+
+/// Prints `row`, with its step time over the peer's when there is one.
+fn print_row(row: &Row, peer: Option<&peer::Peer>) {
+    print!(
+        "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
+        row.backend,
+        row.path,
+        row.secs,
+        row.rays as f64 / row.secs,
+        row.flops / 1e9,
+        row.flops / row.secs / 1e9,
+        row.matmul,
+        row.peak_mb
+    );
+    match peer {
+        Some(p) => println!(" {:>8.2}x", row.secs / p.secs),
+        None => println!(),
+    }
+}
+
+fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     let size = size_of(&args);
     let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
@@ -275,10 +335,31 @@ fn main() {
         size.feature_dim,
         args.steps
     );
-    println!(
-        "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
-        "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
-    );
+    let peer = match &args.peer {
+        Some(python) => Some(peer::run(python, size, skip, args.steps)?),
+        None => None,
+    };
+    print_header(peer.as_ref());
+    if let Some(p) = &peer {
+        let ours = size.step_flops(&mlp, FeatureMode::PerSample, 0);
+        if (p.flops - ours).abs() > 1e-6 * ours {
+            eprintln!(
+                "warning: the JAX peer counts {:.3} GFLOP per step, bench {:.3}",
+                p.flops / 1e9,
+                ours / 1e9
+            );
+        }
+        let row = Row {
+            backend: "jax".into(),
+            path: "per-sample (plain)".into(),
+            secs: p.secs,
+            rays: size.rays,
+            flops: p.flops,
+            matmul: p.matmul,
+            peak_mb: p.peak_mb,
+        };
+        print_row(&row, peer.as_ref());
+    }
     let cases = [
         Case {
             label: "composited + top-k",
@@ -312,21 +393,20 @@ fn main() {
                 ..size
             }
             .step_flops(&mlp, case.path, case.top_k);
-            println!(
-                "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
-                backend.name(),
-                if case.top_k > 0 {
+            let row = Row {
+                backend: backend.name().to_string(),
+                path: if case.top_k > 0 {
                     format!("{} (k={})", case.label, case.top_k)
                 } else {
                     case.label.to_string()
                 },
                 secs,
-                size.rays as f64 / secs,
-                flops / 1e9,
-                flops / secs / 1e9,
-                ceiling,
-                peak_memory_bytes().unwrap_or(0) as f64 / 1e6
-            );
+                rays: size.rays,
+                flops,
+                matmul: ceiling,
+                peak_mb: peak_memory_bytes().unwrap_or(0) as f64 / 1e6,
+            };
+            print_row(&row, peer.as_ref());
         }
     }
     println!(
@@ -344,4 +424,11 @@ fn main() {
         100.0 * clipped.span_fraction_sum / size.rays as f64,
         r = grid.resolution()
     );
+    if peer.is_some() {
+        println!(
+            "jax: the plain per-sample step in JAX (scripts/peer_step_jax.py, one jit of \
+             forward, grad and Adam), its peak MB the whole Python process's"
+        );
+    }
+    Ok(())
 }
