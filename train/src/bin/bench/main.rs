@@ -18,9 +18,11 @@ mod peer;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use burn::module::Module;
 use burn::optim::AdamConfig;
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
 use clap::Parser;
+use field_ops::render::render_rays;
 use model::geometry::NormalizedRay;
 use model::{
     FeatureHeadConfig, FeatureMode, MipMlpConfig, OccupancyConfig, OccupancyGrid, OpenNerfConfig,
@@ -200,6 +202,9 @@ struct Timing {
     secs: f64,
     /// Rays rendered per step (fewer than drawn behind the grid).
     rendered: usize,
+    /// Rays per second rendering the trained model (no autodiff, the same
+    /// feature path, the grid when the case has one, as `eval render` does).
+    infer: f64,
 }
 
 /// Times `steps` steps (after one untimed warm-up step) of `case` on `ad`.
@@ -267,7 +272,32 @@ fn time_case(
     Timing {
         secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
         rendered,
+        infer: inference_rays_per_s(&model, case, grid, ad, n),
     }
+}
+
+/// Rays per second rendering `4 n` fresh rays with `model` in chunks of
+/// 4096 on the device without autodiff (after one warm-up chunk).
+fn inference_rays_per_s(
+    model: &model::OpenNerf,
+    case: Case,
+    grid: &OccupancyGrid,
+    ad: &Device,
+    n: usize,
+) -> f64 {
+    let plain = ad.clone().without_autodiff();
+    let valid = model.valid();
+    let valid = if case.with_grid {
+        valid.with_occupancy(Some(grid.clone()))
+    } else {
+        valid
+    };
+    let mode = case.path;
+    let _ = render_rays(&valid, &rays(256, 3), None, 4096, mode, &plain);
+    let many = rays(4 * n, 2);
+    let start = Instant::now();
+    let _ = render_rays(&valid, &many, None, 4096, mode, &plain);
+    many.len() as f64 / start.elapsed().as_secs_f64()
 }
 
 /// One row of the table.
@@ -279,6 +309,8 @@ struct Row {
     flops: f64,
     matmul: f64,
     peak_mb: f64,
+    /// Inference rays/s (none for the peer).
+    infer: Option<f64>,
 }
 
 /// Prints the header (and the ratio's convention when there is a peer).
@@ -294,6 +326,7 @@ fn print_header(peer: Option<&peer::Peer>) {
         "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
         "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
     );
+    print!(" {:>12} {:>8}", "infer rays/s", "x train");
     println!("{}", if peer.is_some() { "   vs JAX" } else { "" });
 }
 
@@ -310,10 +343,38 @@ fn print_row(row: &Row, peer: Option<&peer::Peer>) {
         row.matmul,
         row.peak_mb
     );
+    match row.infer {
+        Some(r) => print!(" {:>12.0} {:>7.1}x", r, r * row.secs / row.rays as f64),
+        None => print!(" {:>12} {:>8}", "-", "-"),
+    }
     match peer {
         Some(p) => println!(" {:>8.2}x", row.secs / p.secs),
         None => println!(),
     }
+}
+
+/// The Burn cases, in the order printed.
+fn cases(top_k: usize) -> [Case; 3] {
+    [
+        Case {
+            label: "composited + top-k",
+            path: FeatureMode::Composited,
+            top_k,
+            with_grid: false,
+        },
+        Case {
+            label: "per-sample (plain)",
+            path: FeatureMode::PerSample,
+            top_k: 0,
+            with_grid: false,
+        },
+        Case {
+            label: "composited + grid",
+            path: FeatureMode::Composited,
+            top_k,
+            with_grid: true,
+        },
+    ]
 }
 
 fn main() -> anyhow::Result<()> {
@@ -357,29 +418,11 @@ fn main() -> anyhow::Result<()> {
             flops: p.flops,
             matmul: p.matmul,
             peak_mb: p.peak_mb,
+            infer: None,
         };
         print_row(&row, peer.as_ref());
     }
-    let cases = [
-        Case {
-            label: "composited + top-k",
-            path: FeatureMode::Composited,
-            top_k: args.top_k,
-            with_grid: false,
-        },
-        Case {
-            label: "per-sample (plain)",
-            path: FeatureMode::PerSample,
-            top_k: 0,
-            with_grid: false,
-        },
-        Case {
-            label: "composited + grid",
-            path: FeatureMode::Composited,
-            top_k: args.top_k,
-            with_grid: true,
-        },
-    ];
+    let cases = cases(args.top_k);
     for &backend in &args.backends {
         let plain = device(backend, None);
         let ceiling = matmul_ceiling(&plain, size.width);
@@ -387,7 +430,11 @@ fn main() -> anyhow::Result<()> {
         let grid = object_grid();
         for case in cases {
             reset_peak();
-            let Timing { secs, rendered } = time_case(&ad, size, &mlp, case, &grid, args.steps);
+            let Timing {
+                secs,
+                rendered,
+                infer,
+            } = time_case(&ad, size, &mlp, case, &grid, args.steps);
             let flops = Size {
                 rays: rendered,
                 ..size
@@ -405,6 +452,7 @@ fn main() -> anyhow::Result<()> {
                 flops,
                 matmul: ceiling,
                 peak_mb: peak_memory_bytes().unwrap_or(0) as f64 / 1e6,
+                infer: Some(infer),
             };
             print_row(&row, peer.as_ref());
         }
@@ -423,6 +471,12 @@ fn main() -> anyhow::Result<()> {
         size.rays,
         100.0 * clipped.span_fraction_sum / size.rays as f64,
         r = grid.resolution()
+    );
+    println!(
+        "infer rays/s: the trained model rendering {} fresh rays in chunks of 4096 without \
+         autodiff (same feature path, the grid where the case has one); x train: over the \
+         training rays/s of the same row",
+        4 * size.rays
     );
     if peer.is_some() {
         println!(
