@@ -37,6 +37,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "tests"))
 
 from clip_vision_reference import (  # noqa: E402
     VARIANTS,
+    VIT_B16,
     dense_features,
     hf_tower,
     resize_normalise,
@@ -92,17 +93,7 @@ def main():
     threads = args.threads or os.cpu_count()
     torch.set_num_threads(threads)
     torch.manual_seed(0)
-    config = CLIPVisionConfig(
-        hidden_size=768,
-        intermediate_size=3072,
-        projection_dim=512,
-        num_hidden_layers=12,
-        num_attention_heads=12,
-        image_size=224,
-        patch_size=16,
-        hidden_act="quick_gelu",
-        layer_norm_eps=1e-5,
-    )
+    config = CLIPVisionConfig(**VIT_B16)
     model = CLIPVisionModelWithProjection(config).to(torch.float32).eval()
     tower = hf_tower(model)
     g = torch.Generator().manual_seed(1)

@@ -60,6 +60,23 @@ TRICKY = [
 
 CONTEXT = 77
 
+# The tiny Hugging Face text tower (also the text side of the vision
+# reference's tiny CLIPModel).
+HF_TINY_TEXT = dict(
+    vocab_size=48,
+    hidden_size=32,
+    intermediate_size=64,
+    projection_dim=16,
+    num_hidden_layers=2,
+    num_attention_heads=4,
+    max_position_embeddings=16,
+    hidden_act="quick_gelu",
+    layer_norm_eps=1e-5,
+    bos_token_id=46,
+    eos_token_id=45,
+    pad_token_id=1,
+)
+
 
 def out_dir():
     if len(sys.argv) > 1:
@@ -83,20 +100,7 @@ def hf_model(out):
     from transformers import CLIPTextConfig, CLIPTextModelWithProjection
 
     torch.manual_seed(0)
-    config = CLIPTextConfig(
-        vocab_size=48,
-        hidden_size=32,
-        intermediate_size=64,
-        projection_dim=16,
-        num_hidden_layers=2,
-        num_attention_heads=4,
-        max_position_embeddings=16,
-        hidden_act="quick_gelu",
-        layer_norm_eps=1e-5,
-        bos_token_id=46,
-        eos_token_id=45,
-        pad_token_id=1,
-    )
+    config = CLIPTextConfig(**HF_TINY_TEXT)
     model = CLIPTextModelWithProjection(config).eval()
     # Default init leaves biases and norms at 0 / 1: perturb every parameter
     # so that a misplaced bias or norm weight shows.

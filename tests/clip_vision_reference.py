@@ -441,19 +441,20 @@ def hf_image_embeds(model):
     return f
 
 
-HF_TEXT = dict(
-    vocab_size=48,
-    hidden_size=32,
-    intermediate_size=64,
-    projection_dim=16,
-    num_hidden_layers=2,
-    num_attention_heads=4,
-    max_position_embeddings=16,
+from clip_reference import HF_TINY_TEXT as HF_TEXT  # noqa: E402
+
+# CLIP ViT-B/16's vision tower (the full-size reference and the PyTorch
+# benchmark).
+VIT_B16 = dict(
+    hidden_size=768,
+    intermediate_size=3072,
+    projection_dim=512,
+    num_hidden_layers=12,
+    num_attention_heads=12,
+    image_size=224,
+    patch_size=16,
     hidden_act="quick_gelu",
     layer_norm_eps=1e-5,
-    bos_token_id=46,
-    eos_token_id=45,
-    pad_token_id=1,
 )
 
 
@@ -555,17 +556,7 @@ def full_size(out):
     quiet_transformers()
     torch.manual_seed(30)
     text = dict(HF_TEXT, projection_dim=512)
-    vision = dict(
-        hidden_size=768,
-        intermediate_size=3072,
-        projection_dim=512,
-        num_hidden_layers=12,
-        num_attention_heads=12,
-        image_size=224,
-        patch_size=16,
-        hidden_act="quick_gelu",
-        layer_norm_eps=1e-5,
-    )
+    vision = VIT_B16
     model = CLIPModel(CLIPConfig(text_config=text, vision_config=vision, projection_dim=512)).eval()
     perturb(model)
     d = os.path.join(out, "hf_vit_b16")

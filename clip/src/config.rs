@@ -27,12 +27,12 @@ pub struct TextOptions {
     pub notes: Vec<String>,
 }
 
-fn read_json(path: &Path) -> Result<Value, ClipError> {
+pub(crate) fn read_json(path: &Path) -> Result<Value, ClipError> {
     let text = read_text(path, "model configuration (JSON)")?;
     serde_json::from_str(&text).map_err(|e| ClipError::invalid(path, format!("invalid JSON: {e}")))
 }
 
-fn get_usize(v: &Value, key: &str, path: &Path) -> Result<Option<usize>, ClipError> {
+pub(crate) fn get_usize(v: &Value, key: &str, path: &Path) -> Result<Option<usize>, ClipError> {
     match v.get(key) {
         None | Some(Value::Null) => Ok(None),
         Some(x) => x

@@ -193,20 +193,8 @@ impl Layout {
                     let p = self.block_prefix(i);
                     let packed = take(&format!("{p}attn.in_proj_weight"), &[3 * w, w])?;
                     let bias = take(&format!("{p}attn.in_proj_bias"), &[3 * w])?;
-                    let part = |t: &HostTensor, k: usize, rows: usize| HostTensor {
-                        shape: if t.shape.len() == 2 {
-                            vec![rows, w]
-                        } else {
-                            vec![rows]
-                        },
-                        data: t.data[k * t.data.len() / 3..(k + 1) * t.data.len() / 3].to_vec(),
-                    };
-                    block.attn.q_proj =
-                        linear_from_torch(part(&packed, 0, w), Some(part(&bias, 0, w)), device);
-                    block.attn.k_proj =
-                        linear_from_torch(part(&packed, 1, w), Some(part(&bias, 1, w)), device);
-                    block.attn.v_proj =
-                        linear_from_torch(part(&packed, 2, w), Some(part(&bias, 2, w)), device);
+                    [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
+                        split_in_proj(&packed, &bias, w, device);
                     let mut lin =
                         |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
                             let weight = take(&format!("{p}{name}.weight"), &[d_out, d_in])?;
@@ -239,7 +227,28 @@ impl Layout {
     }
 }
 
-fn set_norm(
+/// OpenCLIP's packed attention input projection (`in_proj_weight`, `[3 w,
+/// w]`, and `in_proj_bias`, `[3 w]`) as the query, key and value layers.
+pub(crate) fn split_in_proj(
+    packed: &HostTensor,
+    bias: &HostTensor,
+    w: usize,
+    device: &Device,
+) -> [Linear; 3] {
+    [0, 1, 2].map(|k| {
+        let weight = HostTensor {
+            shape: vec![w, w],
+            data: packed.data[k * w * w..(k + 1) * w * w].to_vec(),
+        };
+        let b = HostTensor {
+            shape: vec![w],
+            data: bias.data[k * w..(k + 1) * w].to_vec(),
+        };
+        linear_from_torch(weight, Some(b), device)
+    })
+}
+
+pub(crate) fn set_norm(
     norm: &mut LayerNorm,
     prefix: &str,
     name: &str,
@@ -255,19 +264,23 @@ fn set_norm(
     Ok(())
 }
 
-fn param1(t: HostTensor, device: &Device) -> Param<Tensor<1>> {
+pub(crate) fn param1(t: HostTensor, device: &Device) -> Param<Tensor<1>> {
     let n = t.data.len();
     Param::from_tensor(Tensor::from_data(TensorData::new(t.data, [n]), device))
 }
 
-fn param2(t: HostTensor, device: &Device) -> Param<Tensor<2>> {
+pub(crate) fn param2(t: HostTensor, device: &Device) -> Param<Tensor<2>> {
     let shape = [t.shape[0], t.shape[1]];
     Param::from_tensor(Tensor::from_data(TensorData::new(t.data, shape), device))
 }
 
 /// A Burn linear layer from PyTorch's `[d_out, d_in]` weight (transposed to
 /// Burn's `[d_in, d_out]`) and optional bias.
-fn linear_from_torch(weight: HostTensor, bias: Option<HostTensor>, device: &Device) -> Linear {
+pub(crate) fn linear_from_torch(
+    weight: HostTensor,
+    bias: Option<HostTensor>,
+    device: &Device,
+) -> Linear {
     let (d_out, d_in) = (weight.shape[0], weight.shape[1]);
     let w = HostTensor {
         shape: vec![d_in, d_out],

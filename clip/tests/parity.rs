@@ -10,31 +10,15 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use burn::tensor::{Device, Int, Tensor, TensorData};
+use burn::tensor::{Int, Tensor, TensorData};
 use clip::model_dir::{OPEN_CLIP_VOCAB, load_encoder, load_tokenizer};
 use serde_json::Value;
 
+mod common;
+use common::{devices, floats, max_abs_diff, python, read_json, require_python};
+
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
-}
-
-fn devices() -> Vec<(&'static str, Device)> {
-    #[allow(deprecated)] // ndarray is the reference backend
-    let ndarray = Device::ndarray();
-    vec![("flex", Device::flex()), ("ndarray", ndarray)]
-}
-
-fn read_json(path: &Path) -> Value {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn floats(v: &Value) -> Vec<f32> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number") as f32)
-        .collect()
 }
 
 fn ids(v: &Value) -> (Vec<i64>, usize, usize) {
@@ -50,20 +34,6 @@ fn ids(v: &Value) -> (Vec<i64>, usize, usize) {
         })
         .collect();
     (flat, rows.len(), s)
-}
-
-fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-    assert_eq!(a.len(), b.len(), "lengths");
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| {
-            if x.is_finite() {
-                (x - y).abs()
-            } else {
-                f32::INFINITY
-            }
-        })
-        .fold(0.0, f32::max)
 }
 
 /// Runs the model of `dir` on the reference's input ids on every CPU
@@ -156,25 +126,6 @@ fn tokenizer_matches_open_clip_on_tricky_strings() {
         .expect("long");
     assert_eq!(long.len(), 77);
     assert_eq!(long.last(), Some(&tokenizer.end_id()));
-}
-
-/// The Python the tests run: `$OPENNERF_PYTHON` (e.g. a virtual
-/// environment's), else `python3`.
-fn python() -> String {
-    std::env::var("OPENNERF_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
-/// Fails (with how to install them) unless `python()` can import `modules`.
-fn require_python(modules: &str, install: &str) {
-    let ok = Command::new(python())
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    assert!(
-        ok,
-        "{} cannot import {modules}: {install} (or set OPENNERF_PYTHON)",
-        python()
-    );
 }
 
 #[test]

@@ -13,46 +13,15 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Tensor, TensorData};
 use clip::vision::{DenseOptions, VisionModel};
 use model::clip::DenseVariant;
-use serde_json::Value;
+
+mod common;
+use common::{devices, floats, max_abs_diff, python, read_json, require_python};
 
 fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/vision")
-}
-
-fn devices() -> Vec<(&'static str, Device)> {
-    #[allow(deprecated)] // ndarray is the reference backend
-    let ndarray = Device::ndarray();
-    vec![("flex", Device::flex()), ("ndarray", ndarray)]
-}
-
-fn read_json(path: &Path) -> Value {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn floats(v: &Value) -> Vec<f32> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number") as f32)
-        .collect()
-}
-
-fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-    assert_eq!(a.len(), b.len(), "lengths");
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| {
-            if x.is_finite() {
-                (x - y).abs()
-            } else {
-                f32::INFINITY
-            }
-        })
-        .fold(0.0, f32::max)
 }
 
 fn check(what: &str, dir: &Path, backend: &str, got: &[f32], want: &[f32]) {
@@ -164,32 +133,14 @@ fn open_clip_vision_tower_in_openai_layout_matches_open_clip() {
     check_model(&fixtures().join("openclip_tiny"));
 }
 
-/// The Python the tests run: `$OPENNERF_PYTHON` (e.g. a virtual
-/// environment's), else `python3`.
-fn python() -> String {
-    std::env::var("OPENNERF_PYTHON").unwrap_or_else(|_| "python3".into())
-}
-
 const REFERENCE_PACKAGES: &str = "pip install torch transformers open_clip_torch safetensors";
-
-/// Fails (with how to install them) unless `python()` can import the
-/// reference script's packages.
-fn require_python() {
-    let modules = "torch, transformers, open_clip, safetensors";
-    let ok = Command::new(python())
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    assert!(
-        ok,
-        "{} cannot import {modules}: {REFERENCE_PACKAGES} (or set OPENNERF_PYTHON)",
-        python()
-    );
-}
 
 /// Runs `tests/clip_vision_reference.py ARGS`, failing with its stderr.
 fn run_reference_script(args: &[&std::ffi::OsStr]) {
-    require_python();
+    require_python(
+        "torch, transformers, open_clip, safetensors",
+        REFERENCE_PACKAGES,
+    );
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/clip_vision_reference.py");
     let run = Command::new(python())
         .arg(&script)

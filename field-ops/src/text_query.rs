@@ -60,20 +60,27 @@ pub fn check_flags(
     Ok(())
 }
 
-/// The text model for `flag`'s texts: `--text-model` when given, else the
-/// CLIP model a `--vlm` run made its maps with.
+/// The text model of a run: `--text-model` when given, else the CLIP model
+/// a `--vlm` run made its maps with.
+pub fn default_text_model(
+    text_model: Option<&Path>,
+    meta: &SceneMeta,
+) -> Option<std::path::PathBuf> {
+    text_model
+        .map(Path::to_path_buf)
+        .or_else(|| meta.source.vlm().map(|v| v.model.clone()))
+}
+
+/// [`default_text_model`], refusing (for `flag`'s texts) a run that has none.
 pub fn model_for(
     text_model: Option<&Path>,
     meta: &SceneMeta,
     flag: &str,
 ) -> Result<std::path::PathBuf, OpsError> {
-    if let Some(dir) = text_model {
-        return Ok(dir.to_path_buf());
-    }
-    meta.source.vlm().map(|v| v.model.clone()).ok_or_else(|| {
+    default_text_model(text_model, meta).ok_or_else(|| {
         OpsError::Invalid(format!(
             "{flag} needs --text-model DIR (the CLIP model whose image features the field \
-                 was trained on); a run trained with --vlm uses its own"
+             was trained on); a run trained with --vlm uses its own"
         ))
     })
 }

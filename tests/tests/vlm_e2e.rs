@@ -51,6 +51,18 @@ fn tiny_clip(dir: &Path, dim: usize) -> PathBuf {
     out
 }
 
+/// The tests' serial guard, a scratch directory and a 12-d tiny CLIP model in it.
+fn setup() -> (
+    std::sync::MutexGuard<'static, ()>,
+    tempfile::TempDir,
+    PathBuf,
+) {
+    let guard = serial();
+    let tmp = scratch_dir();
+    let model = tiny_clip(tmp.path(), 12);
+    (guard, tmp, model)
+}
+
 fn train(args: &[&str]) -> Result<train::RunOutcome, String> {
     let mut all = vec!["train", "--quiet", "--no-final-render"];
     all.extend_from_slice(args);
@@ -88,9 +100,7 @@ fn mtimes(dir: &Path) -> Vec<(String, std::time::SystemTime)> {
 
 #[test]
 fn train_with_a_clip_model_then_query_and_segment_with_its_text_tower() {
-    let _guard = serial();
-    let tmp = scratch_dir();
-    let model = tiny_clip(tmp.path(), 12);
+    let (_guard, tmp, model) = setup();
     let m = model.to_str().expect("utf-8");
     let run = tmp.path().join("run");
     let r = run.to_str().expect("utf-8");
@@ -203,9 +213,7 @@ fn train_with_a_clip_model_then_query_and_segment_with_its_text_tower() {
 
 #[test]
 fn bad_vlm_input_is_refused_before_anything_is_written() {
-    let _guard = serial();
-    let tmp = scratch_dir();
-    let model = tiny_clip(tmp.path(), 12);
+    let (_guard, tmp, model) = setup();
     let m = model.to_str().expect("utf-8");
     let out = tmp.path().join("never");
     let o = out.to_str().expect("utf-8");
@@ -275,9 +283,7 @@ struct Extract {
 
 #[test]
 fn eval_extract_writes_maps_and_previews_that_train_reuses() {
-    let _guard = serial();
-    let tmp = scratch_dir();
-    let model = tiny_clip(tmp.path(), 12);
+    let (_guard, tmp, model) = setup();
     let m = model.to_str().expect("utf-8");
     let maps = tmp.path().join("maps");
     let o = maps.to_str().expect("utf-8");

@@ -10,7 +10,8 @@ use model::clip::{ClipActivation, ClipVisionConfig};
 use serde_json::Value;
 
 use super::layout::VisionSizes;
-use crate::error::{ClipError, read_text};
+use crate::config::{get_usize, read_json};
+use crate::error::ClipError;
 
 /// OpenAI's CLIP pixel mean (RGB), used by every CLIP checkpoint we know
 /// (written with the digits OpenAI published).
@@ -42,11 +43,6 @@ pub struct VisionOptions {
     pub norm: ImageNorm,
     /// What was assumed where the files were silent.
     pub notes: Vec<String>,
-}
-
-fn read_json(path: &Path) -> Result<Value, ClipError> {
-    let text = read_text(path, "model configuration (JSON)")?;
-    serde_json::from_str(&text).map_err(|e| ClipError::invalid(path, format!("invalid JSON: {e}")))
 }
 
 fn triple(v: Option<&Value>, key: &str, path: &Path) -> Result<Option<[f32; 3]>, ClipError> {
@@ -97,14 +93,26 @@ fn norm_from(
     })
 }
 
-fn count(v: &Value, key: &str, path: &Path) -> Result<Option<usize>, ClipError> {
-    match v.get(key) {
-        None | Some(Value::Null) => Ok(None),
-        Some(x) => x
-            .as_u64()
-            .map(|n| Some(n as usize))
-            .ok_or_else(|| ClipError::invalid(path, format!("{key}: expected a count, got {x}"))),
+/// Refuses a configuration count that disagrees with the weights' shapes:
+/// `checks` holds (key, the weights' value); `what` prefixes the key in
+/// the message.
+fn agree_with_weights(
+    v: &Value,
+    checks: &[(&str, usize)],
+    what: &str,
+    path: &Path,
+) -> Result<(), ClipError> {
+    for &(key, want) in checks {
+        if let Some(n) = get_usize(v, key, path)?
+            && n != want
+        {
+            return Err(ClipError::invalid(
+                path,
+                format!("{what}{key} {n} disagrees with the weights ({want})"),
+            ));
+        }
     }
+    Ok(())
 }
 
 /// Options from a Hugging Face directory: `config.json` (`vision_config`, or
@@ -125,7 +133,7 @@ pub fn hf_vision_options(dir: &Path, sizes: &VisionSizes) -> Result<VisionOption
         _ => root.clone(),
     };
     let mut notes = Vec::new();
-    let heads = count(&v, "num_attention_heads", &path)?.unwrap_or_else(|| {
+    let heads = get_usize(&v, "num_attention_heads", &path)?.unwrap_or_else(|| {
         let h = (sizes.width / 64).max(1);
         notes.push(format!(
             "{}: no vision num_attention_heads, assuming {h} (64 channels each)",
@@ -148,20 +156,16 @@ pub fn hf_vision_options(dir: &Path, sizes: &VisionSizes) -> Result<VisionOption
             )
         })?,
     };
-    for (key, want) in [
-        ("patch_size", sizes.patch_size),
-        ("image_size", sizes.image_size),
-        ("hidden_size", sizes.width),
-    ] {
-        if let Some(n) = count(&v, key, &path)?
-            && n != want
-        {
-            return Err(ClipError::invalid(
-                &path,
-                format!("vision {key} {n} disagrees with the weights ({want})"),
-            ));
-        }
-    }
+    agree_with_weights(
+        &v,
+        &[
+            ("patch_size", sizes.patch_size),
+            ("image_size", sizes.image_size),
+            ("hidden_size", sizes.width),
+        ],
+        "vision ",
+        &path,
+    )?;
     let layer_norm_eps = v
         .get("layer_norm_eps")
         .and_then(Value::as_f64)
@@ -232,7 +236,7 @@ pub fn open_clip_vision_options(
             format!("vision_cfg.pool_type {pool:?} is not supported (tok)"),
         ));
     }
-    let head_width = count(&v, "head_width", &path)?.unwrap_or(64).max(1);
+    let head_width = get_usize(&v, "head_width", &path)?.unwrap_or(64).max(1);
     let heads = (sizes.width / head_width).max(1);
     if cfg.get("quick_gelu").is_none() {
         notes.push(format!(
@@ -244,21 +248,17 @@ pub fn open_clip_vision_options(
         .get("quick_gelu")
         .and_then(Value::as_bool)
         .unwrap_or(false);
-    for (key, want) in [
-        ("patch_size", sizes.patch_size),
-        ("image_size", sizes.image_size),
-        ("width", sizes.width),
-        ("layers", sizes.layers),
-    ] {
-        if let Some(n) = count(&v, key, &path)?
-            && n != want
-        {
-            return Err(ClipError::invalid(
-                &path,
-                format!("vision_cfg.{key} {n} disagrees with the weights ({want})"),
-            ));
-        }
-    }
+    agree_with_weights(
+        &v,
+        &[
+            ("patch_size", sizes.patch_size),
+            ("image_size", sizes.image_size),
+            ("width", sizes.width),
+            ("layers", sizes.layers),
+        ],
+        "vision_cfg.",
+        &path,
+    )?;
     let pre = root.get("preprocess_cfg").unwrap_or(&Value::Null);
     let norm = norm_from(
         triple(pre.get("mean"), "preprocess_cfg.mean", &path)?,

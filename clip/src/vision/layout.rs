@@ -3,13 +3,13 @@
 //! `CLIPVisionModelWithProjection`) and OpenCLIP / OpenAI (`visual.*`,
 //! packed attention projections, a `visual.proj` matrix).
 
-use burn::module::Param;
-use burn::nn::{LayerNorm, Linear};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::nn::Linear;
+use burn::tensor::Device;
 use model::clip::{ClipVisionConfig, ClipVisionEncoder};
 
 use crate::error::ClipError;
-use crate::tensors::{HostTensor, TensorFile, transpose};
+use crate::layout::{linear_from_torch, param1, param2, set_norm, split_in_proj};
+use crate::tensors::{HostTensor, TensorFile};
 
 /// A naming scheme of vision weights.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -248,20 +248,8 @@ impl VisionLayout {
                     block.mlp.fc2 = lin("mlp.c_proj", m, w)?;
                     let packed = take(&format!("{pre}attn.in_proj_weight"), &[3 * w, w])?;
                     let bias = take(&format!("{pre}attn.in_proj_bias"), &[3 * w])?;
-                    let part = |t: &HostTensor, k: usize, shape: Vec<usize>| HostTensor {
-                        data: t.data[k * t.data.len() / 3..(k + 1) * t.data.len() / 3].to_vec(),
-                        shape,
-                    };
-                    let proj = |k| {
-                        linear_from_torch(
-                            part(&packed, k, vec![w, w]),
-                            Some(part(&bias, k, vec![w])),
-                            device,
-                        )
-                    };
-                    block.attn.q_proj = proj(0);
-                    block.attn.k_proj = proj(1);
-                    block.attn.v_proj = proj(2);
+                    [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
+                        split_in_proj(&packed, &bias, w, device);
                     set_norm(&mut block.ln1, &pre, "ln_1", w, &mut take, device)?;
                     set_norm(&mut block.ln2, &pre, "ln_2", w, &mut take, device)?;
                 }
@@ -278,44 +266,5 @@ impl VisionLayout {
             },
         };
         Ok(enc)
-    }
-}
-
-fn set_norm(
-    norm: &mut LayerNorm,
-    prefix: &str,
-    name: &str,
-    width: usize,
-    take: &mut impl FnMut(&str, &[usize]) -> Result<HostTensor, ClipError>,
-    device: &Device,
-) -> Result<(), ClipError> {
-    norm.gamma = param1(take(&format!("{prefix}{name}.weight"), &[width])?, device);
-    norm.beta = Some(param1(
-        take(&format!("{prefix}{name}.bias"), &[width])?,
-        device,
-    ));
-    Ok(())
-}
-
-fn param1(t: HostTensor, device: &Device) -> Param<Tensor<1>> {
-    let n = t.data.len();
-    Param::from_tensor(Tensor::from_data(TensorData::new(t.data, [n]), device))
-}
-
-fn param2(t: HostTensor, device: &Device) -> Param<Tensor<2>> {
-    let shape = [t.shape[0], t.shape[1]];
-    Param::from_tensor(Tensor::from_data(TensorData::new(t.data, shape), device))
-}
-
-/// A Burn linear layer from PyTorch's `[d_out, d_in]` weight.
-fn linear_from_torch(weight: HostTensor, bias: Option<HostTensor>, device: &Device) -> Linear {
-    let (d_out, d_in) = (weight.shape[0], weight.shape[1]);
-    let w = HostTensor {
-        shape: vec![d_in, d_out],
-        data: transpose(&weight.data, d_out, d_in),
-    };
-    Linear {
-        weight: param2(w, device),
-        bias: bias.map(|b| param1(b, device)),
     }
 }

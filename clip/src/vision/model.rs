@@ -205,6 +205,36 @@ impl VisionModel {
             .map_err(|e| ClipError::invalid(&self.weights, format!("cannot read features: {e:?}")))
     }
 
+    /// Dense features of every window of `plan` over a preprocessed image,
+    /// `options.batch` windows at a time.
+    ///
+    /// # Shapes
+    /// - `image`: `[3, rows * p, cols * p]` (see [`VisionModel::preprocess`]);
+    ///   output: `[windows, g, g, dim]`, `g` the window's patch grid.
+    pub fn window_features(
+        &self,
+        image: &[f32],
+        plan: &WindowPlan,
+        options: &DenseOptions,
+    ) -> Result<Vec<f32>, ClipError> {
+        let (c, w2) = (plan.crop, plan.resized.1);
+        let plane = plan.resized.0 * w2;
+        let mut features = Vec::new();
+        for origins in plan.origins.chunks(options.batch.max(1)) {
+            let mut batch = Vec::with_capacity(origins.len() * 3 * c * c);
+            for &(y0, x0) in origins {
+                for ch in 0..3 {
+                    for y in y0..y0 + c {
+                        let row = ch * plane + y * w2;
+                        batch.extend_from_slice(&image[row + x0..row + x0 + c]);
+                    }
+                }
+            }
+            features.extend(self.dense_pixels(batch, [origins.len(), 3, c, c], options.variant)?);
+        }
+        Ok(features)
+    }
+
     /// The dense map of one `[height, width, 3]` image with values in `[0, 1]`.
     pub fn dense_map(
         &self,
@@ -221,21 +251,7 @@ impl VisionModel {
         }
         let plan = self.plan((height, width), options)?;
         let image = self.preprocess(rgb, (height, width), &plan);
-        let (c, w2) = (plan.crop, plan.resized.1);
-        let plane = plan.resized.0 * w2;
-        let mut features = Vec::new();
-        for origins in plan.origins.chunks(options.batch.max(1)) {
-            let mut batch = Vec::with_capacity(origins.len() * 3 * c * c);
-            for &(y0, x0) in origins {
-                for ch in 0..3 {
-                    for y in y0..y0 + c {
-                        let row = ch * plane + y * w2;
-                        batch.extend_from_slice(&image[row + x0..row + x0 + c]);
-                    }
-                }
-            }
-            features.extend(self.dense_pixels(batch, [origins.len(), 3, c, c], options.variant)?);
-        }
+        let features = self.window_features(&image, &plan, options)?;
         Ok(DenseMap {
             rows: plan.grid.0,
             cols: plan.grid.1,

@@ -107,10 +107,7 @@ pub fn view_command(args: &ViewArgs) -> Result<String, OpsError> {
     run.split.train.extend(&novel);
     run.split.check(rebuilt.scene.frames.len(), &dir.split())?;
     let scene = rebuilt.scene;
-    let text_model = args
-        .text_model
-        .clone()
-        .or_else(|| run.meta.source.vlm().map(|v| v.model.clone()));
+    let text_model = crate::text_query::default_text_model(args.text_model.as_deref(), &run.meta);
     let classes = match &args.classes {
         Some(list) => {
             let names = crate::text_query::parse_classes(list)?;

@@ -16,59 +16,98 @@ use super::view::ExtractedView;
 use crate::error::OpsError;
 use crate::render::render_view;
 
-/// The scene's 2D feature extractor: the CLIP model that made its maps (in
-/// process, on `device`), the simulated one of a synthetic scene, the
-/// configured command for a scene on disk. Also refuses an oracle on a
-/// scene without ground truth.
+/// Where a scene's novel views get their features, as far as can be told
+/// without loading anything.
+enum ExtractorSource<'a> {
+    /// The CLIP model that made the scene's maps (`--vlm`).
+    Vlm(&'a datasets::VlmSource),
+    /// An external command (program and leading arguments).
+    Command(&'a str, &'a [String]),
+    /// The synthetic scene's simulated extractor.
+    Synthetic(u64, datasets::synthetic::SceneSize),
+}
+
+/// The source of `scene`'s novel-view features, refusing a scene without
+/// maps, an oracle on a scene without ground truth and a scene on disk
+/// without a way to extract.
+fn extractor_source<'a>(
+    scene: &'a Scene,
+    config: &'a NovelViewConfig,
+) -> Result<ExtractorSource<'a>, OpsError> {
+    if scene.features.is_none() {
+        return Err(OpsError::Invalid(format!(
+            "scene {} has no feature maps: novel views need a feature extractor and a feature head",
+            scene.name
+        )));
+    }
+    if let Some(oracle) = config.oracle {
+        // Refused here, before training, rather than half-way through it.
+        GroundTruth::of(scene, oracle)?;
+    }
+    match (scene.source.vlm(), scene.source.base(), &config.extractor) {
+        (_, _, Some(cmd)) => {
+            let (program, args) = cmd
+                .split_first()
+                .ok_or_else(|| OpsError::Invalid("the extractor command is empty".into()))?;
+            Ok(ExtractorSource::Command(program, args))
+        }
+        (Some(vlm), _, None) => {
+            if !vlm.model.is_dir() {
+                return Err(OpsError::Invalid(format!(
+                    "the run's --vlm {}: not a directory (novel views are extracted with it)",
+                    vlm.model.display()
+                )));
+            }
+            Ok(ExtractorSource::Vlm(vlm))
+        }
+        (None, SceneSource::Synthetic { seed, size, .. }, None) => {
+            Ok(ExtractorSource::Synthetic(*seed, size.parse()?))
+        }
+        (None, _, None) => Err(OpsError::Invalid(format!(
+            "novel views of scene {} need the 2D feature extractor that made its feature maps: give --extractor-command (or train with --vlm)",
+            scene.name
+        ))),
+    }
+}
+
+/// Checks before training that novel views of `scene` can be extracted as
+/// `config` says (see [`scene_extractor`]), without loading a model.
+pub fn check_extractor(scene: &Scene, config: &NovelViewConfig) -> Result<(), OpsError> {
+    extractor_source(scene, config).map(|_| ())
+}
+
+/// The scene's 2D feature extractor: the configured command, the CLIP model
+/// that made its maps (in process, on `device`), or the simulated one of a
+/// synthetic scene. Also refuses an oracle on a scene without ground truth.
 pub fn scene_extractor(
     scene: &Scene,
     config: &NovelViewConfig,
     device: &Device,
 ) -> Result<Box<dyn FeatureExtractor>, OpsError> {
-    let set = scene.features.as_ref().ok_or_else(|| {
-        OpsError::Invalid(format!(
-            "scene {} has no feature maps: novel views need a feature extractor and a feature head",
-            scene.name
-        ))
-    })?;
-    if let Some(oracle) = config.oracle {
-        // Refused here, before training, rather than half-way through it.
-        GroundTruth::of(scene, oracle)?;
-    }
-    if let (Some(vlm), None) = (scene.source.vlm(), &config.extractor) {
-        let model = clip::VisionModel::load(&vlm.model, device).map_err(|e| {
-            OpsError::Invalid(format!("the run's --vlm {}: {e}", vlm.model.display()))
-        })?;
-        let options = clip::DenseOptions {
-            variant: vlm.dense,
-            short_side: Some(vlm.short_side),
-            ..clip::DenseOptions::default()
-        };
-        return Ok(Box::new(clip::ClipExtractor::new(
-            std::sync::Arc::new(model),
-            options,
-        )));
-    }
-    match (scene.source.base(), &config.extractor) {
-        (_, Some(cmd)) => {
-            let (program, args) = cmd
-                .split_first()
-                .ok_or_else(|| OpsError::Invalid("the extractor command is empty".into()))?;
-            Ok(Box::new(CommandExtractor::new(
-                program,
-                args.to_vec(),
-                set.full_dim,
-            )))
+    Ok(match extractor_source(scene, config)? {
+        ExtractorSource::Command(program, args) => Box::new(CommandExtractor::new(
+            program,
+            args.to_vec(),
+            scene.features.as_ref().map_or(0, |f| f.full_dim),
+        )),
+        ExtractorSource::Vlm(vlm) => {
+            let model = clip::VisionModel::load(&vlm.model, device).map_err(|e| {
+                OpsError::Invalid(format!("the run's --vlm {}: {e}", vlm.model.display()))
+            })?;
+            let options = clip::DenseOptions {
+                variant: vlm.dense,
+                short_side: Some(vlm.short_side),
+                ..clip::DenseOptions::default()
+            };
+            Box::new(clip::ClipExtractor::new(
+                std::sync::Arc::new(model),
+                options,
+            ))
         }
-        (SceneSource::Synthetic { seed, size, .. }, None) => {
-            let size: datasets::synthetic::SceneSize = size.parse()?;
-            Ok(Box::new(datasets::synthetic::extractor_for(*seed, size)))
+        ExtractorSource::Synthetic(seed, size) => {
+            Box::new(datasets::synthetic::extractor_for(seed, size))
         }
-        (_, None) => Err(OpsError::Invalid(format!(
-            "novel views of scene {} need the 2D feature extractor that made its feature maps: give --extractor-command (or train with --vlm)",
-            scene.name
-        ))),
-    }
+    })
 }
 
 /// Renders each camera, runs `extractor` on the rendered colour and

@@ -19,6 +19,6 @@ pub mod view;
 
 pub use cameras::{AimedCamera, choose_cameras};
 pub use config::{NovelMode, NovelViewConfig};
-pub use extract::{render_views, scene_extractor};
+pub use extract::{check_extractor, render_views, scene_extractor};
 pub use oracle::NovelOracle;
 pub use view::ExtractedView;

@@ -108,23 +108,29 @@ impl ClipTextConfig {
             ("mlp_width", self.mlp_width),
             ("embed_dim", self.embed_dim),
         ];
-        if let Some((name, _)) = sizes.iter().find(|(_, v)| *v == 0) {
-            return Some(format!("{name} must be at least 1"));
-        }
-        if !self.width.is_multiple_of(self.heads) {
-            return Some(format!(
-                "{} heads do not divide the width {}",
-                self.heads, self.width
-            ));
-        }
-        if !(self.layer_norm_eps.is_finite() && self.layer_norm_eps > 0.0) {
-            return Some(format!(
-                "layer_norm_eps {} must be positive",
-                self.layer_norm_eps
-            ));
-        }
-        None
+        transformer_problem(&sizes, self.width, self.heads, self.layer_norm_eps)
     }
+}
+
+/// Why a transformer of these sizes cannot be built, if it cannot: a zero
+/// in `sizes` (name, value), `heads` not dividing `width`, or a layer-norm
+/// epsilon that is not positive. Shared by the text and vision towers.
+pub(crate) fn transformer_problem(
+    sizes: &[(&str, usize)],
+    width: usize,
+    heads: usize,
+    layer_norm_eps: f64,
+) -> Option<String> {
+    if let Some((name, _)) = sizes.iter().find(|(_, v)| *v == 0) {
+        return Some(format!("{name} must be at least 1"));
+    }
+    if !width.is_multiple_of(heads) {
+        return Some(format!("{heads} heads do not divide the width {width}"));
+    }
+    if !(layer_norm_eps.is_finite() && layer_norm_eps > 0.0) {
+        return Some(format!("layer_norm_eps {layer_norm_eps} must be positive"));
+    }
+    None
 }
 
 #[cfg(test)]

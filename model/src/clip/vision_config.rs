@@ -7,7 +7,7 @@ use std::str::FromStr;
 use burn::config::Config;
 use serde::{Deserialize, Serialize};
 
-use super::config::ClipActivation;
+use super::config::{ClipActivation, transformer_problem};
 
 /// How the last block turns patch tokens into pixel-aligned features
 /// (training-free; the other blocks run as trained). None of them keeps the
@@ -136,25 +136,13 @@ impl ClipVisionConfig {
             ("mlp_width", self.mlp_width),
             ("embed_dim", self.embed_dim),
         ];
-        if let Some((name, _)) = sizes.iter().find(|(_, v)| *v == 0) {
-            return Some(format!("{name} must be at least 1"));
-        }
-        if !self.width.is_multiple_of(self.heads) {
-            return Some(format!(
-                "{} heads do not divide the width {}",
-                self.heads, self.width
-            ));
+        if let Some(p) = transformer_problem(&sizes, self.width, self.heads, self.layer_norm_eps) {
+            return Some(p);
         }
         if !self.image_size.is_multiple_of(self.patch_size) {
             return Some(format!(
                 "the image size {} is not a whole number of {}-px patches",
                 self.image_size, self.patch_size
-            ));
-        }
-        if !(self.layer_norm_eps.is_finite() && self.layer_norm_eps > 0.0) {
-            return Some(format!(
-                "layer_norm_eps {} must be positive",
-                self.layer_norm_eps
             ));
         }
         None

@@ -48,7 +48,7 @@ impl LiveViewer {
         let options = ViewerOptions {
             training: true,
             // A --vlm run's own model embeds the page's free text.
-            text_model: meta.source.vlm().map(|v| v.model.clone()),
+            text_model: field_ops::text_query::default_text_model(None, &meta),
             ..ViewerOptions::default()
         };
         let field = model.valid();

@@ -39,11 +39,7 @@ pub fn train_new(
                 config.schedule.iterations
             )));
         }
-        field_ops::novel::scene_extractor(
-            scene,
-            &config.novel,
-            &training_device(session.backend, session.device_index),
-        )?;
+        field_ops::novel::check_extractor(scene, &config.novel)?;
     }
     let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
     let run = RunDir::new(out);

@@ -30,28 +30,7 @@ pub(crate) fn print_stages(
 ) -> Result<()> {
     let plan = model.plan((h, w), options)?;
     let (image, pre_s, pre_busy) = timed(|| model.preprocess(frame, (h, w), &plan));
-    let (c, w2) = (plan.crop, plan.resized.1);
-    let plane = plan.resized.0 * w2;
-    let (features, tower_s, tower_busy) = timed(|| -> Result<Vec<f32>> {
-        let mut features = Vec::new();
-        for origins in plan.origins.chunks(options.batch.max(1)) {
-            let mut batch = Vec::with_capacity(origins.len() * 3 * c * c);
-            for &(y0, x0) in origins {
-                for ch in 0..3 {
-                    for y in y0..y0 + c {
-                        let row = ch * plane + y * w2;
-                        batch.extend_from_slice(&image[row + x0..row + x0 + c]);
-                    }
-                }
-            }
-            features.extend(model.dense_pixels(
-                batch,
-                [origins.len(), 3, c, c],
-                options.variant,
-            )?);
-        }
-        Ok(features)
-    });
+    let (features, tower_s, tower_busy) = timed(|| model.window_features(&image, &plan, options));
     let features = features?;
     let (_, avg_s, avg_busy) = timed(|| plan.assemble(&features, model.dim()));
     println!("{kind}: one frame's stages");
