@@ -16,6 +16,26 @@ use field_ops::render::RenderedView;
 /// Fixed (not per image) so that error images of different views compare.
 pub const ERROR_SCALE_MAX: f32 = 0.25;
 
+/// Mean squared colour error of `view` against `gt` over every pixel and
+/// channel; `None` when the sizes differ.
+pub fn rgb_mse(gt: &RgbImage, view: &RenderedView) -> Option<f64> {
+    if (gt.width, gt.height) != (view.width, view.height) || gt.data.is_empty() {
+        return None;
+    }
+    let sum: f64 = gt
+        .data
+        .iter()
+        .zip(&view.rgb)
+        .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
+        .sum();
+    Some(sum / gt.data.len() as f64)
+}
+
+/// PSNR in dB of a mean squared error of colours in `[0, 1]`.
+pub fn psnr(mse: f64) -> f64 {
+    -10.0 * mse.max(1e-20).log10()
+}
+
 /// `ground truth | render | error` side by side (`3 * width` wide): the error
 /// is the mean absolute difference over the three channels, Turbo-coloured
 /// from 0 to [`ERROR_SCALE_MAX`]. `None` when the sizes differ.
@@ -174,6 +194,7 @@ mod tests {
             acc: vec![1.0; (w * h) as usize],
             feature: Vec::new(),
             feature_dim: 0,
+            samples_evaluated: 0,
         }
     }
 

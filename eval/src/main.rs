@@ -8,6 +8,10 @@ use eval::commands::segment::{SegmentArgs, segment_command};
 use eval::commands::uncertainty::{UncertaintyArgs, uncertainty_command};
 use eval::commands::view::{ViewArgs, view_command};
 
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
 /// Zero-shot 3D semantic segmentation, relevancy queries and rendering of trained runs.
 #[derive(Parser)]
 #[command(version, about)]

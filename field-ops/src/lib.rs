@@ -7,6 +7,7 @@
 //! (with text embedded by a CLIP model), images and plots.
 #![warn(missing_docs)]
 
+pub mod allocator;
 pub mod backend;
 pub mod colormap;
 pub mod error;

@@ -3,7 +3,7 @@
 
 use burn::tensor::{Device, Tensor};
 use model::geometry::{Camera, NormalizedRay, SceneBox};
-use model::{FeatureMode, OpenNerf, Rays};
+use model::{FeatureMode, OpenNerf, Rays, Termination};
 
 /// Lower bound on the ray parameter (metres) of rendered rays; the same as
 /// the training ray sampler's default, so views render as they were trained.
@@ -26,6 +26,8 @@ pub struct RenderedView {
     pub feature: Vec<f32>,
     /// Channels per pixel of `feature` (0 without a feature head).
     pub feature_dim: usize,
+    /// Samples the field was evaluated at, over both levels.
+    pub samples_evaluated: usize,
 }
 
 impl RenderedView {
@@ -106,13 +108,17 @@ pub struct RenderedRays {
     pub feature: Vec<f32>,
     /// Channels per ray of `feature`.
     pub feature_dim: usize,
+    /// Samples the field was evaluated at, over both levels.
+    pub samples_evaluated: usize,
 }
 
-/// Renders `rays` with the fine level of `model`, `chunk` rays at a time.
-/// With an occupancy grid on the model, each ray is first clipped to its
-/// occupied cells and rays that cross none are not evaluated: they get the
-/// background (black without one), zero opacity, depth and feature — what
-/// the field renders for a ray that meets no density.
+/// Renders `rays` with the fine level of `model`, `chunk` rays at a time,
+/// each ray ending once its transmittance falls below 1e-4 (see
+/// [`Termination`]). With an occupancy grid on the model, each ray is first
+/// clipped to its occupied cells and rays that cross none are not
+/// evaluated: they get the background (black without one), zero opacity,
+/// depth and feature — what the field renders for a ray that meets no
+/// density.
 pub fn render_rays(
     model: &OpenNerf,
     rays: &[NormalizedRay],
@@ -121,10 +127,88 @@ pub fn render_rays(
     mode: FeatureMode,
     device: &Device,
 ) -> RenderedRays {
-    render_rays_observed(model, rays, background, chunk, mode, device, &mut |_, _| {
-        true
-    })
-    .unwrap_or_default()
+    render_rays_with(
+        model,
+        rays,
+        background,
+        chunk,
+        mode,
+        Termination::default(),
+        device,
+    )
+}
+
+/// [`render_rays`] with an explicit ray termination
+/// ([`Termination::off`] evaluates every sample).
+pub fn render_rays_with(
+    model: &OpenNerf,
+    rays: &[NormalizedRay],
+    background: Option<[f32; 3]>,
+    chunk: usize,
+    mode: FeatureMode,
+    termination: Termination,
+    device: &Device,
+) -> RenderedRays {
+    let settings = RenderSettings {
+        background,
+        chunk,
+        mode,
+        termination,
+    };
+    render_rays_observed(model, rays, settings, device, &mut |_, _| true).unwrap_or_default()
+}
+
+/// How rays are rendered.
+#[derive(Debug, Clone, Copy)]
+pub struct RenderSettings {
+    /// Colour behind the unoccluded part of a ray (black without one).
+    pub background: Option<[f32; 3]>,
+    /// Rays per forward pass (the peak memory is that of one chunk).
+    pub chunk: usize,
+    /// Whether and how the feature head is evaluated.
+    pub mode: FeatureMode,
+    /// When a ray stops being evaluated.
+    pub termination: Termination,
+}
+
+impl RenderSettings {
+    /// The settings [`render_view`] uses: features composited when asked
+    /// for, the default termination.
+    pub fn view(background: Option<[f32; 3]>, chunk: usize, features: bool) -> Self {
+        RenderSettings {
+            background,
+            chunk,
+            mode: if features {
+                FeatureMode::Composited
+            } else {
+                FeatureMode::None
+            },
+            termination: Termination::default(),
+        }
+    }
+}
+
+/// [`render_view`] with explicit settings.
+pub fn render_view_with(
+    model: &OpenNerf,
+    camera: &Camera,
+    scene_box: &SceneBox,
+    settings: RenderSettings,
+    device: &Device,
+) -> RenderedView {
+    let rays = camera_rays(camera, scene_box);
+    let r =
+        render_rays_observed(model, &rays, settings, device, &mut |_, _| true).unwrap_or_default();
+    RenderedView {
+        width: camera.intrinsics.width,
+        height: camera.intrinsics.height,
+        rgb: r.rgb,
+        depth: r.depth,
+        acc: r.acc,
+        feature: r.feature,
+        feature_dim: r.feature_dim,
+        samples_evaluated: r.samples_evaluated,
+    }
 }
 
 /// [`render_view`] that reports its progress after every chunk to `go`
@@ -141,13 +225,9 @@ pub fn render_view_observed(
     device: &Device,
     go: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Option<RenderedView> {
-    let mode = if features {
-        FeatureMode::Composited
-    } else {
-        FeatureMode::None
-    };
     let rays = camera_rays(camera, scene_box);
-    let r = render_rays_observed(model, &rays, background, chunk, mode, device, go)?;
+    let settings = RenderSettings::view(background, chunk, features);
+    let r = render_rays_observed(model, &rays, settings, device, go)?;
     Some(RenderedView {
         width: camera.intrinsics.width,
         height: camera.intrinsics.height,
@@ -156,6 +236,7 @@ pub fn render_view_observed(
         acc: r.acc,
         feature: r.feature,
         feature_dim: r.feature_dim,
+        samples_evaluated: r.samples_evaluated,
     })
 }
 
@@ -164,12 +245,16 @@ pub fn render_view_observed(
 fn render_rays_observed(
     model: &OpenNerf,
     rays: &[NormalizedRay],
-    background: Option<[f32; 3]>,
-    chunk: usize,
-    mode: FeatureMode,
+    settings: RenderSettings,
     device: &Device,
     go: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Option<RenderedRays> {
+    let RenderSettings {
+        background,
+        chunk,
+        mode,
+        termination,
+    } = settings;
     let clipped = model.occupancy().map(|g| g.clip(rays));
     let to_render: &[NormalizedRay] = clipped.as_ref().map_or(rays, |c| &c.rays);
     let chunk = chunk.max(1);
@@ -180,14 +265,13 @@ fn render_rays_observed(
             return None;
         }
         let batch = Rays::from_normalized(part, device);
-        let fine = model.render_inference(&batch, chunk, background, mode).fine;
-        out.rgb.extend(tensor_to_vec(fine.rgb));
-        out.depth.extend(tensor_to_vec(fine.depth));
-        out.acc.extend(tensor_to_vec(fine.acc));
-        if let Some(f) = fine.feature {
-            out.feature_dim = f.dims()[1];
-            out.feature.extend(tensor_to_vec(f));
-        }
+        let fine = model.render_marched(&batch, background, mode, termination);
+        out.rgb.extend(fine.rgb);
+        out.depth.extend(fine.depth);
+        out.acc.extend(fine.acc);
+        out.feature_dim = fine.feature_dim;
+        out.feature.extend(fine.feature);
+        out.samples_evaluated += fine.samples_evaluated;
     }
     if !go(total, total) {
         return None;
@@ -210,6 +294,7 @@ fn render_rays_observed(
         acc: vec![0.0; n],
         feature: vec![0.0; n * dim],
         feature_dim: dim,
+        samples_evaluated: out.samples_evaluated,
     };
     for (j, &i) in clipped.kept.iter().enumerate() {
         full.rgb[3 * i..3 * i + 3].copy_from_slice(&out.rgb[3 * j..3 * j + 3]);

@@ -57,6 +57,48 @@ pub fn compute_weights(density: Tensor<2>, t_vals: Tensor<2>, dir_norm: Tensor<2
     alpha.mul(exclusive.neg().exp())
 }
 
+/// Compositing weights of one segment of consecutive samples, given the
+/// optical depth `tau_before` already accumulated along each ray: the
+/// segments of a ray, composited in order, give [`compute_weights`] of the
+/// whole ray. Returns the weights and the optical depth after the segment
+/// (`exp(-tau_after)` is the transmittance left for what lies behind).
+///
+/// # Shapes
+/// - `density`: `[rays, samples]`; `t_vals`: `[rays, samples + 1]`.
+/// - `dir_norm`, `tau_before`: `[rays, 1]`.
+/// - output: (`[rays, samples]`, `[rays, 1]`).
+pub fn segment_weights(
+    density: Tensor<2>,
+    t_vals: Tensor<2>,
+    dir_norm: Tensor<2>,
+    tau_before: Tensor<2>,
+) -> (Tensor<2>, Tensor<2>) {
+    let [_, s] = density.dims();
+    let delta = t_vals
+        .clone()
+        .slice_dim(1, 1..s + 1)
+        .sub(t_vals.slice_dim(1, 0..s))
+        .mul(dir_norm);
+    let tau = density.mul(delta);
+    let alpha = tau.clone().neg().exp().neg().add_scalar(1.0);
+    let exclusive = if s > 1 {
+        Tensor::cat(
+            vec![
+                tau_before.clone(),
+                tau.clone()
+                    .slice_dim(1, 0..s - 1)
+                    .cumsum(1)
+                    .add(tau_before.clone()),
+            ],
+            1,
+        )
+    } else {
+        tau_before.clone()
+    };
+    let after = tau.sum_dim(1).add(tau_before);
+    (alpha.mul(exclusive.neg().exp()), after)
+}
+
 /// Midpoints of consecutive fence posts.
 ///
 /// # Shapes

@@ -2,6 +2,10 @@
 
 use clap::Parser;
 
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
 fn main() -> std::process::ExitCode {
     let cli = train::cli::Cli::parse();
     match train::run_cli(&cli) {
@@ -9,7 +13,7 @@ fn main() -> std::process::ExitCode {
             let s = &outcome.summary;
             let h = &s.heldout_interior;
             println!(
-                "done: {} iterations, held-out PSNR {:.2} dB on interior pixels{}{}{}, {:.0} rays/s, {:.1} s",
+                "done: {} iterations, held-out PSNR {:.2} dB on interior pixels{}{}{}, {:.0} rays/s training{}, {:.1} s",
                 s.iterations,
                 h.psnr,
                 s.heldout_whole
@@ -22,6 +26,9 @@ fn main() -> std::process::ExitCode {
                     .map(|c| format!(", feature cosine {c:.3}"))
                     .unwrap_or_default(),
                 s.rays_per_second,
+                s.render_rays_per_second
+                    .map(|r| format!(", {r:.0} rays/s final render"))
+                    .unwrap_or_default(),
                 s.wall_seconds
             );
             println!("results in {}", outcome.dir.display());

@@ -22,6 +22,10 @@ pub struct Summary {
     pub wall_seconds: f64,
     /// Training rays per second (rays processed / training seconds).
     pub rays_per_second: f64,
+    /// Rays per second of the final held-out evaluation (rendering without
+    /// autodiff; `null` in runs written before it was recorded).
+    #[serde(default)]
+    pub render_rays_per_second: Option<f64>,
     /// Peak resident memory of the process (`VmHWM`), bytes.
     pub peak_memory_bytes: Option<u64>,
     /// The untrained field on the fixed sample of interior held-out pixels

@@ -11,7 +11,8 @@ use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
 use field_ops::frame::{FrameArgs, OutputFrame};
 use field_ops::images::save_view_pngs;
-use field_ops::render::render_view;
+use field_ops::render::{RenderSettings, render_view_with};
+use model::Termination;
 
 /// Arguments of `render` and the camera part of `query`.
 #[derive(Debug, Clone, clap::Args)]
@@ -40,6 +41,10 @@ pub struct RenderArgs {
     /// Rays per forward pass.
     #[arg(long, default_value_t = 4096)]
     pub chunk: usize,
+    /// A ray ends once its transmittance falls below this (what lies behind
+    /// can add at most this much); 0 evaluates every sample.
+    #[arg(long, default_value_t = 1e-4)]
+    pub termination: f32,
     /// Output directory (default: `renders/eval` in the run directory).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -49,6 +54,20 @@ pub struct RenderArgs {
     /// Frame of the written camera poses (`cameras.json`) and point clouds.
     #[command(flatten)]
     pub frame: FrameArgs,
+}
+
+impl RenderArgs {
+    /// How views are rendered: `--chunk`, `--termination`, and features
+    /// when `features` is set.
+    pub fn settings(&self, background: Option<[f32; 3]>, features: bool) -> RenderSettings {
+        RenderSettings {
+            termination: Termination {
+                transmittance: self.termination,
+                ..Termination::default()
+            },
+            ..RenderSettings::view(background, self.chunk, features)
+        }
+    }
 }
 
 /// The cameras `render` (and `query`) render at: `--cameras` by name or
@@ -100,17 +119,14 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
     let mut written = vec![write_cameras(&out, &cams, &frame, &args.frame.frame)?];
     let mut animation = Vec::new();
     let bar = field_ops::progress::progress(cams.len(), "rendering");
+    let mut errors = Vec::new();
+    let (start, mut rays, mut samples) = (std::time::Instant::now(), 0usize, 0usize);
     for c in &cams {
         let m = &ctx.run.meta;
-        let v = render_view(
-            &ctx.run.model,
-            &c.camera,
-            &m.scene_box,
-            m.background,
-            args.chunk,
-            m.feature_dim.is_some(),
-            &device,
-        );
+        let settings = args.settings(m.background, m.feature_dim.is_some());
+        let v = render_view_with(&ctx.run.model, &c.camera, &m.scene_box, settings, &device);
+        rays += v.pixels();
+        samples += v.samples_evaluated;
         written.extend(save_view_pngs(&v, &out, &c.name)?);
         // A scene frame rendered at its own size is shown next to its
         // ground truth and the error between them.
@@ -118,6 +134,13 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
             .scene
             .as_ref()
             .and_then(|s| s.frames.iter().find(|f| f.name == c.name));
+        if let Some(mse) = truth.and_then(|f| crate::figures::rgb_mse(&f.rgb, &v)) {
+            errors.push(mse);
+            field_ops::progress::note(
+                &bar,
+                format!("{}: PSNR {:.3} dB", c.name, crate::figures::psnr(mse)),
+            );
+        }
         if let Some((w, h, px)) = truth.and_then(|f| crate::figures::comparison(&f.rgb, &v)) {
             let path = out.join(format!("{}_compare.png", c.name));
             save_rgb8(&path, w, h, &px)?;
@@ -135,6 +158,23 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
         field_ops::progress::note(&bar, format!("rendered {}", c.name));
     }
     bar.finish_and_clear();
+    let secs = start.elapsed().as_secs_f64();
+    println!(
+        "rendered {} view(s), {rays} rays in {secs:.1} s ({:.0} rays/s), {:.1} samples a ray \
+         evaluated of {}",
+        cams.len(),
+        rays as f64 / secs.max(1e-9),
+        samples as f64 / rays.max(1) as f64,
+        2 * ctx.run.model.num_samples
+    );
+    if !errors.is_empty() {
+        let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+        println!(
+            "PSNR against the {} scene frame(s): {:.3} dB (of the mean squared error, every pixel)",
+            errors.len(),
+            crate::figures::psnr(mean)
+        );
+    }
     if let Some(first) = cams.first().filter(|_| !animation.is_empty()) {
         let k = first.camera.intrinsics;
         let path = out.join("path.gif");
@@ -195,5 +235,11 @@ pub fn check(a: &RenderArgs) -> Result<(), OpsError> {
         " (the number of cameras along the path)",
     )?;
     at_least_one("chunk", Some(a.chunk), "")?;
+    if !(0.0..1.0).contains(&a.termination) {
+        return Err(invalid(format!(
+            "--termination {}: a transmittance in [0, 1) (0 evaluates every sample)",
+            a.termination
+        )));
+    }
     a.compute.check()
 }

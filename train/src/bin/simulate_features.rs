@@ -19,6 +19,10 @@ use datasets::extractor::{FeatureExtractor, SimulatedExtractor};
 use datasets::text::TextEmbeddings;
 use datasets::{LoaderOptions, SceneSource};
 
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
 /// Writes simulated feature maps for the frames of a scene on disk.
 #[derive(Debug, Parser)]
 #[command(name = "simulate_features")]

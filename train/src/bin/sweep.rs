@@ -21,6 +21,10 @@ use field_ops::scores::SegmentationScores;
 use train::summary::Summary;
 use train::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
 /// Which scene to sweep.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum SweepScene {

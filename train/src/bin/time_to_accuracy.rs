@@ -20,6 +20,10 @@ use serde::Serialize;
 use serde_json::json;
 use train::summary::Summary;
 
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
 /// Options.
 #[derive(Debug, Parser)]
 #[command(

@@ -45,9 +45,10 @@ pub(super) fn finish(
         t.config.logging.keep_checkpoints,
     )?;
     field_ops::files::write_atomic(&run.weights(), &model_bytes(t.model)?)?;
-    let (interior, whole) =
-        t.heldout
-            .last(t.model, t.scene, t.session.final_render, &run.renders())?;
+    let last = t
+        .heldout
+        .last(t.model, t.scene, t.session.final_render, &run.renders())?;
+    let (interior, whole) = (last.interior, last.whole);
     let wall_seconds = clock.wall();
     log.write(&MetricsEvent::Final(EvalLine {
         iteration: state.iteration,
@@ -68,6 +69,7 @@ pub(super) fn finish(
         heldout_whole: whole,
         wall_seconds,
         rays_per_second: state.rays_processed as f64 / state.train_seconds.max(1e-9),
+        render_rays_per_second: Some(last.rays_per_second),
         peak_memory_bytes: peak_memory_bytes(),
         initial_interior: initial_eval(&run.metrics()),
         skipped_steps: state.skipped_steps,

@@ -77,9 +77,10 @@ impl HeldOut {
         scene: &Scene,
         render: bool,
         renders: &Path,
-    ) -> Result<(EvalMetrics, Option<EvalMetrics>), TrainError> {
+    ) -> Result<FinalEval, TrainError> {
         let valid = model.valid();
-        if render {
+        let start = std::time::Instant::now();
+        let (interior, whole, rays) = if render {
             let m = evaluate_views(
                 &valid,
                 scene,
@@ -89,10 +90,35 @@ impl HeldOut {
                 &self.device,
                 renders,
             )?;
-            Ok((m.interior, Some(m.whole)))
+            let rays: usize = self
+                .frames
+                .iter()
+                .map(|&f| {
+                    let k = &scene.frames[f].camera.intrinsics;
+                    k.width as usize * k.height as usize
+                })
+                .sum();
+            (m.interior, Some(m.whole), rays)
         } else {
             let m = evaluate_pixels(&valid, scene, &self.pixels, self.render_chunk, &self.device);
-            Ok((m, None))
-        }
+            (m, None, self.pixels.rays.len())
+        };
+        Ok(FinalEval {
+            interior,
+            whole,
+            rays_per_second: rays as f64 / start.elapsed().as_secs_f64().max(1e-9),
+        })
     }
+}
+
+/// The final figures of a session.
+#[derive(Debug, Clone)]
+pub(super) struct FinalEval {
+    /// On interior pixels.
+    pub interior: EvalMetrics,
+    /// On every pixel (when the views were rendered in full).
+    pub whole: Option<EvalMetrics>,
+    /// Rays rendered per second (the rendering, the metrics and, for the
+    /// full views, writing their PNGs).
+    pub rays_per_second: f64,
 }

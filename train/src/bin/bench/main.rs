@@ -13,6 +13,7 @@
 //!
 //! `cargo run -p train --release --bin bench -- [--quick] [--steps N] [--peer PYTHON]`
 
+mod ball;
 mod peer;
 
 use std::path::PathBuf;
@@ -22,16 +23,20 @@ use burn::module::Module;
 use burn::optim::AdamConfig;
 use burn::tensor::{Device, Distribution, Tensor, TensorData};
 use clap::Parser;
-use field_ops::render::render_rays;
+use field_ops::render::render_rays_with;
 use model::geometry::NormalizedRay;
 use model::{
-    FeatureHeadConfig, FeatureMode, MipMlpConfig, OccupancyConfig, OccupancyGrid, OpenNerfConfig,
-    Rays,
+    FeatureHeadConfig, FeatureMode, MipMlp, MipMlpConfig, OccupancyConfig, OccupancyGrid,
+    OpenNerfConfig, Rays, Termination,
 };
 use train::backend::{BackendKind, device, peak_memory_bytes};
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
 use train::step::{StepRates, train_step_from};
+
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
 
 /// Benchmark options.
 #[derive(Debug, Parser)]
@@ -59,6 +64,14 @@ struct Args {
     /// time divided by JAX's) to every row.
     #[arg(long, value_name = "PYTHON")]
     peer: Option<PathBuf>,
+    /// Adam steps fitting the field's density to a ball of radius 1.2 before
+    /// the timed steps, so that inference renders rays that end on a
+    /// surface (0: the untrained field, a fog no ray ends in).
+    #[arg(long, default_value_t = 60)]
+    fit_steps: usize,
+    /// Samples evaluated between two checks of the early ray termination.
+    #[arg(long, default_value_t = Termination::default().segment)]
+    segment: usize,
 }
 
 /// Sizes of one case.
@@ -137,8 +150,11 @@ fn object_grid() -> OccupancyGrid {
     grid
 }
 
-/// Resets the peak-RSS counter (Linux `clear_refs` 5); ignored elsewhere.
+/// Resets the peak-RSS counter (Linux `clear_refs` 5; ignored elsewhere)
+/// after returning the pages the allocator keeps to the OS, so that each
+/// row's peak is its own.
 fn reset_peak() {
+    field_ops::allocator::release_freed_pages();
     let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
@@ -202,20 +218,48 @@ struct Timing {
     secs: f64,
     /// Rays rendered per step (fewer than drawn behind the grid).
     rendered: usize,
-    /// Rays per second rendering the trained model (no autodiff, the same
-    /// feature path, the grid when the case has one, as `eval render` does).
-    infer: f64,
+    /// Rendering the trained model (no autodiff, the same feature path, the
+    /// grid when the case has one, as `eval render` does).
+    infer: Inference,
 }
 
-/// Times `steps` steps (after one untimed warm-up step) of `case` on `ad`.
-fn time_case(
-    ad: &Device,
+/// Inference speed of one model, with and without early ray termination.
+#[derive(Debug, Clone, Copy)]
+struct Inference {
+    /// Rays per second with the default termination (what every render uses).
+    rays_per_s: f64,
+    /// Rays per second evaluating every sample.
+    all_samples_rays_per_s: f64,
+    /// Share of the samples evaluated with termination.
+    samples_share: f64,
+}
+
+/// What every case of one backend shares.
+struct Setup<'a> {
+    /// The autodiff device.
+    ad: &'a Device,
     size: Size,
-    mlp: &MipMlpConfig,
-    case: Case,
-    grid: &OccupancyGrid,
+    mlp: &'a MipMlpConfig,
+    /// The MLP with its density fitted to the ball.
+    fitted: &'a MipMlp,
+    grid: &'a OccupancyGrid,
+    /// Timed steps.
     steps: usize,
-) -> Timing {
+    /// Samples between two termination checks.
+    segment: usize,
+}
+
+/// Times `steps` steps (after one untimed warm-up step) of `case`.
+fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
+    let Setup {
+        ad,
+        size,
+        mlp,
+        fitted,
+        grid,
+        steps,
+        segment,
+    } = *setup;
     ad.seed(0);
     let config =
         OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
@@ -223,6 +267,7 @@ fn time_case(
             .with_num_samples(size.samples)
             .with_head_top_k((case.top_k > 0).then_some(case.top_k));
     let mut model = config.init(ad);
+    model.mlp = fitted.clone();
     let mut optim = AdamConfig::new().init();
     let n = size.rays;
     let host_rays = rays(n, 1);
@@ -272,19 +317,21 @@ fn time_case(
     Timing {
         secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
         rendered,
-        infer: inference_rays_per_s(&model, case, grid, ad, n),
+        infer: inference(&model, case, grid, ad, n, segment),
     }
 }
 
-/// Rays per second rendering `4 n` fresh rays with `model` in chunks of
-/// 4096 on the device without autodiff (after one warm-up chunk).
-fn inference_rays_per_s(
+/// Rendering `4 n` fresh rays with `model` in chunks of 4096 on the device
+/// without autodiff (after one warm-up chunk), with the default early
+/// termination and with every sample evaluated.
+fn inference(
     model: &model::OpenNerf,
     case: Case,
     grid: &OccupancyGrid,
     ad: &Device,
     n: usize,
-) -> f64 {
+    segment: usize,
+) -> Inference {
     let plain = ad.clone().without_autodiff();
     let valid = model.valid();
     let valid = if case.with_grid {
@@ -293,11 +340,24 @@ fn inference_rays_per_s(
         valid
     };
     let mode = case.path;
-    let _ = render_rays(&valid, &rays(256, 3), None, 4096, mode, &plain);
     let many = rays(4 * n, 2);
-    let start = Instant::now();
-    let _ = render_rays(&valid, &many, None, 4096, mode, &plain);
-    many.len() as f64 / start.elapsed().as_secs_f64()
+    let time = |termination: Termination| {
+        let _ = render_rays_with(&valid, &rays(256, 3), None, 4096, mode, termination, &plain);
+        let start = Instant::now();
+        let out = render_rays_with(&valid, &many, None, 4096, mode, termination, &plain);
+        let secs = start.elapsed().as_secs_f64();
+        (many.len() as f64 / secs, out.samples_evaluated)
+    };
+    let (all_samples_rays_per_s, all) = time(Termination::off());
+    let (rays_per_s, evaluated) = time(Termination {
+        segment,
+        ..Termination::default()
+    });
+    Inference {
+        rays_per_s,
+        all_samples_rays_per_s,
+        samples_share: evaluated as f64 / all.max(1) as f64,
+    }
 }
 
 /// One row of the table.
@@ -309,8 +369,8 @@ struct Row {
     flops: f64,
     matmul: f64,
     peak_mb: f64,
-    /// Inference rays/s (none for the peer).
-    infer: Option<f64>,
+    /// Inference (none for the peer).
+    infer: Option<Inference>,
 }
 
 /// Prints the header (and the ratio's convention when there is a peer).
@@ -326,7 +386,10 @@ fn print_header(peer: Option<&peer::Peer>) {
         "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
         "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
     );
-    print!(" {:>12} {:>8}", "infer rays/s", "x train");
+    print!(
+        " {:>12} {:>8} {:>10} {:>9}",
+        "infer rays/s", "x train", "all-sample", "samples %"
+    );
     println!("{}", if peer.is_some() { "   vs JAX" } else { "" });
 }
 
@@ -344,8 +407,14 @@ fn print_row(row: &Row, peer: Option<&peer::Peer>) {
         row.peak_mb
     );
     match row.infer {
-        Some(r) => print!(" {:>12.0} {:>7.1}x", r, r * row.secs / row.rays as f64),
-        None => print!(" {:>12} {:>8}", "-", "-"),
+        Some(i) => print!(
+            " {:>12.0} {:>7.1}x {:>10.0} {:>9.1}",
+            i.rays_per_s,
+            i.rays_per_s * row.secs / row.rays as f64,
+            i.all_samples_rays_per_s,
+            100.0 * i.samples_share
+        ),
+        None => print!(" {:>12} {:>8} {:>10} {:>9}", "-", "-", "-", "-"),
     }
     match peer {
         Some(p) => println!(" {:>8.2}x", row.secs / p.secs),
@@ -428,13 +497,35 @@ fn main() -> anyhow::Result<()> {
         let ceiling = matmul_ceiling(&plain, size.width);
         let ad = plain.clone().autodiff();
         let grid = object_grid();
+        ad.seed(0);
+        let base = OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim))
+            .with_mlp(mlp.clone())
+            .init(&ad);
+        let fit_start = Instant::now();
+        let (fitted, fit_loss) = ball::fit(base, args.fit_steps, 8192, &ad);
+        eprintln!(
+            "{}: density fitted to the ball in {} steps ({:.1} s), relative squared error {:.3}",
+            backend.name(),
+            args.fit_steps,
+            fit_start.elapsed().as_secs_f64(),
+            fit_loss
+        );
+        let setup = Setup {
+            ad: &ad,
+            size,
+            mlp: &mlp,
+            fitted: &fitted,
+            grid: &grid,
+            steps: args.steps,
+            segment: args.segment,
+        };
         for case in cases {
             reset_peak();
             let Timing {
                 secs,
                 rendered,
                 infer,
-            } = time_case(&ad, size, &mlp, case, &grid, args.steps);
+            } = time_case(&setup, case);
             let flops = Size {
                 rays: rendered,
                 ..size
@@ -474,9 +565,13 @@ fn main() -> anyhow::Result<()> {
     );
     println!(
         "infer rays/s: the trained model rendering {} fresh rays in chunks of 4096 without \
-         autodiff (same feature path, the grid where the case has one); x train: over the \
-         training rays/s of the same row",
-        4 * size.rays
+         autodiff (same feature path, the grid where the case has one), each ray ending once \
+         its transmittance is below 1e-4 (checked every 8 samples); x train: over the training \
+         rays/s of the same row; all-sample: the same render evaluating every sample; \
+         samples %: the share of the samples evaluated with termination. The field's density \
+         was fitted to the ball ({} Adam steps) before the timed steps, so rays end on it",
+        4 * size.rays,
+        args.fit_steps
     );
     if peer.is_some() {
         println!(

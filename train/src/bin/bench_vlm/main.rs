@@ -27,6 +27,10 @@ use pytorch::{pytorch_row, run_pytorch};
 use timing::{BackendTiming, cpu_model, logical_cpus, random_frame, time_backend, window_flops};
 use train::backend::BackendKind;
 
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
 /// Benchmark options.
 #[derive(Debug, Parser)]
 #[command(

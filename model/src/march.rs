@@ -1,0 +1,411 @@
+//! Inference rendering with early ray termination: each level's samples are
+//! evaluated front to back in segments, and a ray whose transmittance falls
+//! below a threshold leaves the batch, so the samples behind a surface (the
+//! coarse samples behind it, and the fine samples behind the middle of the
+//! surface's cluster) are never evaluated. Only for inference: there is no
+//! autodiff graph to keep, and what is skipped weighs at most the threshold.
+
+use burn::tensor::{Device, Int, Tensor, TensorData};
+
+use crate::composite::{
+    DEPTH_ACC_EPS, FEATURE_ACC_EPS, composite_features_mean, composite_values, segment_weights,
+    t_mids,
+};
+use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
+use crate::nerf::{FeatureMode, OpenNerf, Rays};
+use crate::sampling::{resample_t_vals, stratified_t_vals};
+
+/// When a ray stops being evaluated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Termination {
+    /// A ray whose transmittance falls below this ends (0: never), so the
+    /// weight left unevaluated behind it is below this too.
+    pub transmittance: f32,
+    /// Samples evaluated between two checks.
+    pub segment: usize,
+}
+
+impl Default for Termination {
+    /// Transmittance 1e-4, checked every 8 samples.
+    fn default() -> Self {
+        Termination {
+            transmittance: 1e-4,
+            segment: 8,
+        }
+    }
+}
+
+impl Termination {
+    /// Every sample evaluated: the same result as [`OpenNerf::render_inference`].
+    pub fn off() -> Self {
+        Termination {
+            transmittance: 0.0,
+            segment: usize::MAX,
+        }
+    }
+}
+
+/// The fine level of rendered rays, on the host.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MarchedRays {
+    /// `3 n` colours (with the background behind the unoccluded part).
+    pub rgb: Vec<f32>,
+    /// `n` expected depths along the ray (metres of `t`).
+    pub depth: Vec<f32>,
+    /// `n` accumulated opacities.
+    pub acc: Vec<f32>,
+    /// `n * feature_dim` features (empty with [`FeatureMode::None`]).
+    pub feature: Vec<f32>,
+    /// Channels per ray of `feature`.
+    pub feature_dim: usize,
+    /// Samples evaluated over both levels (of `2 n samples` in all).
+    pub samples_evaluated: usize,
+}
+
+/// The rays still being marched, compacted: row `i` is ray `ids[i]`.
+struct Alive {
+    ids: Vec<usize>,
+    origins: Tensor<2>,
+    directions: Tensor<2>,
+    radii: Tensor<2>,
+    dir_norm: Tensor<2>,
+    view_enc: Tensor<2>,
+    t_vals: Tensor<2>,
+    /// Optical depth accumulated so far, `[m, 1]`.
+    tau: Tensor<2>,
+}
+
+fn index(rows: &[usize], device: &Device) -> Tensor<1, Int> {
+    let v: Vec<i64> = rows.iter().map(|&r| r as i64).collect();
+    Tensor::from_data(TensorData::new(v, [rows.len()]), device)
+}
+
+fn host(t: Tensor<2>) -> Vec<f32> {
+    t.into_data()
+        .try_into_vec_as::<f32>()
+        .expect("a float tensor converts to f32")
+}
+
+impl Alive {
+    /// Keeps rows `rows` (local indices).
+    fn keep(self, rows: &[usize]) -> Alive {
+        let device = self.tau.device();
+        let idx = index(rows, &device);
+        let s = |t: Tensor<2>| t.select(0, idx.clone());
+        Alive {
+            ids: rows.iter().map(|&r| self.ids[r]).collect(),
+            origins: s(self.origins),
+            directions: s(self.directions),
+            radii: s(self.radii),
+            dir_norm: s(self.dir_norm),
+            view_enc: s(self.view_enc),
+            t_vals: s(self.t_vals),
+            tau: s(self.tau),
+        }
+    }
+
+    /// Local rows whose transmittance is still at or above `threshold`,
+    /// and those below it.
+    fn split(&self, threshold: f32) -> (Vec<usize>, Vec<usize>) {
+        let tau = host(self.tau.clone());
+        (0..tau.len()).partition(|&i| (-tau[i]).exp() >= threshold)
+    }
+}
+
+/// What the fine level accumulates per alive ray for its feature.
+// One value per rendered chunk: its size on the stack does not matter.
+#[allow(clippy::large_enum_variant)]
+enum FeatureState {
+    None,
+    /// `sum w f` of the per-sample features.
+    Sum(Tensor<2>),
+    /// `sum w h` of the head's hidden activations.
+    HiddenSum(Tensor<2>),
+    /// The `k` largest weights so far, `[m, k]`, and their trunk features, `[m, k, width]`.
+    TopK(Tensor<2>, Tensor<3>),
+}
+
+impl FeatureState {
+    fn select(&self, idx: &Tensor<1, Int>) -> FeatureState {
+        match self {
+            FeatureState::None => FeatureState::None,
+            FeatureState::Sum(t) => FeatureState::Sum(t.clone().select(0, idx.clone())),
+            FeatureState::HiddenSum(t) => FeatureState::HiddenSum(t.clone().select(0, idx.clone())),
+            FeatureState::TopK(w, f) => FeatureState::TopK(
+                w.clone().select(0, idx.clone()),
+                f.clone().select(0, idx.clone()),
+            ),
+        }
+    }
+}
+
+/// Sums composited at the fine level for the alive rays.
+struct FineState {
+    rgb: Tensor<2>,
+    depth: Tensor<2>,
+    acc: Tensor<2>,
+    feature: FeatureState,
+}
+
+impl FineState {
+    fn select(&self, rows: &[usize]) -> FineState {
+        let idx = index(rows, &self.acc.device());
+        let s = |t: &Tensor<2>| t.clone().select(0, idx.clone());
+        FineState {
+            rgb: s(&self.rgb),
+            depth: s(&self.depth),
+            acc: s(&self.acc),
+            feature: self.feature.select(&idx),
+        }
+    }
+}
+
+impl OpenNerf {
+    /// The fine level of `rays` (deterministic, no autodiff graph), marched
+    /// front to back with early termination (see [`Termination`]); the
+    /// occupancy grid, if any, is the caller's to apply. With
+    /// [`Termination::off`] it equals the fine level of
+    /// [`OpenNerf::render_inference`]; otherwise each output differs from it
+    /// by what a transmittance below the threshold can still add.
+    pub fn render_marched(
+        &self,
+        rays: &Rays,
+        background: Option<[f32; 3]>,
+        mode: FeatureMode,
+        termination: Termination,
+    ) -> MarchedRays {
+        let n = rays.len();
+        let feature_dim = match mode {
+            FeatureMode::None => 0,
+            _ => self.head.output.weight.dims()[1],
+        };
+        let mut out = MarchedRays {
+            rgb: vec![0.0; 3 * n],
+            depth: vec![0.0; n],
+            acc: vec![0.0; n],
+            feature: vec![0.0; n * feature_dim],
+            feature_dim,
+            samples_evaluated: 0,
+        };
+        if n == 0 {
+            return out;
+        }
+        let device = rays.origins.device();
+        let dir_norm = rays.directions.clone().square().sum_dim(1).sqrt();
+        let viewdirs = rays
+            .directions
+            .clone()
+            .div(dir_norm.clone().clamp_min(1e-20));
+        let view_enc = pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true);
+        let s = self.num_samples;
+        let t_coarse = stratified_t_vals(rays.near.clone(), rays.far.clone(), s, false);
+        let start = |t_vals: Tensor<2>| Alive {
+            ids: (0..n).collect(),
+            origins: rays.origins.clone(),
+            directions: rays.directions.clone(),
+            radii: rays.radii.clone(),
+            dir_norm: dir_norm.clone(),
+            view_enc: view_enc.clone(),
+            t_vals,
+            tau: Tensor::zeros([n, 1], &device),
+        };
+        let (weights, evaluated) = self.march_coarse(start(t_coarse.clone()), termination);
+        out.samples_evaluated += evaluated;
+        let weights = Tensor::from_data(TensorData::new(weights, [n, s]), &device);
+        let t_fine = resample_t_vals(t_coarse, weights, self.resample_padding as f32, false);
+        out.samples_evaluated +=
+            self.march_fine(start(t_fine), background, mode, termination, &mut out);
+        out
+    }
+
+    /// The segment's density (and trunk features) of the alive rays.
+    ///
+    /// # Shapes
+    /// - outputs: `[m, len]` density, `[m * len, width]` trunk, `[m, len + 1]` posts.
+    fn evaluate(
+        &self,
+        alive: &Alive,
+        range: std::ops::Range<usize>,
+    ) -> (Tensor<2>, Tensor<2>, Tensor<2>) {
+        let m = alive.ids.len();
+        let len = range.len();
+        let t = alive
+            .t_vals
+            .clone()
+            .slice_dim(1, range.start..range.end + 1);
+        let g = cast_rays(
+            t.clone(),
+            alive.origins.clone(),
+            alive.directions.clone(),
+            alive.radii.clone(),
+        );
+        let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
+        let [_, _, dim] = ipe.dims();
+        let (trunk, density) = self.mlp.trunk_density(ipe.reshape([m * len, dim]));
+        (density.reshape([m, len]), trunk, t)
+    }
+
+    /// Coarse weights `[n * samples]` (0 behind terminated rays) and the
+    /// number of samples evaluated.
+    fn march_coarse(&self, mut alive: Alive, term: Termination) -> (Vec<f32>, usize) {
+        let s = self.num_samples;
+        let n = alive.ids.len();
+        let mut weights = vec![0.0f32; n * s];
+        let mut evaluated = 0;
+        let mut begin = 0;
+        while begin < s && !alive.ids.is_empty() {
+            let end = begin.saturating_add(term.segment.max(1)).min(s);
+            let (density, _, t) = self.evaluate(&alive, begin..end);
+            let (w, tau) = segment_weights(density, t, alive.dir_norm.clone(), alive.tau);
+            alive.tau = tau;
+            let len = end - begin;
+            evaluated += alive.ids.len() * len;
+            for (row, chunk) in host(w).chunks(len).enumerate() {
+                let ray = alive.ids[row];
+                weights[ray * s + begin..ray * s + end].copy_from_slice(chunk);
+            }
+            let (keep, _) = alive.split(term.transmittance);
+            if keep.len() < alive.ids.len() {
+                alive = alive.keep(&keep);
+            }
+            begin = end;
+        }
+        (weights, evaluated)
+    }
+
+    /// Marches the fine level, writing each ray's outputs into `out` when it
+    /// ends; returns the number of samples evaluated.
+    fn march_fine(
+        &self,
+        mut alive: Alive,
+        background: Option<[f32; 3]>,
+        mode: FeatureMode,
+        term: Termination,
+        out: &mut MarchedRays,
+    ) -> usize {
+        let s = self.num_samples;
+        let m = alive.ids.len();
+        let device = alive.tau.device();
+        let width = self.mlp.bottleneck.weight.dims()[0];
+        let k = self.head_top_k;
+        let mut state = FineState {
+            rgb: Tensor::zeros([m, 3], &device),
+            depth: Tensor::zeros([m, 1], &device),
+            acc: Tensor::zeros([m, 1], &device),
+            feature: match mode {
+                FeatureMode::None => FeatureState::None,
+                FeatureMode::PerSample => {
+                    FeatureState::Sum(Tensor::zeros([m, out.feature_dim], &device))
+                }
+                FeatureMode::Composited if k > 0 && k <= s => FeatureState::TopK(
+                    Tensor::zeros([m, k], &device),
+                    Tensor::zeros([m, k, width], &device),
+                ),
+                FeatureMode::Composited => {
+                    let hd = self.head.output.weight.dims()[0];
+                    FeatureState::HiddenSum(Tensor::zeros([m, hd], &device))
+                }
+            },
+        };
+        let mut evaluated = 0;
+        let mut begin = 0;
+        while begin < s && !alive.ids.is_empty() {
+            let end = begin.saturating_add(term.segment.max(1)).min(s);
+            let len = end - begin;
+            let rows = alive.ids.len();
+            let (density, trunk, t) = self.evaluate(&alive, begin..end);
+            let rgb = self.mlp.color(trunk.clone(), alive.view_enc.clone(), len);
+            let (w, tau) = segment_weights(density, t.clone(), alive.dir_norm.clone(), alive.tau);
+            alive.tau = tau;
+            evaluated += rows * len;
+            state.rgb = state
+                .rgb
+                .add(composite_values(w.clone(), rgb.reshape([rows, len, 3])));
+            state.depth = state.depth.add(w.clone().mul(t_mids(t)).sum_dim(1));
+            state.acc = state.acc.add(w.clone().sum_dim(1));
+            state.feature = match state.feature {
+                FeatureState::None => FeatureState::None,
+                FeatureState::Sum(sum) => {
+                    let f = self.head.forward(trunk);
+                    let [_, c] = f.dims();
+                    FeatureState::Sum(sum.add(composite_values(w, f.reshape([rows, len, c]))))
+                }
+                FeatureState::HiddenSum(sum) => {
+                    let h = self.head.hidden(trunk);
+                    let [_, hd] = h.dims();
+                    FeatureState::HiddenSum(
+                        sum.add(composite_values(w, h.reshape([rows, len, hd]))),
+                    )
+                }
+                FeatureState::TopK(top_w, top_f) => {
+                    let cand_w = Tensor::cat(vec![top_w, w], 1);
+                    let cand_f = Tensor::cat(vec![top_f, trunk.reshape([rows, len, width])], 1);
+                    let (w, idx) = cand_w.topk_with_indices(k, 1);
+                    let idx: Tensor<3, Int> = idx.unsqueeze_dim::<3>(2).expand([rows, k, width]);
+                    FeatureState::TopK(w, cand_f.gather(1, idx))
+                }
+            };
+            begin = end;
+            let (keep, done) = if begin < s {
+                alive.split(term.transmittance)
+            } else {
+                (Vec::new(), (0..rows).collect())
+            };
+            if !done.is_empty() {
+                let ids: Vec<usize> = done.iter().map(|&r| alive.ids[r]).collect();
+                self.finish(state.select(&done), &ids, background, out);
+            }
+            if !keep.is_empty() && keep.len() < rows {
+                state = state.select(&keep);
+                alive = alive.keep(&keep);
+            } else if keep.is_empty() {
+                break;
+            }
+        }
+        evaluated
+    }
+
+    /// Final outputs of the ended rays `ids` from their sums.
+    fn finish(
+        &self,
+        state: FineState,
+        ids: &[usize],
+        background: Option<[f32; 3]>,
+        out: &mut MarchedRays,
+    ) {
+        let mut rgb = state.rgb;
+        if let Some(bg) = background {
+            let bg = Tensor::from_data(TensorData::new(bg.to_vec(), [1, 3]), &rgb.device());
+            rgb = rgb.add(state.acc.clone().neg().add_scalar(1.0).mul(bg));
+        }
+        let depth = state.depth.div(state.acc.clone().clamp_min(DEPTH_ACC_EPS));
+        let feature = match state.feature {
+            FeatureState::None => None,
+            FeatureState::Sum(sum) => Some(sum.div(state.acc.clone().clamp_min(FEATURE_ACC_EPS))),
+            FeatureState::HiddenSum(sum) => {
+                let mean = sum.div(state.acc.clone().clamp_min(FEATURE_ACC_EPS));
+                Some(self.head.output.forward(mean))
+            }
+            FeatureState::TopK(w, f) => {
+                let [m, k, width] = f.dims();
+                let h = self.head.hidden(f.reshape([m * k, width]));
+                let [_, hd] = h.dims();
+                let mean = composite_features_mean(w, h.reshape([m, k, hd]));
+                Some(self.head.output.forward(mean))
+            }
+        };
+        let (rgb, depth, acc) = (host(rgb), host(depth), host(state.acc));
+        for (row, &ray) in ids.iter().enumerate() {
+            out.rgb[3 * ray..3 * ray + 3].copy_from_slice(&rgb[3 * row..3 * row + 3]);
+            out.depth[ray] = depth[row];
+            out.acc[ray] = acc[row];
+        }
+        if let Some(f) = feature {
+            let d = out.feature_dim;
+            let f = host(f);
+            for (row, &ray) in ids.iter().enumerate() {
+                out.feature[ray * d..(ray + 1) * d].copy_from_slice(&f[row * d..(row + 1) * d]);
+            }
+        }
+    }
+}
