@@ -69,9 +69,23 @@ struct Args {
     /// surface (0: the untrained field, a fog no ray ends in).
     #[arg(long, default_value_t = 60)]
     fit_steps: usize,
+    /// Cases to run (all by default), e.g. `--cases plain` to profile one.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [CaseName::Composited, CaseName::Plain, CaseName::Grid])]
+    cases: Vec<CaseName>,
     /// Samples evaluated between two checks of the early ray termination.
     #[arg(long, default_value_t = Termination::default().segment)]
     segment: usize,
+}
+
+/// The cases `--cases` names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum CaseName {
+    /// Composited hidden activations with the top-k head.
+    Composited,
+    /// The per-sample head (the plain formulation, JAX's).
+    Plain,
+    /// Composited + top-k behind the occupancy grid.
+    Grid,
 }
 
 /// Sizes of one case.
@@ -422,27 +436,36 @@ fn print_row(row: &Row, peer: Option<&peer::Peer>) {
     }
 }
 
-/// The Burn cases, in the order printed.
-fn cases(top_k: usize) -> [Case; 3] {
+/// The Burn cases, in the order printed, with their names.
+fn cases(top_k: usize) -> [(CaseName, Case); 3] {
     [
-        Case {
-            label: "composited + top-k",
-            path: FeatureMode::Composited,
-            top_k,
-            with_grid: false,
-        },
-        Case {
-            label: "per-sample (plain)",
-            path: FeatureMode::PerSample,
-            top_k: 0,
-            with_grid: false,
-        },
-        Case {
-            label: "composited + grid",
-            path: FeatureMode::Composited,
-            top_k,
-            with_grid: true,
-        },
+        (
+            CaseName::Composited,
+            Case {
+                label: "composited + top-k",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: false,
+            },
+        ),
+        (
+            CaseName::Plain,
+            Case {
+                label: "per-sample (plain)",
+                path: FeatureMode::PerSample,
+                top_k: 0,
+                with_grid: false,
+            },
+        ),
+        (
+            CaseName::Grid,
+            Case {
+                label: "composited + grid",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: true,
+            },
+        ),
     ]
 }
 
@@ -519,7 +542,10 @@ fn main() -> anyhow::Result<()> {
             steps: args.steps,
             segment: args.segment,
         };
-        for case in cases {
+        for (name, case) in cases {
+            if !args.cases.contains(&name) {
+                continue;
+            }
             reset_peak();
             let Timing {
                 secs,
