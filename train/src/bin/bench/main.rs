@@ -14,25 +14,20 @@
 //! `cargo run -p train --release --bin bench -- [--quick] [--steps N] [--peer PYTHON]`
 
 mod ball;
+mod cases;
 mod peer;
+mod report;
+
+use cases::{CaseName, Setup, Timing, object_grid, time_case};
+use report::Row;
 
 use std::path::PathBuf;
 use std::time::Instant;
 
-use burn::module::Module;
-use burn::optim::AdamConfig;
-use burn::tensor::{Device, Distribution, Tensor, TensorData};
+use burn::tensor::{Device, Distribution, Tensor};
 use clap::Parser;
-use field_ops::render::render_rays_with;
-use model::geometry::NormalizedRay;
-use model::{
-    FeatureHeadConfig, FeatureMode, MipMlp, MipMlpConfig, OccupancyConfig, OccupancyGrid,
-    OpenNerfConfig, Rays, Termination,
-};
+use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Termination};
 use train::backend::{BackendKind, device, peak_memory_bytes};
-use train::batch::{BatchTensors, FeatureTargets};
-use train::config::LossConfig;
-use train::step::{StepRates, train_step_from};
 
 #[cfg(not(target_env = "msvc"))]
 #[global_allocator]
@@ -77,17 +72,6 @@ struct Args {
     segment: usize,
 }
 
-/// The cases `--cases` names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum CaseName {
-    /// Composited hidden activations with the top-k head.
-    Composited,
-    /// The per-sample head (the plain formulation, JAX's).
-    Plain,
-    /// Composited + top-k behind the occupancy grid.
-    Grid,
-}
-
 /// Sizes of one case.
 #[derive(Debug, Clone, Copy)]
 struct Size {
@@ -124,44 +108,6 @@ impl Size {
         };
         3.0 * 2.0 * (2.0 * (n * s * per_sample + n * per_ray_view) + head)
     }
-}
-
-fn rays(n: usize, seed: u64) -> Vec<NormalizedRay> {
-    let mut state = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
-    };
-    let v: Vec<NormalizedRay> = (0..n)
-        .map(|_| NormalizedRay {
-            origin: [next() * 2.0 - 1.0, next() * 2.0 - 1.0, -2.5],
-            direction: [next() - 0.5, next() - 0.5, 1.0],
-            radius: 0.003,
-            near: 0.2,
-            far: 4.5,
-        })
-        .collect();
-    v
-}
-
-/// A grid holding a ball of radius 1.2 at the centre of the box (an object
-/// in empty space, as in the Blender scenes).
-fn object_grid() -> OccupancyGrid {
-    let mut grid = OccupancyGrid::new(&OccupancyConfig::new());
-    let density: Vec<f32> = grid
-        .sample_points(0)
-        .iter()
-        .map(|p| {
-            let r2: f32 = p.iter().map(|v| v * v).sum();
-            if r2 < 1.44 { 100.0 } else { 0.0 }
-        })
-        .collect();
-    grid.update(&density);
-    grid
 }
 
 /// Resets the peak-RSS counter (Linux `clear_refs` 5; ignored elsewhere)
@@ -216,257 +162,71 @@ fn size_of(args: &Args) -> Size {
     }
 }
 
-/// One case: a feature path, the head's top-k, with or without the grid.
-#[derive(Debug, Clone, Copy)]
-struct Case {
-    label: &'static str,
-    path: FeatureMode,
-    top_k: usize,
-    with_grid: bool,
-}
-
-/// What one case measured.
-#[derive(Debug, Clone, Copy)]
-struct Timing {
-    /// Mean seconds of a timed step.
-    secs: f64,
-    /// Rays rendered per step (fewer than drawn behind the grid).
-    rendered: usize,
-    /// Rendering the trained model (no autodiff, the same feature path, the
-    /// grid when the case has one, as `eval render` does).
-    infer: Inference,
-}
-
-/// Inference speed of one model, with and without early ray termination.
-#[derive(Debug, Clone, Copy)]
-struct Inference {
-    /// Rays per second with the default termination (what every render uses).
-    rays_per_s: f64,
-    /// Rays per second evaluating every sample.
-    all_samples_rays_per_s: f64,
-    /// Share of the samples evaluated with termination.
-    samples_share: f64,
-}
-
-/// What every case of one backend shares.
-struct Setup<'a> {
-    /// The autodiff device.
-    ad: &'a Device,
+/// Times every case asked for on `backend` and prints its rows.
+fn run_backend(
+    args: &Args,
     size: Size,
-    mlp: &'a MipMlpConfig,
-    /// The MLP with its density fitted to the ball.
-    fitted: &'a MipMlp,
-    grid: &'a OccupancyGrid,
-    /// Timed steps.
-    steps: usize,
-    /// Samples between two termination checks.
-    segment: usize,
-}
-
-/// Times `steps` steps (after one untimed warm-up step) of `case`.
-fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
-    let Setup {
-        ad,
+    mlp: &MipMlpConfig,
+    backend: BackendKind,
+    peer: Option<&peer::Peer>,
+) {
+    let plain = device(backend, None);
+    let ceiling = matmul_ceiling(&plain, size.width);
+    let ad = plain.clone().autodiff();
+    let grid = object_grid();
+    ad.seed(0);
+    let base = OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim))
+        .with_mlp(mlp.clone())
+        .init(&ad);
+    let fit_start = Instant::now();
+    let (fitted, fit_loss) = ball::fit(base, args.fit_steps, 8192, &ad);
+    eprintln!(
+        "{}: density fitted to the ball in {} steps ({:.1} s), relative squared error {:.3}",
+        backend.name(),
+        args.fit_steps,
+        fit_start.elapsed().as_secs_f64(),
+        fit_loss
+    );
+    let setup = Setup {
+        ad: &ad,
         size,
         mlp,
-        fitted,
-        grid,
-        steps,
-        segment,
-    } = *setup;
-    ad.seed(0);
-    let config =
-        OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
-            .with_mlp(mlp.clone())
-            .with_num_samples(size.samples)
-            .with_head_top_k((case.top_k > 0).then_some(case.top_k));
-    let mut model = config.init(ad);
-    model.mlp = fitted.clone();
-    let mut optim = AdamConfig::new().init();
-    let n = size.rays;
-    let host_rays = rays(n, 1);
-    let batch_of = |r: &[NormalizedRay]| {
-        let m = r.len();
-        let target =
-            |c: usize| Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), ad);
-        BatchTensors {
-            rays: Rays::from_normalized(r, ad),
-            rgb: target(3),
-            depth: None,
-            feature: Some(FeatureTargets::dense(target(size.feature_dim))),
+        fitted: &fitted,
+        grid: &grid,
+        steps: args.steps,
+        segment: args.segment,
+    };
+    for (name, case) in cases::cases(args.top_k) {
+        if !args.cases.contains(&name) {
+            continue;
         }
-    };
-    let mut rendered = n;
-    let rates = StepRates {
-        base: 1e-4,
-        head: 1e-4,
-    };
-    let mut times = Vec::new();
-    for step in 0..=steps {
-        let start = Instant::now();
-        // The grid path clips the host rays every step, as training does.
-        let batch = if case.with_grid {
-            let clipped = grid.clip(&host_rays);
-            rendered = clipped.kept.len();
-            batch_of(&clipped.rays)
-        } else {
-            batch_of(&host_rays)
+        reset_peak();
+        let Timing {
+            secs,
+            rendered,
+            infer,
+        } = time_case(&setup, case);
+        let flops = Size {
+            rays: rendered,
+            ..size
+        }
+        .step_flops(mlp, case.path, case.top_k);
+        let row = Row {
+            backend: backend.name().to_string(),
+            path: if case.top_k > 0 {
+                format!("{} (k={})", case.label, case.top_k)
+            } else {
+                case.label.to_string()
+            },
+            secs,
+            rays: size.rays,
+            flops,
+            matmul: ceiling,
+            peak_mb: peak_memory_bytes().unwrap_or(0) as f64 / 1e6,
+            infer: Some(infer),
         };
-        let out = model.render_with(&batch.rays, true, None, case.path);
-        let (next, report) = train_step_from(
-            model,
-            &mut optim,
-            out,
-            &batch,
-            &LossConfig::default(),
-            rates,
-        );
-        model = next;
-        let secs = start.elapsed().as_secs_f64();
-        assert!(report.applied, "benchmark step produced a non-finite loss");
-        if step > 0 {
-            times.push(secs);
-        }
+        report::print_row(&row, peer);
     }
-    Timing {
-        secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
-        rendered,
-        infer: inference(&model, case, grid, ad, n, segment),
-    }
-}
-
-/// Rendering `4 n` fresh rays with `model` in chunks of 4096 on the device
-/// without autodiff (after one warm-up chunk), with the default early
-/// termination and with every sample evaluated.
-fn inference(
-    model: &model::OpenNerf,
-    case: Case,
-    grid: &OccupancyGrid,
-    ad: &Device,
-    n: usize,
-    segment: usize,
-) -> Inference {
-    let plain = ad.clone().without_autodiff();
-    let valid = model.valid();
-    let valid = if case.with_grid {
-        valid.with_occupancy(Some(grid.clone()))
-    } else {
-        valid
-    };
-    let mode = case.path;
-    let many = rays(4 * n, 2);
-    let time = |termination: Termination| {
-        let _ = render_rays_with(&valid, &rays(256, 3), None, 4096, mode, termination, &plain);
-        let start = Instant::now();
-        let out = render_rays_with(&valid, &many, None, 4096, mode, termination, &plain);
-        let secs = start.elapsed().as_secs_f64();
-        (many.len() as f64 / secs, out.samples_evaluated)
-    };
-    let (all_samples_rays_per_s, all) = time(Termination::off());
-    let (rays_per_s, evaluated) = time(Termination {
-        segment,
-        ..Termination::default()
-    });
-    Inference {
-        rays_per_s,
-        all_samples_rays_per_s,
-        samples_share: evaluated as f64 / all.max(1) as f64,
-    }
-}
-
-/// One row of the table.
-struct Row {
-    backend: String,
-    path: String,
-    secs: f64,
-    rays: usize,
-    flops: f64,
-    matmul: f64,
-    peak_mb: f64,
-    /// Inference (none for the peer).
-    infer: Option<Inference>,
-}
-
-/// Prints the header (and the ratio's convention when there is a peer).
-fn print_header(peer: Option<&peer::Peer>) {
-    if let Some(p) = peer {
-        println!(
-            "vs JAX: this row's step time / the JAX step time (jax {}, {} threads): \
-             1.49x = takes 1.49 times as long as JAX, below 1 = faster",
-            p.version, p.threads
-        );
-    }
-    print!(
-        "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
-        "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
-    );
-    print!(
-        " {:>12} {:>8} {:>10} {:>9}",
-        "infer rays/s", "x train", "all-sample", "samples %"
-    );
-    println!("{}", if peer.is_some() { "   vs JAX" } else { "" });
-}
-
-/// Prints `row`, with its step time over the peer's when there is one.
-fn print_row(row: &Row, peer: Option<&peer::Peer>) {
-    print!(
-        "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
-        row.backend,
-        row.path,
-        row.secs,
-        row.rays as f64 / row.secs,
-        row.flops / 1e9,
-        row.flops / row.secs / 1e9,
-        row.matmul,
-        row.peak_mb
-    );
-    match row.infer {
-        Some(i) => print!(
-            " {:>12.0} {:>7.1}x {:>10.0} {:>9.1}",
-            i.rays_per_s,
-            i.rays_per_s * row.secs / row.rays as f64,
-            i.all_samples_rays_per_s,
-            100.0 * i.samples_share
-        ),
-        None => print!(" {:>12} {:>8} {:>10} {:>9}", "-", "-", "-", "-"),
-    }
-    match peer {
-        Some(p) => println!(" {:>8.2}x", row.secs / p.secs),
-        None => println!(),
-    }
-}
-
-/// The Burn cases, in the order printed, with their names.
-fn cases(top_k: usize) -> [(CaseName, Case); 3] {
-    [
-        (
-            CaseName::Composited,
-            Case {
-                label: "composited + top-k",
-                path: FeatureMode::Composited,
-                top_k,
-                with_grid: false,
-            },
-        ),
-        (
-            CaseName::Plain,
-            Case {
-                label: "per-sample (plain)",
-                path: FeatureMode::PerSample,
-                top_k: 0,
-                with_grid: false,
-            },
-        ),
-        (
-            CaseName::Grid,
-            Case {
-                label: "composited + grid",
-                path: FeatureMode::Composited,
-                top_k,
-                with_grid: true,
-            },
-        ),
-    ]
 }
 
 fn main() -> anyhow::Result<()> {
@@ -492,7 +252,7 @@ fn main() -> anyhow::Result<()> {
         Some(python) => Some(peer::run(python, size, skip, args.steps)?),
         None => None,
     };
-    print_header(peer.as_ref());
+    report::print_header(peer.as_ref());
     if let Some(p) = &peer {
         let ours = size.step_flops(&mlp, FeatureMode::PerSample, 0);
         if (p.flops - ours).abs() > 1e-6 * ours {
@@ -512,98 +272,11 @@ fn main() -> anyhow::Result<()> {
             peak_mb: p.peak_mb,
             infer: None,
         };
-        print_row(&row, peer.as_ref());
+        report::print_row(&row, peer.as_ref());
     }
-    let cases = cases(args.top_k);
     for &backend in &args.backends {
-        let plain = device(backend, None);
-        let ceiling = matmul_ceiling(&plain, size.width);
-        let ad = plain.clone().autodiff();
-        let grid = object_grid();
-        ad.seed(0);
-        let base = OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim))
-            .with_mlp(mlp.clone())
-            .init(&ad);
-        let fit_start = Instant::now();
-        let (fitted, fit_loss) = ball::fit(base, args.fit_steps, 8192, &ad);
-        eprintln!(
-            "{}: density fitted to the ball in {} steps ({:.1} s), relative squared error {:.3}",
-            backend.name(),
-            args.fit_steps,
-            fit_start.elapsed().as_secs_f64(),
-            fit_loss
-        );
-        let setup = Setup {
-            ad: &ad,
-            size,
-            mlp: &mlp,
-            fitted: &fitted,
-            grid: &grid,
-            steps: args.steps,
-            segment: args.segment,
-        };
-        for (name, case) in cases {
-            if !args.cases.contains(&name) {
-                continue;
-            }
-            reset_peak();
-            let Timing {
-                secs,
-                rendered,
-                infer,
-            } = time_case(&setup, case);
-            let flops = Size {
-                rays: rendered,
-                ..size
-            }
-            .step_flops(&mlp, case.path, case.top_k);
-            let row = Row {
-                backend: backend.name().to_string(),
-                path: if case.top_k > 0 {
-                    format!("{} (k={})", case.label, case.top_k)
-                } else {
-                    case.label.to_string()
-                },
-                secs,
-                rays: size.rays,
-                flops,
-                matmul: ceiling,
-                peak_mb: peak_memory_bytes().unwrap_or(0) as f64 / 1e6,
-                infer: Some(infer),
-            };
-            print_row(&row, peer.as_ref());
-        }
+        run_backend(&args, size, &mlp, backend, peer.as_ref());
     }
-    println!(
-        "matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device",
-        w = size.width
-    );
-    let grid = object_grid();
-    let clipped = grid.clip(&rays(size.rays, 1));
-    println!(
-        "grid: a ball in a {r}^3 grid ({:.1} % of cells occupied); {} of {} rays rendered, \
-         sampled over {:.0} % of their length on average (rays/s counts every ray drawn)",
-        100.0 * grid.occupied_fraction(),
-        clipped.kept.len(),
-        size.rays,
-        100.0 * clipped.span_fraction_sum / size.rays as f64,
-        r = grid.resolution()
-    );
-    println!(
-        "infer rays/s: the trained model rendering {} fresh rays in chunks of 4096 without \
-         autodiff (same feature path, the grid where the case has one), each ray ending once \
-         its transmittance is below 1e-4 (checked every 8 samples); x train: over the training \
-         rays/s of the same row; all-sample: the same render evaluating every sample; \
-         samples %: the share of the samples evaluated with termination. The field's density \
-         was fitted to the ball ({} Adam steps) before the timed steps, so rays end on it",
-        4 * size.rays,
-        args.fit_steps
-    );
-    if peer.is_some() {
-        println!(
-            "jax: the plain per-sample step in JAX (scripts/peer_step_jax.py, one jit of \
-             forward, grad and Adam), its peak MB the whole Python process's"
-        );
-    }
+    report::print_notes(size, args.fit_steps, peer.is_some());
     Ok(())
 }

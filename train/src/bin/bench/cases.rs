@@ -1,0 +1,260 @@
+//! The benchmark's cases: one training-step timing each, with inference
+//! on the trained model, and the rays and grid they use.
+
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::AdamConfig;
+use burn::tensor::{Device, Tensor, TensorData};
+use field_ops::render::render_rays_with;
+use model::geometry::NormalizedRay;
+use model::{
+    FeatureHeadConfig, FeatureMode, MipMlp, MipMlpConfig, OccupancyConfig, OccupancyGrid,
+    OpenNerfConfig, Rays, Termination,
+};
+use train::batch::{BatchTensors, FeatureTargets};
+use train::config::LossConfig;
+use train::step::{StepRates, train_step_from};
+
+use crate::Size;
+
+/// The cases `--cases` names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CaseName {
+    /// Composited hidden activations with the top-k head.
+    Composited,
+    /// The per-sample head (the plain formulation, JAX's).
+    Plain,
+    /// Composited + top-k behind the occupancy grid.
+    Grid,
+}
+
+/// Rays of the bench: `n` rays through the box from a plane in front of it.
+pub fn rays(n: usize, seed: u64) -> Vec<NormalizedRay> {
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 33) as f64 / (1u64 << 31) as f64) as f32
+    };
+    let v: Vec<NormalizedRay> = (0..n)
+        .map(|_| NormalizedRay {
+            origin: [next() * 2.0 - 1.0, next() * 2.0 - 1.0, -2.5],
+            direction: [next() - 0.5, next() - 0.5, 1.0],
+            radius: 0.003,
+            near: 0.2,
+            far: 4.5,
+        })
+        .collect();
+    v
+}
+
+/// A grid holding a ball of radius 1.2 at the centre of the box (an object
+/// in empty space, as in the Blender scenes).
+pub fn object_grid() -> OccupancyGrid {
+    let mut grid = OccupancyGrid::new(&OccupancyConfig::new());
+    let density: Vec<f32> = grid
+        .sample_points(0)
+        .iter()
+        .map(|p| {
+            let r2: f32 = p.iter().map(|v| v * v).sum();
+            if r2 < 1.44 { 100.0 } else { 0.0 }
+        })
+        .collect();
+    grid.update(&density);
+    grid
+}
+
+/// One case: a feature path, the head's top-k, with or without the grid.
+#[derive(Debug, Clone, Copy)]
+pub struct Case {
+    pub label: &'static str,
+    pub path: FeatureMode,
+    pub top_k: usize,
+    pub with_grid: bool,
+}
+
+/// What one case measured.
+#[derive(Debug, Clone, Copy)]
+pub struct Timing {
+    /// Mean seconds of a timed step.
+    pub secs: f64,
+    /// Rays rendered per step (fewer than drawn behind the grid).
+    pub rendered: usize,
+    /// Rendering the trained model (no autodiff, the same feature path, the
+    /// grid when the case has one, as `eval render` does).
+    pub infer: Inference,
+}
+
+/// Inference speed of one model, with and without early ray termination.
+#[derive(Debug, Clone, Copy)]
+pub struct Inference {
+    /// Rays per second with the default termination (what every render uses).
+    pub rays_per_s: f64,
+    /// Rays per second evaluating every sample.
+    pub all_samples_rays_per_s: f64,
+    /// Share of the samples evaluated with termination.
+    pub samples_share: f64,
+}
+
+/// What every case of one backend shares.
+pub struct Setup<'a> {
+    /// The autodiff device.
+    pub ad: &'a Device,
+    pub size: Size,
+    pub mlp: &'a MipMlpConfig,
+    /// The MLP with its density fitted to the ball.
+    pub fitted: &'a MipMlp,
+    pub grid: &'a OccupancyGrid,
+    /// Timed steps.
+    pub steps: usize,
+    /// Samples between two termination checks.
+    pub segment: usize,
+}
+
+/// Times `steps` steps (after one untimed warm-up step) of `case`.
+pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
+    let Setup {
+        ad,
+        size,
+        mlp,
+        fitted,
+        grid,
+        steps,
+        segment,
+    } = *setup;
+    ad.seed(0);
+    let config =
+        OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
+            .with_mlp(mlp.clone())
+            .with_num_samples(size.samples)
+            .with_head_top_k((case.top_k > 0).then_some(case.top_k));
+    let mut model = config.init(ad);
+    model.mlp = fitted.clone();
+    let mut optim = AdamConfig::new().init();
+    let n = size.rays;
+    let host_rays = rays(n, 1);
+    let batch_of = |r: &[NormalizedRay]| {
+        let m = r.len();
+        let target =
+            |c: usize| Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), ad);
+        BatchTensors {
+            rays: Rays::from_normalized(r, ad),
+            rgb: target(3),
+            depth: None,
+            feature: Some(FeatureTargets::dense(target(size.feature_dim))),
+        }
+    };
+    let mut rendered = n;
+    let rates = StepRates {
+        base: 1e-4,
+        head: 1e-4,
+    };
+    let mut times = Vec::new();
+    for step in 0..=steps {
+        let start = Instant::now();
+        // The grid path clips the host rays every step, as training does.
+        let batch = if case.with_grid {
+            let clipped = grid.clip(&host_rays);
+            rendered = clipped.kept.len();
+            batch_of(&clipped.rays)
+        } else {
+            batch_of(&host_rays)
+        };
+        let out = model.render_with(&batch.rays, true, None, case.path);
+        let (next, report) = train_step_from(
+            model,
+            &mut optim,
+            out,
+            &batch,
+            &LossConfig::default(),
+            rates,
+        );
+        model = next;
+        let secs = start.elapsed().as_secs_f64();
+        assert!(report.applied, "benchmark step produced a non-finite loss");
+        if step > 0 {
+            times.push(secs);
+        }
+    }
+    Timing {
+        secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
+        rendered,
+        infer: inference(&model, case, grid, ad, n, segment),
+    }
+}
+
+/// Rendering `4 n` fresh rays with `model` in chunks of 4096 on the device
+/// without autodiff (after one warm-up chunk), with the default early
+/// termination and with every sample evaluated.
+fn inference(
+    model: &model::OpenNerf,
+    case: Case,
+    grid: &OccupancyGrid,
+    ad: &Device,
+    n: usize,
+    segment: usize,
+) -> Inference {
+    let plain = ad.clone().without_autodiff();
+    let valid = model.valid();
+    let valid = if case.with_grid {
+        valid.with_occupancy(Some(grid.clone()))
+    } else {
+        valid
+    };
+    let mode = case.path;
+    let many = rays(4 * n, 2);
+    let time = |termination: Termination| {
+        let _ = render_rays_with(&valid, &rays(256, 3), None, 4096, mode, termination, &plain);
+        let start = Instant::now();
+        let out = render_rays_with(&valid, &many, None, 4096, mode, termination, &plain);
+        let secs = start.elapsed().as_secs_f64();
+        (many.len() as f64 / secs, out.samples_evaluated)
+    };
+    let (all_samples_rays_per_s, all) = time(Termination::off());
+    let (rays_per_s, evaluated) = time(Termination {
+        segment,
+        ..Termination::default()
+    });
+    Inference {
+        rays_per_s,
+        all_samples_rays_per_s,
+        samples_share: evaluated as f64 / all.max(1) as f64,
+    }
+}
+
+/// The Burn cases, in the order printed, with their names.
+pub fn cases(top_k: usize) -> [(CaseName, Case); 3] {
+    [
+        (
+            CaseName::Composited,
+            Case {
+                label: "composited + top-k",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: false,
+            },
+        ),
+        (
+            CaseName::Plain,
+            Case {
+                label: "per-sample (plain)",
+                path: FeatureMode::PerSample,
+                top_k: 0,
+                with_grid: false,
+            },
+        ),
+        (
+            CaseName::Grid,
+            Case {
+                label: "composited + grid",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: true,
+            },
+        ),
+    ]
+}
