@@ -7,7 +7,7 @@
 //! step faults all of those pages in again, zeroed by the kernel. jemalloc,
 //! configured below, keeps freed pages for the next allocation. A binary opts in with
 //!
-//! ```ignore
+//! ```no_run
 //! #[cfg(not(target_env = "msvc"))]
 //! #[global_allocator]
 //! static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;

@@ -3,6 +3,13 @@
 //! of the field's density; a cell is occupied when a ray crossing it would
 //! lose at least `min_opacity` of its light there.
 //!
+//! The grid is conservative, since a cell freed by mistake only comes back
+//! when a later sample happens to hit its density: the first
+//! `early_updates` updates draw `early_samples` jittered points per cell and
+//! keep the maximum over all of them while every cell stays occupied, and
+//! the cells within `dilation` cells (26 neighbours for 1) of a cell that
+//! passes the threshold count as occupied too.
+//!
 //! Rays are clipped to the span from the first to the last occupied cell
 //! they cross (samples are placed there only), and rays that cross no
 //! occupied cell are not rendered at all: they see the background. A grid
@@ -18,6 +25,9 @@ use burn::config::Config;
 use rand::{Rng, SeedableRng};
 
 use crate::geometry::NormalizedRay;
+
+mod bytes;
+mod mask;
 
 /// Settings of the occupancy grid (switched off by default).
 #[derive(Config, Debug, PartialEq)]
@@ -41,6 +51,24 @@ pub struct OccupancyConfig {
     /// Opacity across one cell above which the cell is occupied.
     #[config(default = 0.01)]
     pub min_opacity: f32,
+    /// Jittered points per cell at each of the first `early_updates`
+    /// updates (one after); a cell's new density is the maximum over them.
+    #[config(default = 8)]
+    pub early_samples: usize,
+    /// Updates that sample `early_samples` points per cell and keep the
+    /// maximum over all of them without decay; every cell stays occupied
+    /// until they are done (0 or 1: the first update decides alone).
+    #[config(default = 4)]
+    pub early_updates: usize,
+    /// Cells around an occupied cell that count as occupied too (Chebyshev
+    /// distance: 1 adds the 26 neighbours; 0 turns dilation off).
+    #[config(default = 1)]
+    pub dilation: usize,
+    /// Updates during which training still renders the rays that cross no
+    /// occupied cell (over their whole span), so a region freed by mistake
+    /// keeps a loss; 0 drops them from the first update on.
+    #[config(default = 8)]
+    pub keep_dropped_updates: usize,
 }
 
 impl Default for OccupancyConfig {
@@ -67,12 +95,16 @@ pub struct ClippedRays {
     /// Index in the input of each kept ray.
     pub kept: Vec<usize>,
     /// Sum over input rays of the kept span length over the original one
-    /// (rays with an empty interval count as 1).
+    /// (rays with an empty interval, or kept whole although they cross no
+    /// occupied cell, count as 1).
     pub span_fraction_sum: f64,
+    /// Input rays that cross no occupied cell (kept whole by
+    /// [`OccupancyGrid::clip_keeping`], dropped by [`OccupancyGrid::clip`]).
+    pub empty: usize,
 }
 
 /// The grid: densities per cell (x fastest, then y, then z) and the bitfield
-/// derived from them.
+/// derived from them (after dilation).
 #[derive(Clone, PartialEq)]
 pub struct OccupancyGrid {
     resolution: usize,
@@ -81,6 +113,9 @@ pub struct OccupancyGrid {
     updates: u64,
     decay: f32,
     min_opacity: f32,
+    early_samples: u32,
+    early_updates: u32,
+    dilation: u32,
 }
 
 impl std::fmt::Debug for OccupancyGrid {
@@ -98,6 +133,12 @@ impl std::fmt::Debug for OccupancyGrid {
 /// Half the side of the normalised scene cube.
 const HALF: f64 = PI;
 
+/// Most jittered points per cell in an early update.
+pub const MAX_EARLY_SAMPLES: usize = 32;
+
+/// Widest dilation, in cells.
+pub const MAX_DILATION: usize = 4;
+
 impl OccupancyGrid {
     /// A complete grid (every cell occupied) of `config.resolution^3` cells.
     pub fn new(config: &OccupancyConfig) -> Self {
@@ -110,9 +151,32 @@ impl OccupancyGrid {
             updates: 0,
             decay: config.decay,
             min_opacity: config.min_opacity,
+            early_samples: config.early_samples.clamp(1, MAX_EARLY_SAMPLES) as u32,
+            early_updates: config.early_updates.min(u32::MAX as usize) as u32,
+            dilation: config.dilation.min(MAX_DILATION) as u32,
         };
         grid.fill_all();
         grid
+    }
+
+    /// Points per cell that [`OccupancyGrid::sample_points`] draws for the
+    /// next update: `early_samples` during the early updates, then 1.
+    pub fn samples_per_cell(&self) -> usize {
+        if self.in_early_phase() {
+            self.early_samples as usize
+        } else {
+            1
+        }
+    }
+
+    /// Whether the next update is one of the early ones.
+    fn in_early_phase(&self) -> bool {
+        self.updates < self.early_updates as u64
+    }
+
+    /// Cells of dilation around each occupied cell.
+    pub fn dilation(&self) -> usize {
+        self.dilation as usize
     }
 
     /// Cells per axis.
@@ -163,54 +227,103 @@ impl OccupancyGrid {
         }
     }
 
-    /// One point per cell, uniformly at random inside it (seeded), in the
-    /// order of [`OccupancyGrid::update`]'s input.
+    /// [`OccupancyGrid::samples_per_cell`] points per cell, cell after cell
+    /// in the order of [`OccupancyGrid::update`]'s input, drawn from `seed`
+    /// only (a resumed run draws the same ones). With `k^3 <= n` samples
+    /// the first `k^3` are jittered in the `k^3` sub-cubes of the cell
+    /// (stratified, so that no part of the cell goes unseen), the others
+    /// uniform in it; one sample is uniform in the cell.
     ///
     /// # Shapes
-    /// - output: `resolution^3` points `[x, y, z]` in normalised units.
+    /// - output: `samples_per_cell * resolution^3` points `[x, y, z]` in
+    ///   normalised units.
     pub fn sample_points(&self, seed: u64) -> Vec<[f32; 3]> {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let (r, h) = (self.resolution, self.cell_size());
-        let mut points = Vec::with_capacity(r * r * r);
-        for k in 0..r {
+        let n = self.samples_per_cell();
+        let k = (1..=n).take_while(|k| k * k * k <= n).last().unwrap_or(1);
+        let mut points = Vec::with_capacity(n * r * r * r);
+        for kz in 0..r {
             for j in 0..r {
                 for i in 0..r {
-                    let at = |c: usize, u: f64| (-HALF + (c as f64 + u) * h) as f32;
-                    points.push([
-                        at(i, rng.random()),
-                        at(j, rng.random()),
-                        at(k, rng.random()),
-                    ]);
+                    for s in 0..n {
+                        // Sub-cube of sample s (the whole cell past k^3).
+                        let (sub, div) = if s < k * k * k {
+                            ([s % k, s / k % k, s / (k * k)], k as f64)
+                        } else {
+                            ([0; 3], 1.0)
+                        };
+                        let at = |c: usize, a: usize, u: f64| {
+                            (-HALF + (c as f64 + (sub[a] as f64 + u) / div) * h) as f32
+                        };
+                        points.push([
+                            at(i, 0, rng.random()),
+                            at(j, 1, rng.random()),
+                            at(kz, 2, rng.random()),
+                        ]);
+                    }
                 }
             }
         }
         points
     }
 
-    /// Folds in new densities (per normalised unit, one per cell, e.g. at
-    /// [`OccupancyGrid::sample_points`]): the stored value becomes
-    /// `max(decay * old, new)` (just `new` at the first update), and a cell is
-    /// occupied when `1 - exp(-density * cell_size) >= min_opacity`, with the
-    /// threshold lowered to the mean density when that is smaller (so a field
-    /// that is still faint everywhere keeps its brightest cells). Non-finite
-    /// or negative densities count as occupied. With no occupied cell the
-    /// grid falls back to every cell occupied.
+    /// Folds in new densities (per normalised unit, `m >= 1` per cell, cell
+    /// after cell, e.g. at [`OccupancyGrid::sample_points`]): a cell's new
+    /// value is the maximum over its `m`. During the early updates the
+    /// stored value is the maximum over all of them and every cell stays
+    /// occupied; after, it becomes `max(decay * old, new)` (just `new` at
+    /// the first update when there are no early updates). A cell passes the
+    /// threshold when `1 - exp(-density * cell_size) >= min_opacity`, with
+    /// the threshold lowered to the mean density when that is smaller (so a
+    /// field that is still faint everywhere keeps its brightest cells), and
+    /// it and the cells within `dilation` of it are occupied. Non-finite or
+    /// negative densities count as occupied. With no cell passing, the grid
+    /// falls back to every cell occupied.
     ///
     /// # Panics
-    /// When `new.len()` is not the number of cells (a caller bug).
+    /// When `new.len()` is not a positive multiple of the number of cells
+    /// (a caller bug).
     pub fn update(&mut self, new: &[f32]) {
-        assert_eq!(new.len(), self.density.len(), "one density per cell");
-        let first = self.updates == 0;
-        for (d, &n) in self.density.iter_mut().zip(new) {
-            let n = if n.is_finite() && n >= 0.0 {
+        let cells = self.density.len();
+        assert!(
+            !new.is_empty() && new.len().is_multiple_of(cells),
+            "{} densities for {cells} cells: give the same number per cell",
+            new.len()
+        );
+        let per_cell = new.len() / cells;
+        let (first, early) = (self.updates == 0, self.in_early_phase());
+        for (d, group) in self.density.iter_mut().zip(new.chunks_exact(per_cell)) {
+            let n = group
+                .iter()
+                .map(|&n| {
+                    if n.is_finite() && n >= 0.0 {
+                        n
+                    } else {
+                        f32::INFINITY
+                    }
+                })
+                .fold(0.0f32, f32::max);
+            *d = if first {
                 n
+            } else if early {
+                d.max(n)
             } else {
-                f32::INFINITY
+                (*d * self.decay).max(n)
             };
-            *d = if first { n } else { (*d * self.decay).max(n) };
         }
         self.updates += 1;
-        self.rebuild_bits();
+        self.refresh_bits();
+    }
+
+    /// The bitfield from the densities: complete before the first update
+    /// and during the early ones, the dilated threshold rule after.
+    fn refresh_bits(&mut self) {
+        if self.updates == 0 || self.in_early_phase() {
+            self.fill_all();
+        } else {
+            self.rebuild_bits();
+        }
     }
 
     /// The density above which a cell is occupied.
@@ -231,16 +344,19 @@ impl OccupancyGrid {
 
     fn rebuild_bits(&mut self) {
         let threshold = self.threshold();
-        self.bits.iter_mut().for_each(|b| *b = 0);
-        let mut any = false;
-        for (c, &d) in self.density.iter().enumerate() {
-            if !(d.is_finite() && (d as f64) < threshold) {
-                self.bits[c / 64] |= 1 << (c % 64);
-                any = true;
-            }
-        }
-        if !any {
+        let passes: Vec<bool> = self
+            .density
+            .iter()
+            .map(|&d| !(d.is_finite() && (d as f64) < threshold))
+            .collect();
+        if !passes.contains(&true) {
             self.fill_all();
+            return;
+        }
+        let occupied = mask::dilate(passes, self.resolution, self.dilation as usize);
+        self.bits.iter_mut().for_each(|b| *b = 0);
+        for (c, _) in occupied.iter().enumerate().filter(|(_, o)| **o) {
+            self.bits[c / 64] |= 1 << (c % 64);
         }
     }
 
@@ -308,14 +424,33 @@ impl OccupancyGrid {
     /// Clips every ray to its occupied span and drops those that cross no
     /// occupied cell.
     pub fn clip(&self, rays: &[NormalizedRay]) -> ClippedRays {
+        self.clip_rays(rays, false)
+    }
+
+    /// [`OccupancyGrid::clip`], but the rays that cross no occupied cell are
+    /// kept whole (for training while the grid may still be wrong).
+    pub fn clip_keeping(&self, rays: &[NormalizedRay]) -> ClippedRays {
+        self.clip_rays(rays, true)
+    }
+
+    fn clip_rays(&self, rays: &[NormalizedRay], keep_empty: bool) -> ClippedRays {
         let mut out = ClippedRays {
             rays: Vec::with_capacity(rays.len()),
             kept: Vec::with_capacity(rays.len()),
             span_fraction_sum: 0.0,
+            empty: 0,
         };
         for (i, ray) in rays.iter().enumerate() {
-            let Some((near, far)) = self.ray_span(ray) else {
-                continue;
+            let (near, far) = match self.ray_span(ray) {
+                Some(span) => span,
+                None if keep_empty => {
+                    out.empty += 1;
+                    (ray.near, ray.far)
+                }
+                None => {
+                    out.empty += 1;
+                    continue;
+                }
             };
             let full = (ray.far - ray.near) as f64;
             out.span_fraction_sum += if full > 0.0 {
@@ -328,59 +463,4 @@ impl OccupancyGrid {
         }
         out
     }
-
-    /// Serialises the grid (resolution, update count, decay, opacity and the
-    /// densities, little-endian); the bitfield is rebuilt on reading.
-    pub fn to_bytes(&self) -> Vec<u8> {
-        let mut b = Vec::with_capacity(32 + 4 * self.density.len());
-        b.extend_from_slice(MAGIC);
-        b.extend_from_slice(&(self.resolution as u64).to_le_bytes());
-        b.extend_from_slice(&self.updates.to_le_bytes());
-        b.extend_from_slice(&self.decay.to_le_bytes());
-        b.extend_from_slice(&self.min_opacity.to_le_bytes());
-        for d in &self.density {
-            b.extend_from_slice(&d.to_le_bytes());
-        }
-        b
-    }
-
-    /// Reads [`OccupancyGrid::to_bytes`]; `Err` names what is wrong.
-    pub fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
-        let head = MAGIC.len() + 24;
-        if bytes.len() < head || &bytes[..MAGIC.len()] != MAGIC {
-            return Err("not an occupancy grid (bad header)".into());
-        }
-        let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().unwrap_or([0; 8]));
-        let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap_or([0; 4]));
-        let m = MAGIC.len();
-        let resolution = u64_at(m) as usize;
-        if resolution == 0 || resolution > 512 {
-            return Err(format!("resolution {resolution} outside 1..=512"));
-        }
-        let cells = resolution * resolution * resolution;
-        if bytes.len() != head + 4 * cells {
-            return Err(format!(
-                "{} bytes where a {resolution}^3 grid has {}",
-                bytes.len(),
-                head + 4 * cells
-            ));
-        }
-        let density: Vec<f32> = (0..cells).map(|c| f32_at(head + 4 * c)).collect();
-        let mut grid = Self {
-            resolution,
-            density,
-            bits: vec![0; cells.div_ceil(64)],
-            updates: u64_at(m + 8),
-            decay: f32_at(m + 16),
-            min_opacity: f32_at(m + 20),
-        };
-        if grid.updates == 0 {
-            grid.fill_all();
-        } else {
-            grid.rebuild_bits();
-        }
-        Ok(grid)
-    }
 }
-
-const MAGIC: &[u8; 8] = b"OCCGRID1";

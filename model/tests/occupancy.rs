@@ -1,7 +1,8 @@
 //! The occupancy grid against brute force: the cells a known density marks,
 //! the occupied span of random rays against dense marching, rendering with
 //! a grid that covers all the density against rendering without, and the
-//! byte format.
+//! byte format. These tests use the grid without its conservative rules
+//! (see `occupancy_conservative.rs` for those).
 
 mod common;
 
@@ -28,8 +29,15 @@ fn sphere_density(p: [f32; 3]) -> f32 {
     if r2 <= SPHERE * SPHERE { 50.0 } else { 0.0 }
 }
 
+/// A grid under the rules before the conservative ones (the first update
+/// decides alone, no dilation): the exact cells of these tests.
 fn grid(resolution: usize) -> OccupancyGrid {
-    OccupancyGrid::new(&OccupancyConfig::new().with_resolution(resolution))
+    let config = OccupancyConfig::new()
+        .with_resolution(resolution)
+        .with_early_samples(1)
+        .with_early_updates(0)
+        .with_dilation(0);
+    OccupancyGrid::new(&config)
 }
 
 fn sphere_grid(resolution: usize, updates: u64) -> OccupancyGrid {

@@ -279,9 +279,11 @@ pub struct Cli {
     pub extractor_command: Option<String>,
     /// Empty-space skipping: keep an occupancy grid of the field's density
     /// over the scene box (a complete grid for the first 256 iterations,
-    /// then refreshed every 16 with decay) and sample each ray only between
-    /// its first and last occupied cell; rays that cross no occupied cell
-    /// are not rendered (they see the background). The grid is saved with
+    /// then refreshed every 16 with decay, conservatively: see the
+    /// `--grid-*` flags) and sample each ray only between its first and
+    /// last occupied cell; rays that cross no occupied cell are not
+    /// rendered (they see the background) once the warm-up of
+    /// `--grid-keep-dropped` refreshes is over. The grid is saved with
     /// the checkpoints and as `occupancy.bin`, and `eval` renders with it.
     #[arg(long)]
     pub occupancy_grid: bool,
@@ -289,6 +291,26 @@ pub struct Cli {
     /// density query per cell [default: 32].
     #[arg(long)]
     pub grid_resolution: Option<usize>,
+    /// Jittered density samples per grid cell at each early refresh (the
+    /// cell keeps their maximum, so thin structures are not freed on one
+    /// unlucky sample), in 1..=32 [default: 8].
+    #[arg(long)]
+    pub grid_early_samples: Option<usize>,
+    /// Early refreshes of the occupancy grid: they take
+    /// `--grid-early-samples` points per cell and keep the maximum over all
+    /// of them, and every cell stays occupied until they are done
+    /// [default: 4].
+    #[arg(long)]
+    pub grid_early_updates: Option<usize>,
+    /// Cells around each occupied grid cell that count as occupied too, in
+    /// 0..=4 (1: its 26 neighbours; 0: none) [default: 1].
+    #[arg(long)]
+    pub grid_dilation: Option<usize>,
+    /// Grid refreshes during which training still renders the rays that
+    /// cross no occupied cell, over their whole length, so that a region
+    /// freed by mistake keeps a loss (0: skip them at once) [default: 8].
+    #[arg(long)]
+    pub grid_keep_dropped: Option<usize>,
     /// Run directory [default: runs/<dataset>-<unix time>].
     #[arg(long)]
     pub out: Option<PathBuf>,

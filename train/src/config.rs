@@ -124,8 +124,9 @@ pub struct TrainConfig {
     /// Novel views rendered by the field and added as training frames.
     #[serde(default)]
     pub novel: NovelViewConfig,
-    /// Empty-space skipping with an occupancy grid (off by default).
-    #[serde(default)]
+    /// Empty-space skipping with an occupancy grid (off by default; keys
+    /// that a run's file leaves out, as older runs do, take their default).
+    #[serde(default, deserialize_with = "crate::occupancy::deserialize_config")]
     pub occupancy: model::OccupancyConfig,
 }
 

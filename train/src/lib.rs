@@ -143,6 +143,18 @@ fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
     if let Some(r) = cli.grid_resolution {
         config.occupancy.resolution = r;
     }
+    let grid = &mut config.occupancy;
+    let flags = [
+        (cli.grid_early_samples, &mut grid.early_samples),
+        (cli.grid_early_updates, &mut grid.early_updates),
+        (cli.grid_dilation, &mut grid.dilation),
+        (cli.grid_keep_dropped, &mut grid.keep_dropped_updates),
+    ];
+    for (flag, field) in flags {
+        if let Some(v) = flag {
+            *field = v;
+        }
+    }
     if let Some(k) = cli.head_top_k {
         config.model.head_top_k = (k > 0).then_some(k);
     }

@@ -253,6 +253,10 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("head-top-k", cli.head_top_k.is_some()),
         ("preset", cli.preset.is_some()),
         ("grid-resolution", cli.grid_resolution.is_some()),
+        ("grid-early-samples", cli.grid_early_samples.is_some()),
+        ("grid-early-updates", cli.grid_early_updates.is_some()),
+        ("grid-dilation", cli.grid_dilation.is_some()),
+        ("grid-keep-dropped", cli.grid_keep_dropped.is_some()),
     ];
     if let Some((flag, _)) = ignored.iter().find(|(_, given)| *given) {
         return Err(flag_error(format!(

@@ -296,7 +296,8 @@ impl<'a> TrainLoop<'a> {
         let rays = drawn.len() as u64;
         let drawn = match model.occupancy() {
             Some(grid) => {
-                let (clipped, stats) = crate::occupancy::clip_batch(grid, drawn);
+                let (clipped, stats) =
+                    crate::occupancy::clip_batch(grid, &self.config.occupancy, drawn);
                 self.skipping.add(stats);
                 clipped
             }

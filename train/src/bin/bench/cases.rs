@@ -55,7 +55,12 @@ pub fn rays(n: usize, seed: u64) -> Vec<NormalizedRay> {
 /// A grid holding a ball of radius 1.2 at the centre of the box (an object
 /// in empty space, as in the Blender scenes).
 pub fn object_grid() -> OccupancyGrid {
-    let mut grid = OccupancyGrid::new(&OccupancyConfig::new());
+    // One sample a cell, no early updates and no dilation (a training run's
+    // grid is more conservative): a fixed ball, the same case in every run.
+    let config = OccupancyConfig::new()
+        .with_early_updates(0)
+        .with_dilation(0);
+    let mut grid = OccupancyGrid::new(&config);
     let density: Vec<f32> = grid
         .sample_points(0)
         .iter()
