@@ -1,12 +1,14 @@
 //! Feature-balanced ray sampling against the closed-form shares of a scene
 //! with one common and one rare feature.
 
+mod common;
+
 use datasets::balance::{BalanceConfig, BalancedSampler};
 use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::SamplerConfig;
-use datasets::{FeatureMap, Frame, RgbImage, Scene, SceneSource};
+use datasets::{FeatureMap, Frame, RgbImage, Scene};
 use half::f16;
-use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
+use model::geometry::{Camera, Intrinsics, look_at};
 
 const W: u32 = 40;
 /// The rare feature covers columns 0..4 of rows 0..20: 80 of 1600 pixels.
@@ -44,24 +46,11 @@ fn scene() -> Scene {
         dim: 2,
         data,
     };
-    Scene {
-        name: "balance".into(),
-        frames: vec![frame],
-        features: Some(FeatureSet::from_maps(vec![map], PcaSetting::Off, 0).expect("maps")),
-        scene_box: SceneBox {
-            min: [-1.0; 3],
-            max: [1.0; 3],
-        },
-        background: None,
-        points: None,
-        classes: None,
-        source: SceneSource::Synthetic {
-            seed: 0,
-            size: "ci".into(),
-            pca: None,
-        },
-        world: None,
-    }
+    common::scene_of(
+        "balance",
+        vec![frame],
+        Some(FeatureSet::from_maps(vec![map], PcaSetting::Off, 0).expect("maps")),
+    )
 }
 
 /// Share of rays on the rare feature for rarity exponent `power`:

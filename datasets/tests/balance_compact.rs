@@ -4,14 +4,15 @@
 //! over clusters, frames and pixels), masked pixels never drawn, about 4
 //! bytes a cell, and batches a pure function of `(seed, index)`.
 
+mod common;
+
 use std::collections::HashMap;
 
 use datasets::balance::{BalanceConfig, BalancedSampler};
 use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::{SamplerConfig, interior};
-use datasets::{FeatureMap, Frame, RgbImage, Scene, SceneSource};
+use datasets::{FeatureMap, Frame, Scene};
 use half::f16;
-use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -70,26 +71,6 @@ fn map(i: usize, w: u32, h: u32) -> FeatureMap {
     }
 }
 
-fn frame(i: usize, w: u32, h: u32, mask: Option<Vec<bool>>) -> Frame {
-    let pose = look_at([3.0, i as f64, 1.0], [0.0; 3], [0.0, 0.0, 1.0]).expect("pose");
-    Frame {
-        name: format!("f{i}"),
-        camera: Camera {
-            intrinsics: Intrinsics::from_fov_x(w, h, 1.0),
-            pose,
-        },
-        rgb: RgbImage {
-            width: w,
-            height: h,
-            data: vec![0.5; (w * h * 3) as usize],
-        },
-        depth: None,
-        depth_weight: 0.0,
-        labels: None,
-        mask,
-    }
-}
-
 /// Frame 1's mask: a diagonal cut through cells and a wholly masked block.
 fn keep(x: u32, y: u32) -> bool {
     x + y > 20 && !((24..34).contains(&x) && (4..14).contains(&y))
@@ -110,7 +91,7 @@ fn scene(sizes: &[FrameSize], masked: bool) -> Scene {
                     .flat_map(|y| (0..w).map(move |x| keep(x, y)))
                     .collect()
             });
-            frame(i, w, h, mask)
+            common::grey_frame(i, w, h, mask)
         })
         .collect();
     let maps = sizes
@@ -118,24 +99,11 @@ fn scene(sizes: &[FrameSize], masked: bool) -> Scene {
         .enumerate()
         .map_while(|(i, &(_, m))| m.map(|(w, h)| map(i, w, h)))
         .collect();
-    Scene {
-        name: "balance-compact".into(),
+    common::scene_of(
+        "balance-compact",
         frames,
-        features: Some(FeatureSet::from_maps(maps, PcaSetting::Off, 0).expect("maps")),
-        scene_box: SceneBox {
-            min: [-1.0; 3],
-            max: [1.0; 3],
-        },
-        background: None,
-        points: None,
-        classes: None,
-        source: SceneSource::Synthetic {
-            seed: 0,
-            size: "ci".into(),
-            pca: None,
-        },
-        world: None,
-    }
+        Some(FeatureSet::from_maps(maps, PcaSetting::Off, 0).expect("maps")),
+    )
 }
 
 /// Maps coarser than the images (cells of 2 to 4 pixels a side), a mask on

@@ -1,12 +1,14 @@
 //! Ray sampler: determinism, resume, border margin, targets and rays.
 
+mod common;
+
 use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::{
     RaySampler, SamplerConfig, frame_rays, sample_batch, sample_batch_from, scaled_margin,
 };
-use datasets::{DepthImage, FeatureMap, Frame, RgbImage, Scene, SceneSource};
+use datasets::{DepthImage, FeatureMap, Frame, RgbImage, Scene};
 use half::f16;
-use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
+use model::geometry::{Camera, Intrinsics, look_at};
 
 /// Frame `i` encodes its pixel coordinates in the colour and depth, so a
 /// target can be checked against the pixel it claims to come from.
@@ -75,24 +77,7 @@ fn scene(with_features: bool) -> Scene {
             .collect();
         FeatureSet::from_maps(maps, PcaSetting::Off, 0).expect("maps")
     });
-    Scene {
-        name: "test".into(),
-        frames,
-        features,
-        scene_box: SceneBox {
-            min: [-1.0; 3],
-            max: [1.0; 3],
-        },
-        background: None,
-        points: None,
-        classes: None,
-        source: SceneSource::Synthetic {
-            seed: 0,
-            size: "ci".into(),
-            pca: None,
-        },
-        world: None,
-    }
+    common::scene_of("test", frames, features)
 }
 
 fn config() -> SamplerConfig {

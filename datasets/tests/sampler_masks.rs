@@ -1,12 +1,13 @@
 //! Frame masks: masked-out pixels are never drawn, by the uniform sampler
 //! or the feature-balanced one, and every frame's unmasked part still is.
 
+mod common;
+
 use datasets::balance::{BalanceConfig, BalancedSampler};
 use datasets::features::{FeatureSet, PcaSetting};
 use datasets::sampler::{SamplerConfig, interior, sample_batch, sample_batch_from};
-use datasets::{FeatureMap, Frame, RgbImage, Scene, SceneSource};
+use datasets::{FeatureMap, Frame, Scene};
 use half::f16;
-use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
 
 /// Frame `i` keeps its right half (even frames) or bottom half (odd ones).
 fn keep(i: usize, x: u32, y: u32, w: u32, h: u32) -> bool {
@@ -18,26 +19,10 @@ fn keep(i: usize, x: u32, y: u32, w: u32, h: u32) -> bool {
 }
 
 fn frame(i: usize, w: u32, h: u32) -> Frame {
-    let pose = look_at([3.0, i as f64, 1.0], [0.0; 3], [0.0, 0.0, 1.0]).expect("pose");
     let mask = (0..h)
         .flat_map(|y| (0..w).map(move |x| keep(i, x, y, w, h)))
         .collect();
-    Frame {
-        name: format!("f{i}"),
-        camera: Camera {
-            intrinsics: Intrinsics::from_fov_x(w, h, 1.0),
-            pose,
-        },
-        rgb: RgbImage {
-            width: w,
-            height: h,
-            data: vec![0.5; (w * h * 3) as usize],
-        },
-        depth: None,
-        depth_weight: 0.0,
-        labels: None,
-        mask: Some(mask),
-    }
+    common::grey_frame(i, w, h, Some(mask))
 }
 
 fn scene(features: bool) -> Scene {
@@ -64,24 +49,7 @@ fn scene(features: bool) -> Scene {
             .collect();
         FeatureSet::from_maps(maps, PcaSetting::Off, 0).expect("maps")
     });
-    Scene {
-        name: "masked".into(),
-        frames,
-        features,
-        scene_box: SceneBox {
-            min: [-1.0; 3],
-            max: [1.0; 3],
-        },
-        background: None,
-        points: None,
-        classes: None,
-        source: SceneSource::Synthetic {
-            seed: 0,
-            size: "ci".into(),
-            pca: None,
-        },
-        world: None,
-    }
+    common::scene_of("masked", frames, features)
 }
 
 fn config() -> SamplerConfig {

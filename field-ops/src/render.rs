@@ -81,36 +81,13 @@ pub fn render_view(
     features: bool,
     device: &Device,
 ) -> RenderedView {
-    let mut always = |_, _| true;
-    render_view_observed(
-        model,
-        camera,
-        scene_box,
-        background,
-        chunk,
-        features,
-        device,
-        &mut always,
-    )
-    .unwrap_or_default()
+    let settings = RenderSettings::view(background, chunk, features);
+    render_view_with(model, camera, scene_box, settings, device)
 }
 
-/// Fine-level outputs of a list of rays, on the host.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct RenderedRays {
-    /// `3 n` colours.
-    pub rgb: Vec<f32>,
-    /// `n` expected depths along the ray (metres of `t`).
-    pub depth: Vec<f32>,
-    /// `n` accumulated opacities.
-    pub acc: Vec<f32>,
-    /// `n * feature_dim` features (empty when not rendered).
-    pub feature: Vec<f32>,
-    /// Channels per ray of `feature`.
-    pub feature_dim: usize,
-    /// Samples the field was evaluated at, over both levels.
-    pub samples_evaluated: usize,
-}
+/// Fine-level outputs of a list of rays, on the host: colours, depths,
+/// opacities, features and the samples evaluated.
+pub type RenderedRays = model::MarchedRays;
 
 /// Renders `rays` with the fine level of `model`, `chunk` rays at a time,
 /// each ray ending once its transmittance falls below 1e-4 (see
@@ -196,19 +173,7 @@ pub fn render_view_with(
     settings: RenderSettings,
     device: &Device,
 ) -> RenderedView {
-    let rays = camera_rays(camera, scene_box);
-    let r =
-        render_rays_observed(model, &rays, settings, device, &mut |_, _| true).unwrap_or_default();
-    RenderedView {
-        width: camera.intrinsics.width,
-        height: camera.intrinsics.height,
-        rgb: r.rgb,
-        depth: r.depth,
-        acc: r.acc,
-        feature: r.feature,
-        feature_dim: r.feature_dim,
-        samples_evaluated: r.samples_evaluated,
-    }
+    view_observed(model, camera, scene_box, settings, device, &mut |_, _| true).unwrap_or_default()
 }
 
 /// [`render_view`] that reports its progress after every chunk to `go`
@@ -225,8 +190,20 @@ pub fn render_view_observed(
     device: &Device,
     go: &mut dyn FnMut(usize, usize) -> bool,
 ) -> Option<RenderedView> {
-    let rays = camera_rays(camera, scene_box);
     let settings = RenderSettings::view(background, chunk, features);
+    view_observed(model, camera, scene_box, settings, device, go)
+}
+
+/// Every pixel of `camera`, with progress and cancellation.
+fn view_observed(
+    model: &OpenNerf,
+    camera: &Camera,
+    scene_box: &SceneBox,
+    settings: RenderSettings,
+    device: &Device,
+    go: &mut dyn FnMut(usize, usize) -> bool,
+) -> Option<RenderedView> {
+    let rays = camera_rays(camera, scene_box);
     let r = render_rays_observed(model, &rays, settings, device, go)?;
     Some(RenderedView {
         width: camera.intrinsics.width,

@@ -32,29 +32,9 @@ pub struct Composite {
 /// - `dir_norm`: `[rays, 1]` length of the (unnormalised) direction.
 /// - output: `[rays, samples]`.
 pub fn compute_weights(density: Tensor<2>, t_vals: Tensor<2>, dir_norm: Tensor<2>) -> Tensor<2> {
-    let [rays, s] = density.dims();
-    let delta = t_vals
-        .clone()
-        .slice_dim(1, 1..s + 1)
-        .sub(t_vals.slice_dim(1, 0..s))
-        .mul(dir_norm);
-    let tau = density.mul(delta);
-    let alpha = tau.clone().neg().exp().neg().add_scalar(1.0);
-    // Exclusive scan by shifting (an inclusive scan minus tau would cancel
-    // catastrophically after a huge tau).
-    let device = tau.device();
-    let exclusive = if s > 1 {
-        Tensor::cat(
-            vec![
-                Tensor::zeros([rays, 1], &device),
-                tau.slice_dim(1, 0..s - 1).cumsum(1),
-            ],
-            1,
-        )
-    } else {
-        Tensor::zeros([rays, 1], &device)
-    };
-    alpha.mul(exclusive.neg().exp())
+    let [rays, _] = density.dims();
+    let none = Tensor::zeros([rays, 1], &density.device());
+    segment_weights(density, t_vals, dir_norm, none).0
 }
 
 /// Compositing weights of one segment of consecutive samples, given the
@@ -81,6 +61,8 @@ pub fn segment_weights(
         .mul(dir_norm);
     let tau = density.mul(delta);
     let alpha = tau.clone().neg().exp().neg().add_scalar(1.0);
+    // Exclusive scan by shifting (an inclusive scan minus tau would cancel
+    // catastrophically after a huge tau).
     let exclusive = if s > 1 {
         Tensor::cat(
             vec![

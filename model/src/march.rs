@@ -11,7 +11,7 @@ use crate::composite::{
     DEPTH_ACC_EPS, FEATURE_ACC_EPS, composite_features_mean, composite_values, segment_weights,
     t_mids,
 };
-use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
+use crate::mip::pos_enc;
 use crate::nerf::{FeatureMode, OpenNerf, Rays};
 use crate::sampling::{resample_t_vals, stratified_t_vals};
 
@@ -65,9 +65,7 @@ pub struct MarchedRays {
 /// The rays still being marched, compacted: row `i` is ray `ids[i]`.
 struct Alive {
     ids: Vec<usize>,
-    origins: Tensor<2>,
-    directions: Tensor<2>,
-    radii: Tensor<2>,
+    rays: Rays,
     dir_norm: Tensor<2>,
     view_enc: Tensor<2>,
     t_vals: Tensor<2>,
@@ -94,9 +92,13 @@ impl Alive {
         let s = |t: Tensor<2>| t.select(0, idx.clone());
         Alive {
             ids: rows.iter().map(|&r| self.ids[r]).collect(),
-            origins: s(self.origins),
-            directions: s(self.directions),
-            radii: s(self.radii),
+            rays: Rays {
+                origins: s(self.rays.origins),
+                directions: s(self.rays.directions),
+                radii: s(self.rays.radii),
+                near: s(self.rays.near),
+                far: s(self.rays.far),
+            },
             dir_norm: s(self.dir_norm),
             view_enc: s(self.view_enc),
             t_vals: s(self.t_vals),
@@ -201,9 +203,7 @@ impl OpenNerf {
         let t_coarse = stratified_t_vals(rays.near.clone(), rays.far.clone(), s, false);
         let start = |t_vals: Tensor<2>| Alive {
             ids: (0..n).collect(),
-            origins: rays.origins.clone(),
-            directions: rays.directions.clone(),
-            radii: rays.radii.clone(),
+            rays: rays.clone(),
             dir_norm: dir_norm.clone(),
             view_enc: view_enc.clone(),
             t_vals,
@@ -233,15 +233,8 @@ impl OpenNerf {
             .t_vals
             .clone()
             .slice_dim(1, range.start..range.end + 1);
-        let g = cast_rays(
-            t.clone(),
-            alive.origins.clone(),
-            alive.directions.clone(),
-            alive.radii.clone(),
-        );
-        let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
-        let [_, _, dim] = ipe.dims();
-        let (trunk, density) = self.mlp.trunk_density(ipe.reshape([m * len, dim]));
+        let ipe = self.encode_samples(t.clone(), &alive.rays);
+        let (trunk, density) = self.mlp.trunk_density(ipe);
         (density.reshape([m, len]), trunk, t)
     }
 

@@ -319,15 +319,8 @@ impl OpenNerf {
     ) -> LevelOutputs {
         let [n, posts] = t_vals.dims();
         let s = posts - 1;
-        let g = cast_rays(
-            t_vals.clone(),
-            rays.origins.clone(),
-            rays.directions.clone(),
-            rays.radii.clone(),
-        );
-        let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
-        let [_, _, ipe_dim] = ipe.dims();
-        let field = self.mlp.forward(ipe.reshape([n * s, ipe_dim]), view_enc, s);
+        let ipe = self.encode_samples(t_vals.clone(), rays);
+        let field = self.mlp.forward(ipe, view_enc, s);
         let comp = composite(
             field.density.reshape([n, s]),
             field.rgb.reshape([n, s, 3]),
@@ -357,6 +350,24 @@ impl OpenNerf {
             weights: comp.weights,
             t_vals,
         }
+    }
+
+    /// The integrated positional encoding of the frustums between
+    /// consecutive fence posts, ray-major.
+    ///
+    /// # Shapes
+    /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, ipe_dim]`.
+    pub(crate) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
+        let [n, posts] = t_vals.dims();
+        let g = cast_rays(
+            t_vals,
+            rays.origins.clone(),
+            rays.directions.clone(),
+            rays.radii.clone(),
+        );
+        let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
+        let [_, _, dim] = ipe.dims();
+        ipe.reshape([n * (posts - 1), dim])
     }
 
     /// Feature by averaging the head's hidden activations with the (detached)

@@ -7,9 +7,8 @@ mod common;
 
 use burn::module::Param;
 use burn::tensor::{Device, Tensor};
-use common::{assert_close, devices, tensor, vec};
+use common::{assert_close, camera_rays, devices, tensor, vec};
 use model::composite::segment_weights;
-use model::geometry::{Camera, Intrinsics, NormalizedRay, SceneBox, look_at};
 use model::{
     FeatureHeadConfig, FeatureMode, MarchedRays, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays,
     Termination,
@@ -29,24 +28,6 @@ fn model(samples: usize, top_k: Option<usize>, device: &Device) -> OpenNerf {
         .with_num_samples(samples)
         .with_head_top_k(top_k)
         .init(device)
-}
-
-fn camera_rays(n: usize, seed: u64) -> Vec<NormalizedRay> {
-    let scene = SceneBox {
-        min: [-1.0; 3],
-        max: [1.0; 3],
-    };
-    let cam = Camera {
-        intrinsics: Intrinsics::from_fov_x(32, 32, 0.8),
-        pose: look_at([0.3, -0.4, -2.5], [0.0; 3], [0.0, -1.0, 0.0]).expect("valid look-at"),
-    };
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..n)
-        .map(|_| {
-            let ray = cam.ray(rng.random_range(0.0..31.0), rng.random_range(0.0..31.0));
-            scene.normalize_ray(&ray, 0.05)
-        })
-        .collect()
 }
 
 /// Segments composited in order give the weights of the whole ray

@@ -9,14 +9,12 @@ mod common;
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Gradients, Tensor};
-use common::{assert_close, devices, tensor, vec};
-use model::geometry::{Camera, Intrinsics, NormalizedRay, SceneBox, look_at};
+use common::{assert_close, camera_rays, devices, tensor, vec};
+use model::geometry::{NormalizedRay, SceneBox};
 use model::{
     FeatureHeadConfig, FeatureMode, FeatureSpace, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays,
     open_set_cosine, rgb_mse,
 };
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
 
 fn small_config(out_dim: usize, samples: usize) -> OpenNerfConfig {
     OpenNerfConfig::new(FeatureHeadConfig::new(out_dim).with_width(16))
@@ -28,25 +26,6 @@ fn small_config(out_dim: usize, samples: usize) -> OpenNerfConfig {
                 .with_max_deg(8),
         )
         .with_num_samples(samples)
-}
-
-/// Rays from a camera looking at the origin of a box of half-size 1 m.
-fn camera_rays(n: usize, seed: u64) -> Vec<NormalizedRay> {
-    let scene = SceneBox {
-        min: [-1.0; 3],
-        max: [1.0; 3],
-    };
-    let cam = Camera {
-        intrinsics: Intrinsics::from_fov_x(32, 32, 0.8),
-        pose: look_at([0.3, -0.4, -2.5], [0.0; 3], [0.0, -1.0, 0.0]).expect("valid look-at"),
-    };
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    (0..n)
-        .map(|_| {
-            let ray = cam.ray(rng.random_range(0.0..31.0), rng.random_range(0.0..31.0));
-            scene.normalize_ray(&ray, 0.05)
-        })
-        .collect()
 }
 
 /// Largest absolute gradient of each float parameter (0 when absent).

@@ -107,7 +107,8 @@ fn a_cell_occupies_its_26_neighbours_and_nothing_else() {
     let r = 8;
     let config = OccupancyConfig::new()
         .with_resolution(r)
-        .with_early_updates(0);
+        .with_early_updates(0)
+        .with_dilation(1);
     let g = marked(config.clone(), &[[3, 4, 5]]);
     let cells = occupied(&g);
     assert_eq!(cells.len(), 27);
@@ -139,7 +140,7 @@ fn complete_and_empty_grids_stay_complete_with_the_defaults() {
 
 #[test]
 fn early_updates_sample_each_cell_stratified_and_keep_the_maximum() {
-    let config = OccupancyConfig::new().with_resolution(4);
+    let config = OccupancyConfig::new().with_resolution(4).with_dilation(1);
     let mut g = OccupancyGrid::new(&config);
     let h = g.cell_size() as f32;
     for u in 0..6u64 {
@@ -181,7 +182,8 @@ fn early_updates_sample_each_cell_stratified_and_keep_the_maximum() {
 fn the_bytes_keep_the_rules_and_old_grids_load_with_theirs() {
     let config = OccupancyConfig::new()
         .with_resolution(8)
-        .with_early_updates(2);
+        .with_early_updates(2)
+        .with_dilation(1);
     let mut g = OccupancyGrid::new(&config);
     let mut d = vec![0.0f32; 8 * 512];
     d[8 * 100] = 50.0;

@@ -303,7 +303,7 @@ pub struct Cli {
     #[arg(long)]
     pub grid_early_updates: Option<usize>,
     /// Cells around each occupied grid cell that count as occupied too, in
-    /// 0..=4 (1: its 26 neighbours; 0: none) [default: 1].
+    /// 0..=4 (1: its 26 neighbours; 0: none) [default: 0].
     #[arg(long)]
     pub grid_dilation: Option<usize>,
     /// Grid refreshes during which training still renders the rays that

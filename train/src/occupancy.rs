@@ -377,7 +377,7 @@ mod tests {
             .with_min_opacity(0.02);
         assert_eq!(c, want);
         assert_eq!((c.early_samples, c.early_updates), (8, 4));
-        assert_eq!((c.dilation, c.keep_dropped_updates), (1, 8));
+        assert_eq!((c.dilation, c.keep_dropped_updates), (0, 8));
         // A bad value is still an error, and a run without the section gets
         // the default grid.
         assert!(read(r#"{"occupancy": {"dilation": "wide"}}"#).is_err());

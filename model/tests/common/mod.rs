@@ -64,3 +64,24 @@ fn push_wgpu(v: &mut Vec<(&'static str, Device)>) {
 
 #[cfg(not(feature = "wgpu"))]
 fn push_wgpu(_: &mut Vec<(&'static str, Device)>) {}
+
+/// Rays from a camera looking at the origin of a box of half-size 1 m.
+pub fn camera_rays(n: usize, seed: u64) -> Vec<model::geometry::NormalizedRay> {
+    use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
+    use rand::{Rng, SeedableRng};
+    let scene = SceneBox {
+        min: [-1.0; 3],
+        max: [1.0; 3],
+    };
+    let cam = Camera {
+        intrinsics: Intrinsics::from_fov_x(32, 32, 0.8),
+        pose: look_at([0.3, -0.4, -2.5], [0.0; 3], [0.0, -1.0, 0.0]).expect("valid look-at"),
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            let ray = cam.ray(rng.random_range(0.0..31.0), rng.random_range(0.0..31.0));
+            scene.normalize_ray(&ray, 0.05)
+        })
+        .collect()
+}
