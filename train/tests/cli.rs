@@ -386,7 +386,9 @@ fn occupancy_grid_flags_and_settings_are_checked_and_a_grid_run_saves_its_grid()
     assert!(r.status.success(), "{stderr}");
     assert!(stdout.contains("model.bpk, occupancy.bin"), "{stdout}");
     let grid = std::fs::read(run.join("occupancy.bin")).expect("occupancy.bin");
-    assert_eq!(grid.len(), 8 + 24 + 4 * 8 * 8 * 8, "an 8^3 grid");
+    // Magic, resolution and updates (u64), decay and min opacity (f32),
+    // early samples, early updates and dilation (u32), then 8^3 densities.
+    assert_eq!(grid.len(), 8 + 16 + 8 + 12 + 4 * 8 * 8 * 8, "an 8^3 grid");
     let config: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).expect("config"))
             .expect("json");

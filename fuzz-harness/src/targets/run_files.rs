@@ -32,6 +32,8 @@ const RUN_TOKENS: &[&str] = &[
     "4f43434752494431",
     "ONERFCK1",
     "OCCGRID1",
+    "OCCGRID2",
+    "4f43434752494432",
 ];
 
 /// Checkpoint magic and header length (see `train::checkpoint`).
