@@ -31,11 +31,6 @@ pub fn rgb_mse(gt: &RgbImage, view: &RenderedView) -> Option<f64> {
     Some(sum / gt.data.len() as f64)
 }
 
-/// PSNR in dB of a mean squared error of colours in `[0, 1]`.
-pub fn psnr(mse: f64) -> f64 {
-    -10.0 * mse.max(1e-20).log10()
-}
-
 /// `ground truth | render | error` side by side (`3 * width` wide): the error
 /// is the mean absolute difference over the three channels, Turbo-coloured
 /// from 0 to [`ERROR_SCALE_MAX`]. `None` when the sizes differ.

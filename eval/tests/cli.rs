@@ -97,6 +97,30 @@ fn zero_sizes_and_counts_are_refused_by_flag() {
 }
 
 #[test]
+fn a_termination_outside_0_to_1_is_refused() {
+    for value in ["1", "--termination=-0.5", "NaN", "inf"] {
+        let args: Vec<&str> = if value.starts_with("--") {
+            vec!["render", "--run", MISSING, value]
+        } else {
+            vec!["render", "--run", MISSING, "--termination", value]
+        };
+        assert_refused(&args, &["--termination", "[0, 1)"]);
+    }
+    assert_refused(
+        &[
+            "query",
+            "--run",
+            MISSING,
+            "--query",
+            "sofa",
+            "--termination",
+            "2",
+        ],
+        &["--termination 2"],
+    );
+}
+
+#[test]
 fn nan_or_negative_radius_is_refused() {
     for r in ["NaN", "-0.5", "inf"] {
         assert_refused(&["segment", "--run", MISSING, "--radius", r], &["--radius"]);
@@ -184,6 +208,10 @@ fn render_writes_truth_render_error_panels_and_a_path_gif() {
     let o = out.display().to_string();
     let r = eval(&["render", "--run", &run, "--out", &o]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    // Scene frames are scored against their images.
+    assert!(stdout.contains("PSNR against the"), "{stdout}");
+    assert!(stdout.contains("samples a ray evaluated"), "{stdout}");
     let cmp = image::open(out.join("frame000000_compare.png")).expect("comparison image");
     let rgb = image::open(out.join("frame000000_rgb.png")).expect("render");
     assert_eq!(cmp.width(), 3 * rgb.width());

@@ -15,6 +15,7 @@ pub mod files;
 pub mod frame;
 pub mod images;
 pub mod json;
+pub mod metrics;
 pub mod novel;
 pub mod plot;
 pub mod progress;

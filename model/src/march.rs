@@ -11,7 +11,6 @@ use crate::composite::{
     DEPTH_ACC_EPS, FEATURE_ACC_EPS, composite_features_mean, composite_values, segment_weights,
     t_mids,
 };
-use crate::mip::pos_enc;
 use crate::nerf::{FeatureMode, OpenNerf, Rays};
 use crate::sampling::{resample_t_vals, stratified_t_vals};
 
@@ -193,12 +192,7 @@ impl OpenNerf {
             return out;
         }
         let device = rays.origins.device();
-        let dir_norm = rays.directions.clone().square().sum_dim(1).sqrt();
-        let viewdirs = rays
-            .directions
-            .clone()
-            .div(dir_norm.clone().clamp_min(1e-20));
-        let view_enc = pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true);
+        let (dir_norm, view_enc) = self.view_encoding(rays);
         let s = self.num_samples;
         let t_coarse = stratified_t_vals(rays.near.clone(), rays.far.clone(), s, false);
         let start = |t_vals: Tensor<2>| Alive {
@@ -257,11 +251,13 @@ impl OpenNerf {
                 let ray = alive.ids[row];
                 weights[ray * s + begin..ray * s + end].copy_from_slice(chunk);
             }
-            let (keep, _) = alive.split(term.transmittance);
-            if keep.len() < alive.ids.len() {
-                alive = alive.keep(&keep);
-            }
             begin = end;
+            if begin < s {
+                let (keep, _) = alive.split(term.transmittance);
+                if keep.len() < alive.ids.len() {
+                    alive = alive.keep(&keep);
+                }
+            }
         }
         (weights, evaluated)
     }
@@ -348,11 +344,12 @@ impl OpenNerf {
                 let ids: Vec<usize> = done.iter().map(|&r| alive.ids[r]).collect();
                 self.finish(state.select(&done), &ids, background, out);
             }
-            if !keep.is_empty() && keep.len() < rows {
+            if keep.is_empty() {
+                break;
+            }
+            if keep.len() < rows {
                 state = state.select(&keep);
                 alive = alive.keep(&keep);
-            } else if keep.is_empty() {
-                break;
             }
         }
         evaluated

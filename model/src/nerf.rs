@@ -241,12 +241,7 @@ impl OpenNerf {
         background: Option<[f32; 3]>,
         mode: FeatureMode,
     ) -> RenderOutputs {
-        let dir_norm = rays.directions.clone().square().sum_dim(1).sqrt();
-        let viewdirs = rays
-            .directions
-            .clone()
-            .div(dir_norm.clone().clamp_min(1e-20));
-        let view_enc = pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true);
+        let (dir_norm, view_enc) = self.view_encoding(rays);
         let t_coarse = stratified_t_vals(
             rays.near.clone(),
             rays.far.clone(),
@@ -350,6 +345,20 @@ impl OpenNerf {
             weights: comp.weights,
             t_vals,
         }
+    }
+
+    /// The length of each ray's direction and the encoding of its unit
+    /// direction (the colour branch's view input).
+    ///
+    /// # Shapes
+    /// - outputs: `[n, 1]`, `[n, view_dim]`.
+    pub(crate) fn view_encoding(&self, rays: &Rays) -> (Tensor<2>, Tensor<2>) {
+        let dir_norm = rays.directions.clone().square().sum_dim(1).sqrt();
+        let viewdirs = rays
+            .directions
+            .clone()
+            .div(dir_norm.clone().clamp_min(1e-20));
+        (dir_norm, pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true))
     }
 
     /// The integrated positional encoding of the frustums between

@@ -8,25 +8,22 @@ use field_ops::render::{camera_rays, render_rays_with, tensor_to_vec};
 use model::{FeatureMode, Rays, Termination};
 use tests::{ci_scene, flex_session as session, scratch_dir, serial, tiny_config};
 
+/// PSNR of `a` against `b`.
 fn psnr(a: &[f32], b: &[f32]) -> f64 {
-    let mse = a
+    let sq: f64 = a
         .iter()
         .zip(b)
         .map(|(&x, &y)| (x as f64 - y as f64).powi(2))
-        .sum::<f64>()
-        / a.len() as f64;
-    -10.0 * mse.log10()
+        .sum();
+    field_ops::metrics::psnr(sq / a.len() as f64)
 }
 
-fn worst_cosine(a: &[f32], b: &[f32], dim: usize) -> f32 {
+/// The smallest cosine between corresponding `dim`-vectors of `a` and `b`.
+fn worst_cosine(a: &[f32], b: &[f32], dim: usize) -> f64 {
     a.chunks(dim)
         .zip(b.chunks(dim))
-        .map(|(a, b)| {
-            let dot: f32 = a.iter().zip(b).map(|(x, y)| x * y).sum();
-            let n = |v: &[f32]| v.iter().map(|x| x * x).sum::<f32>().sqrt();
-            dot / (n(a) * n(b)).max(1e-12)
-        })
-        .fold(1.0f32, f32::min)
+        .map(|(a, b)| field_ops::metrics::cosine(a, b))
+        .fold(1.0, f64::min)
 }
 
 #[test]

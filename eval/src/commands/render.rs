@@ -138,7 +138,7 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
             errors.push(mse);
             field_ops::progress::note(
                 &bar,
-                format!("{}: PSNR {:.3} dB", c.name, crate::figures::psnr(mse)),
+                format!("{}: PSNR {:.3} dB", c.name, field_ops::metrics::psnr(mse)),
             );
         }
         if let Some((w, h, px)) = truth.and_then(|f| crate::figures::comparison(&f.rgb, &v)) {
@@ -172,7 +172,7 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
         println!(
             "PSNR against the {} scene frame(s): {:.3} dB (of the mean squared error, every pixel)",
             errors.len(),
-            crate::figures::psnr(mean)
+            field_ops::metrics::psnr(mean)
         );
     }
     if let Some(first) = cams.first().filter(|_| !animation.is_empty()) {
