@@ -8,6 +8,7 @@ mod pca;
 use std::path::{Path, PathBuf};
 
 use half::f16;
+use half::slice::HalfFloatSliceExt;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -59,6 +60,19 @@ pub fn is_full_target(v: &[f16]) -> bool {
     let mut n2 = 0f32;
     for x in v {
         let x = x.to_f32();
+        if !x.is_finite() {
+            return false;
+        }
+        n2 += x * x;
+    }
+    n2 >= ZERO_FEATURE_NORM * ZERO_FEATURE_NORM
+}
+
+/// [`is_full_target`] of the vector already converted to f32 (the same
+/// sums, so the same answer).
+fn is_full_target_f32(v: &[f32]) -> bool {
+    let mut n2 = 0f32;
+    for &x in v {
         if !x.is_finite() {
             return false;
         }
@@ -143,7 +157,7 @@ impl FeatureSet {
 
 /// Which pixels of each map feed the PCA fit: about `PCA_SAMPLES` in all,
 /// spread evenly over the maps, drawn with a seeded generator.
-fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
+pub(crate) fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5ca1_ab1e);
     let per = PCA_SAMPLES.div_ceil(sizes.len().max(1));
     sizes
@@ -161,7 +175,7 @@ fn sample_plan(sizes: &[usize], seed: u64) -> Vec<Vec<usize>> {
 /// Appends the feature vectors of the map pixels `pixels` to `out` as f32
 /// (the PCA fitting sample). Pixels without a target (zero vectors) are left
 /// out: they are not part of the feature distribution.
-fn gather_pixels(map: &FeatureMap, pixels: &[usize], out: &mut Vec<f32>) {
+pub(crate) fn gather_pixels(map: &FeatureMap, pixels: &[usize], out: &mut Vec<f32>) {
     let d = map.dim;
     for &p in pixels {
         let v = &map.data[p * d..(p + 1) * d];
@@ -174,16 +188,39 @@ fn gather_pixels(map: &FeatureMap, pixels: &[usize], out: &mut Vec<f32>) {
 /// A map projected onto `pca`'s `k` components (stored as f16 coefficients).
 /// Pixels without a target (zero or non-finite vectors) get NaN
 /// coefficients, which [`FeatureSet::is_target`] reads as "no target".
+///
+/// The pixels are projected a block at a time ([`PcaBasis::project`] works
+/// on several rows at once), which is what makes compressing hundreds of
+/// millions of pixels affordable.
 pub fn compress_map(map: &FeatureMap, pca: &PcaBasis) -> FeatureMap {
-    let d = map.dim;
+    /// Pixels converted and projected together.
+    const BLOCK: usize = 256;
+    let d = map.dim.max(1);
     let mut data = Vec::with_capacity((map.width * map.height) as usize * pca.k);
-    let mut full = vec![0f32; d];
-    for v in map.data.chunks_exact(d.max(1)) {
-        if is_full_target(v) {
-            full.iter_mut().zip(v).for_each(|(o, h)| *o = h.to_f32());
-            data.extend(pca.project(&full).into_iter().map(f16::from_f32));
-        } else {
-            data.extend(std::iter::repeat_n(f16::NAN, pca.k));
+    let mut rows = Vec::with_capacity(BLOCK * d);
+    let mut targets = Vec::with_capacity(BLOCK);
+    for block in map.data.chunks(BLOCK * d) {
+        rows.clear();
+        targets.clear();
+        for v in block.chunks_exact(d) {
+            // Converted once, checked in f32, kept only if it is a target.
+            let start = rows.len();
+            rows.resize(start + d, 0.0);
+            v.convert_to_f32_slice(&mut rows[start..]);
+            let target = is_full_target_f32(&rows[start..]);
+            if !target {
+                rows.truncate(start);
+            }
+            targets.push(target);
+        }
+        let coeffs = pca.project(&rows);
+        let mut next = coeffs.chunks_exact(pca.k.max(1));
+        for &target in &targets {
+            let row = if target { next.next() } else { None };
+            match row {
+                Some(c) => data.extend(c.iter().map(|&x| f16::from_f32(x))),
+                None => data.extend(std::iter::repeat_n(f16::NAN, pca.k)),
+            }
         }
     }
     FeatureMap {

@@ -220,6 +220,7 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
             rgb,
             depth: None,
             depth_weight: 0.0,
+            color_weight: 1.0,
             labels: None,
             mask: None,
         });

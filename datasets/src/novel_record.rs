@@ -38,6 +38,10 @@ pub struct NovelViewEntry {
     pub features: String,
     /// Weight of the rendered depth in the depth loss.
     pub depth_weight: f32,
+    /// Weight of the rendered colour in the colour loss (records written
+    /// before the weight existed trained on it at 1).
+    #[serde(default = "unit_weight")]
+    pub color_weight: f32,
     /// The point the camera was aimed at, when it was aimed at one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target: Option<[f64; 3]>,
@@ -57,6 +61,10 @@ pub struct NovelRecord {
     pub views: Vec<NovelViewEntry>,
 }
 
+fn unit_weight() -> f32 {
+    1.0
+}
+
 /// A view to record: its camera, rendered colour and depth, and features.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NovelView {
@@ -72,6 +80,8 @@ pub struct NovelView {
     pub features: FeatureMap,
     /// Depth-loss weight.
     pub depth_weight: f32,
+    /// Colour-loss weight.
+    pub color_weight: f32,
     /// Aim point.
     pub target: Option<[f64; 3]>,
     /// Uncertainty of the aim point.
@@ -95,6 +105,7 @@ pub fn write_record(
             depth: format!("{}_depth.npy", v.name),
             features: format!("{}_features.npy", v.name),
             depth_weight: v.depth_weight,
+            color_weight: v.color_weight,
             target: v.target,
             uncertainty: v.uncertainty,
         };
@@ -199,6 +210,15 @@ fn load_view(
         ));
     }
     let data: Vec<f16> = info.read_f16_range(0, fh * fw * fd)?;
+    if !(e.color_weight.is_finite() && (0.0..=1.0).contains(&e.color_weight)) {
+        return Err(DatasetError::invalid(
+            dir.join(INDEX),
+            format!(
+                "{}: colour weight {} is not a weight in [0, 1]",
+                e.name, e.color_weight
+            ),
+        ));
+    }
     if !(e.depth_weight.is_finite() && e.depth_weight >= 0.0) {
         return Err(DatasetError::invalid(
             dir.join(INDEX),
@@ -218,6 +238,7 @@ fn load_view(
             data: depth,
         }),
         depth_weight: e.depth_weight,
+        color_weight: e.color_weight,
         labels: None,
         mask: None,
     };
@@ -305,6 +326,7 @@ mod tests {
                     .collect(),
             },
             depth_weight: 0.25,
+            color_weight: 0.5 * i as f32,
             target: Some([0.0; 3]),
             uncertainty: Some(0.8),
         }
@@ -325,6 +347,7 @@ mod tests {
             assert_eq!(frame.camera, v.camera);
             assert_eq!(frame.depth.as_ref().expect("depth"), &v.depth);
             assert_eq!(frame.depth_weight, 0.25);
+            assert_eq!(frame.color_weight, v.color_weight);
             for (a, b) in frame.rgb.data.iter().zip(&v.rgb.data) {
                 assert!((a - b).abs() <= 0.5 / 255.0 + 1e-6, "{a} vs {b}");
             }
@@ -340,6 +363,22 @@ mod tests {
         write_npy_f32(&dir.path().join("novel_001_depth.npy"), &[2, 2], &[1.0; 4]).expect("w");
         let e = load_views(dir.path(), &record, 3).expect_err("depth");
         assert!(e.to_string().contains("novel_001_depth.npy"), "{e}");
+        // A record written before the colour weight existed reads as 1; a
+        // weight outside [0, 1] is refused naming the index.
+        let index = std::fs::read_to_string(dir.path().join(INDEX)).expect("index");
+        let old = index.replace("\"color_weight\": 0.0,", "");
+        assert_ne!(old, index, "{index}");
+        std::fs::write(dir.path().join(INDEX), &old).expect("w");
+        let record = read_record(dir.path()).expect("old").expect("some");
+        assert_eq!(record.views[0].color_weight, 1.0);
+        std::fs::write(
+            dir.path().join(INDEX),
+            index.replace("\"color_weight\": 0.0", "\"color_weight\": 2.0"),
+        )
+        .expect("w");
+        let record = read_record(dir.path()).expect("read").expect("some");
+        let e = load_views(dir.path(), &record, 3).expect_err("weight");
+        assert!(e.to_string().contains("colour weight"), "{e}");
         std::fs::write(dir.path().join(INDEX), "{\"mode\": 3").expect("w");
         let e = read_record(dir.path()).expect_err("json");
         assert!(e.to_string().contains(INDEX), "{e}");

@@ -188,6 +188,7 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
             rgb,
             depth: Some(depth),
             depth_weight: 1.0,
+            color_weight: 1.0,
             labels: None,
             mask: None,
         });

@@ -59,6 +59,9 @@ pub struct RayBatch {
     pub rays: Vec<NormalizedRay>,
     /// Target colours.
     pub rgb: Vec<[f32; 3]>,
+    /// Per-ray colour loss weight (the frame's `color_weight`), `None` when
+    /// every frame of the scene weighs 1 (the plain mean squared error).
+    pub rgb_weight: Option<Vec<f32>>,
     /// Target z-depths (0 = invalid), when any frame has depth.
     pub depth: Option<Vec<f32>>,
     /// Per-ray depth loss weight (the frame's `depth_weight`, 0 without depth).
@@ -84,6 +87,62 @@ impl RayBatch {
     /// Whether the batch is empty.
     pub fn is_empty(&self) -> bool {
         self.rays.is_empty()
+    }
+
+    /// Appends `other`'s rays and targets. A target one side lacks is
+    /// filled as the loss reads a missing one: depth 0 with weight 0,
+    /// colour weight 1, no feature target (mask 0).
+    ///
+    /// # Errors
+    /// When the two batches' feature channels differ.
+    pub fn append(&mut self, other: RayBatch) -> Result<(), DatasetError> {
+        let (n, m) = (self.len(), other.len());
+        let features = self.features.is_some() || other.features.is_some();
+        if features && self.feature_dim != other.feature_dim && n > 0 && m > 0 {
+            return Err(DatasetError::invalid(
+                "<ray batch>",
+                format!(
+                    "cannot join batches of {} and {} feature channels",
+                    self.feature_dim, other.feature_dim
+                ),
+            ));
+        }
+        fn join<T: Clone>(a: &mut Option<Vec<T>>, b: Option<Vec<T>>, n: usize, m: usize, fill: T) {
+            match (a.as_mut(), b) {
+                (Some(a), Some(b)) => a.extend(b),
+                (Some(a), None) => a.extend(std::iter::repeat_n(fill, m)),
+                (None, Some(b)) => {
+                    let mut v = vec![fill; n];
+                    v.extend(b);
+                    *a = Some(v);
+                }
+                (None, None) => {}
+            }
+        }
+        let dim = if n > 0 {
+            self.feature_dim
+        } else {
+            other.feature_dim
+        };
+        join(&mut self.rgb_weight, other.rgb_weight, n, m, 1.0);
+        join(&mut self.depth, other.depth, n, m, 0.0);
+        join(&mut self.depth_weight, other.depth_weight, n, m, 0.0);
+        join(&mut self.feature_mask, other.feature_mask, n, m, 0.0);
+        match (self.features.as_mut(), other.features) {
+            (Some(a), Some(b)) => a.extend(b),
+            (Some(a), None) => a.extend(std::iter::repeat_n(0.0, m * dim)),
+            (None, Some(b)) => {
+                let mut v = vec![0.0; n * dim];
+                v.extend(b);
+                self.features = Some(v);
+            }
+            (None, None) => {}
+        }
+        self.feature_dim = if features { dim } else { 0 };
+        self.rays.extend(other.rays);
+        self.rgb.extend(other.rgb);
+        self.pixels.extend(other.pixels);
+        Ok(())
     }
 }
 
@@ -324,10 +383,12 @@ pub(crate) fn batch_at(
 ) -> RayBatch {
     let n = picks.len();
     let has_depth = frames.iter().any(|&f| scene.frames[f].depth.is_some());
+    let weighs_rgb = frames.iter().any(|&f| scene.frames[f].color_weight != 1.0);
     let feature_dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut b = RayBatch {
         rays: Vec::with_capacity(n),
         rgb: Vec::with_capacity(n),
+        rgb_weight: weighs_rgb.then(|| Vec::with_capacity(n)),
         depth: has_depth.then(|| Vec::with_capacity(n)),
         depth_weight: has_depth.then(|| Vec::with_capacity(n)),
         features: scene
@@ -345,6 +406,9 @@ pub(crate) fn batch_at(
         b.rays
             .push(scene.scene_box.normalize_ray(&ray, config.min_near));
         b.rgb.push(frame.rgb.get(x, y));
+        if let Some(w) = b.rgb_weight.as_mut() {
+            w.push(frame.color_weight);
+        }
         b.pixels.push([fi as u32, x, y]);
         if let (Some(d), Some(dw)) = (b.depth.as_mut(), b.depth_weight.as_mut()) {
             match &frame.depth {

@@ -65,6 +65,9 @@ pub struct Frame {
     /// Weight of this frame's depth in the depth loss (1 for sensor depth,
     /// less for depth rendered by the field itself).
     pub depth_weight: f32,
+    /// Weight of this frame's colour in the colour loss (1 for captured
+    /// colour; novel views rendered by the field itself may carry less).
+    pub color_weight: f32,
     /// Per-pixel class index (synthetic scenes only; `u16::MAX` = none).
     pub labels: Option<Vec<u16>>,
     /// Pixels that may be training targets, row-major `[height, width]` at

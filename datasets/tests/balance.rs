@@ -30,6 +30,7 @@ fn scene() -> Scene {
         },
         depth: None,
         depth_weight: 1.0,
+        color_weight: 1.0,
         labels: None,
         mask: None,
     };

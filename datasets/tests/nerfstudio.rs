@@ -57,6 +57,7 @@ fn frame(i: usize, k: Intrinsics) -> Frame {
             data: depth,
         }),
         depth_weight: 1.0,
+        color_weight: 1.0,
         labels: None,
         mask: Some(mask),
     }

@@ -39,6 +39,7 @@ fn frame(i: usize, w: u32, h: u32, depth: bool) -> Frame {
             data: d,
         }),
         depth_weight: 0.5 + i as f32,
+        color_weight: 1.0,
         labels: None,
         mask: None,
     }
@@ -324,4 +325,46 @@ fn a_frame_subset_is_respected_and_deterministic() {
     assert!(err.to_string().contains("out of range"), "{err}");
     let err = sample_batch_from(&config(), 5, &s, &[], 0).expect_err("empty");
     assert!(err.to_string().contains("no frames"), "{err}");
+}
+
+/// Joining two batches keeps every ray with its own targets and fills what
+/// one side lacks as the loss reads a missing target.
+#[test]
+fn appended_batches_keep_their_targets_and_fill_the_missing_ones() {
+    let mut s = scene(true);
+    s.frames[0].color_weight = 0.25;
+    let cfg = SamplerConfig {
+        rays_per_batch: 16,
+        ..config()
+    };
+    // Frame 1 has no depth and weighs its colour 1; frame 0 has both.
+    let mut a = sample_batch_from(&cfg, 3, &s, &[1], 0).expect("a");
+    assert!(a.depth.is_none() && a.rgb_weight.is_none());
+    let b = sample_batch_from(&cfg, 4, &s, &[0], 0).expect("b");
+    assert!(b.depth.is_some() && b.rgb_weight.is_some());
+    let (a0, b0) = (a.clone(), b.clone());
+    a.append(b).expect("append");
+    assert_eq!(a.len(), 32);
+    assert_eq!(a.pixels[..16], a0.pixels[..]);
+    assert_eq!(a.pixels[16..], b0.pixels[..]);
+    assert_eq!(a.rgb[16..], b0.rgb[..]);
+    let depth = a.depth.as_ref().expect("depth");
+    let weight = a.depth_weight.as_ref().expect("weights");
+    assert!(depth[..16].iter().chain(&weight[..16]).all(|&v| v == 0.0));
+    assert_eq!(depth[16..], b0.depth.as_ref().expect("d")[..]);
+    assert_eq!(weight[16..], b0.depth_weight.as_ref().expect("w")[..]);
+    let rgb_weight = a.rgb_weight.as_ref().expect("colour weights");
+    assert!(rgb_weight[..16].iter().all(|&w| w == 1.0));
+    assert!(rgb_weight[16..].iter().all(|&w| w == 0.25));
+    assert_eq!(a.features.as_ref().expect("f").len(), 32 * 2);
+    assert_eq!(
+        a.feature_mask.as_ref().expect("m")[16..],
+        b0.feature_mask.as_ref().expect("m")[..]
+    );
+    // Batches of different feature channels cannot be joined.
+    let mut wide = b0.clone();
+    wide.feature_dim = 3;
+    wide.features = Some(vec![0.0; 16 * 3]);
+    let e = a0.clone().append(wide).expect_err("channels");
+    assert!(e.to_string().contains("feature channels"), "{e}");
 }

@@ -431,3 +431,57 @@ fn pca_setting_and_stored_basis_are_honoured() {
     assert_eq!("12".parse::<PcaSetting>(), Ok(PcaSetting::Components(12)));
     assert!("0".parse::<PcaSetting>().is_err() && "-3".parse::<PcaSetting>().is_err());
 }
+
+#[test]
+fn paper_sizes_parse_and_are_the_bench_room_at_the_papers_scale() {
+    for (name, size, down) in [
+        ("paper", SceneSize::Paper, 4),
+        ("paper-full", SceneSize::PaperFull, 1),
+    ] {
+        assert_eq!(name.parse::<SceneSize>().unwrap(), size);
+        assert_eq!(size.to_string(), name);
+        assert_eq!(size.views(), (200, 640, 360));
+        assert_eq!(size.feature_downsample(), down);
+        let ex = synthetic::extractor_for(SEED, size);
+        assert_eq!(ex.dim(), 768);
+        assert_eq!(ex.map_size(640, 360), (640 / down, 360 / down));
+    }
+    assert_eq!(SceneSize::Bench.feature_dim(), None);
+    // The camera path of the bench scene, at twice its resolution.
+    let room = build_room(SEED);
+    let bench = synthetic::trajectory(&room, SceneSize::Bench, SEED).unwrap();
+    let paper = synthetic::trajectory(&room, SceneSize::Paper, SEED).unwrap();
+    assert_eq!(bench.len(), paper.len());
+    for (b, p) in bench.iter().zip(&paper) {
+        assert_eq!(b.pose, p.pose);
+        assert_eq!(p.intrinsics.width, 2 * b.intrinsics.width);
+    }
+}
+
+#[test]
+fn the_streamed_pca_fit_is_the_fit_on_all_fitting_maps() {
+    use datasets::features::{FeatureSet, PcaSetting};
+    let scene = synthetic::generate_with(SEED, SceneSize::Ci, PcaSetting::Auto, None).unwrap();
+    let ex = synthetic::extractor_for(SEED, SceneSize::Ci);
+    let maps = scene
+        .frames
+        .iter()
+        .step_by(10)
+        .map(|f| ex.extract(&f.rgb).unwrap())
+        .collect();
+    let held = FeatureSet::from_maps(maps, PcaSetting::Auto, SEED).unwrap();
+    let features = scene.features.unwrap();
+    assert_eq!(features.pca, held.pca);
+    let first = datasets::features::compress_map(
+        &ex.extract(&scene.frames[0].rgb).unwrap(),
+        held.pca.as_ref().unwrap(),
+    );
+    assert_eq!(
+        first.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        features.maps[0]
+            .data
+            .iter()
+            .map(|v| v.to_bits())
+            .collect::<Vec<_>>()
+    );
+}

@@ -1,5 +1,6 @@
 //! `eval`: segment, query and render trained OpenNeRF runs.
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 use eval::commands::extract::{ExtractArgs, extract_command};
 use eval::commands::query::{QueryArgs, query_command};
@@ -7,6 +8,7 @@ use eval::commands::render::{RenderArgs, render_command};
 use eval::commands::segment::{SegmentArgs, segment_command};
 use eval::commands::uncertainty::{UncertaintyArgs, uncertainty_command};
 use eval::commands::view::{ViewArgs, view_command};
+use field_ops::stages::StageLog;
 
 #[cfg(not(target_env = "msvc"))]
 #[global_allocator]
@@ -58,7 +60,12 @@ fn main() -> std::process::ExitCode {
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Segment(a) => {
+            let mut stages = StageLog::for_run(&a.run);
+            stages.begin("eval segment");
             segment_command(&a)?;
+            stages
+                .end()
+                .context("recording the stage's time and memory")?;
         }
         Command::Query(a) => {
             for p in query_command(&a)? {
@@ -71,7 +78,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
         }
         Command::Uncertainty(a) => {
-            for p in uncertainty_command(&a)? {
+            let mut stages = StageLog::for_run(&a.run);
+            stages.begin("eval uncertainty");
+            let written = uncertainty_command(&a)?;
+            stages
+                .end()
+                .context("recording the stage's time and memory")?;
+            for p in written {
                 println!("wrote {}", p.display());
             }
         }

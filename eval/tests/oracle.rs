@@ -190,6 +190,17 @@ impl datasets::extractor::FeatureExtractor for CountingExtractor {
         self.batches.borrow_mut().push(images.len());
         images.iter().map(|i| self.inner.extract(i)).collect()
     }
+
+    fn extract_each(
+        &self,
+        images: &[&datasets::RgbImage],
+        each: &mut dyn FnMut(datasets::FeatureMap) -> Result<(), datasets::DatasetError>,
+    ) -> Result<(), datasets::DatasetError> {
+        for map in self.extract_batch(images)? {
+            each(map)?;
+        }
+        Ok(())
+    }
 }
 
 #[test]
@@ -235,8 +246,17 @@ fn the_field_s_novel_views_are_read_by_the_extractor_in_one_batch() {
     );
     assert_eq!(extractor.single.get(), 0, "no view read on its own");
     assert_eq!(progress, vec![(1, 3), (2, 3), (3, 3)]);
-    // Each view's map is the extractor's reading of that view's render.
+    // Each view's map is the extractor's reading of that view's render,
+    // cleared where the render stayed transparent.
     for v in &views {
-        assert_eq!(v.features, extractor.inner.extract(&v.rgb).expect("map"));
+        let mut expected = extractor.inner.extract(&v.rgb).expect("map");
+        field_ops::novel::extract::mask_fog_cells(&mut expected, &v.depth);
+        let bits =
+            |m: &datasets::FeatureMap| m.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(
+            (v.features.width, v.features.height),
+            (expected.width, expected.height)
+        );
+        assert_eq!(bits(&v.features), bits(&expected));
     }
 }

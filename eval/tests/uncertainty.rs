@@ -25,7 +25,7 @@ fn cloud(scene: &Scene) -> Vec<[f64; 3]> {
 }
 
 #[test]
-fn the_map_is_finite_normalised_and_maximal_where_seen_less_than_twice() {
+fn the_map_is_finite_normalised_maximal_where_unseen_and_the_prior_where_seen_once() {
     let scene = ci_scene();
     let frames: Vec<usize> = (0..scene.frames.len()).collect();
     let pts = cloud(&scene);
@@ -50,8 +50,19 @@ fn the_map_is_finite_normalised_and_maximal_where_seen_less_than_twice() {
         .iter()
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
+    // Never seen: the largest value. Seen once: no scatter, so the shrunk
+    // covariance is the pooled prior itself, the same value for all of them.
+    let once: Vec<f64> = (0..pts.len())
+        .filter(|&i| map.counts[i] == 1)
+        .map(|i| map.log_det[i])
+        .collect();
+    assert!(!once.is_empty(), "no point seen once");
+    assert!(
+        once.iter().all(|u| (u - once[0]).abs() < 1e-9 && *u < max),
+        "{once:?}"
+    );
     for (c, u) in map.counts.iter().zip(&map.log_det) {
-        if *c < 2 {
+        if *c == 0 {
             assert_eq!(*u, max);
         }
     }

@@ -26,6 +26,7 @@ pub mod run_dir;
 pub mod sample;
 pub mod scores;
 pub mod similarity;
+pub mod stages;
 pub mod text_query;
 pub mod uncertainty;
 pub mod vlm_maps;

@@ -18,7 +18,7 @@ pub mod sampling;
 
 pub use composite::Composite;
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
-pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse};
+pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb_mse};
 pub use march::{MarchedRays, Termination};
 pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, Rays, RenderOutputs};
 pub use occupancy::{ClippedRays, OccupancyConfig, OccupancyGrid};

@@ -15,6 +15,19 @@ pub fn rgb_mse(pred: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
     pred.sub(target).square().mean()
 }
 
+/// Colour squared error weighted per ray, averaged over all `3 n` values:
+/// a ray of weight 0 pulls nothing, and with every weight 1 this is
+/// [`rgb_mse`].
+///
+/// # Shapes
+/// - `pred`, `target`: `[n, 3]`; `weight`: `[n, 1]`; output: `[1]`.
+pub fn weighted_rgb_mse(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>) -> Tensor<1> {
+    pred.sub(target)
+        .square()
+        .mul(weight.repeat_dim(1, 3))
+        .mean()
+}
+
 /// Weighted Huber loss on depth, averaged over the rays with a valid target
 /// (`target > 0`; NaN targets count as invalid). Zero when none is valid.
 /// `weight` scales each ray (e.g. lower for rendered depth targets); it does

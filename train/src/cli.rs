@@ -62,6 +62,11 @@ pub enum SceneSizeArg {
     Ci,
     /// Larger, for benchmarks.
     Bench,
+    /// The paper's Replica scale: 200 views at 640x360, 768-D feature maps
+    /// at 160x90.
+    Paper,
+    /// As `paper`, with the feature maps at the full 640x360.
+    PaperFull,
 }
 
 /// An image size `WxH`.
@@ -270,6 +275,25 @@ pub struct Cli {
     /// extractor). [default: neither, the method as specified]
     #[arg(long, value_enum)]
     pub novel_oracle: Option<field_ops::novel::oracle::NovelOracle>,
+    /// How a point's uncertainty (the log-determinant of its feature
+    /// covariance) becomes its chance to be a guided target:
+    /// `minmax-logdet` rescales the log-determinant to [0, 1];
+    /// `det-over-max` is the generalized variance over its largest value
+    /// (the paper's draw); `rank:T` is the point's rank quantile to the power
+    /// 1/T, which makes about T/(1+T) of the points candidates (e.g.
+    /// `rank:0.25`) [default: minmax-logdet]
+    #[arg(long)]
+    pub novel_normalisation: Option<field_ops::uncertainty::Normalisation>,
+    /// Weight of the novel views' rendered colour in the colour loss, in
+    /// [0, 1] (captured colour weighs 1): the field's own render teaches it
+    /// nothing new, 0 keeps it from reinforcing its errors [default: 1]
+    #[arg(long, allow_negative_numbers = true)]
+    pub novel_color_weight: Option<f32>,
+    /// Keep the feature targets of novel-view map cells whose render is
+    /// mostly transparent (opacity below 0.5): by default such cells carry
+    /// no feature target, since the extractor reads them off fog
+    #[arg(long)]
+    pub novel_keep_fog: bool,
     /// For scenes on disk: the 2D feature extractor run on the rendered
     /// views, as `PROGRAM [ARGS...]`, split into words as a shell would
     /// (quote a path with spaces: `'/my models/extract' --fast`); it is called as
@@ -386,5 +410,17 @@ mod tests {
         assert_eq!(cli.iters, Some(100));
         assert_eq!(cli.backend, BackendKind::Ndarray);
         assert!(Cli::try_parse_from(["train", "--resolution", "1x1", "--downscale", "2"]).is_err());
+    }
+
+    #[test]
+    fn paper_scene_sizes_are_accepted() {
+        for size in ["paper", "paper-full"] {
+            let cli = Cli::try_parse_from(["train", "--scene-size", size]).unwrap();
+            match crate::data::source_from_cli(&cli).unwrap() {
+                datasets::SceneSource::Synthetic { size: s, .. } => assert_eq!(s, size),
+                other => panic!("--scene-size {size} gave {other:?}"),
+            }
+        }
+        assert!(Cli::try_parse_from(["train", "--scene-size", "paper_full"]).is_err());
     }
 }

@@ -24,6 +24,8 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             size: match cli.scene_size {
                 SceneSizeArg::Ci => "ci".into(),
                 SceneSizeArg::Bench => "bench".into(),
+                SceneSizeArg::Paper => "paper".into(),
+                SceneSizeArg::PaperFull => "paper-full".into(),
             },
             pca: cli.pca,
         });

@@ -34,7 +34,7 @@ pub mod vlm;
 pub use backend::BackendKind;
 pub use config::TrainConfig;
 pub use error::TrainError;
-pub use training::{RunOutcome, SessionOptions, resume, train_new};
+pub use training::{RunOutcome, SessionOptions, resume, train_new, train_new_with_stages};
 
 use std::path::PathBuf;
 
@@ -75,6 +75,9 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         PathBuf::from("runs").join(format!("{}-{secs}", data::run_name(&source)))
     });
     eprintln!("loading scene ({})", data::run_name(&source));
+    // The run directory does not exist yet: the record waits in the log.
+    let mut stages = field_ops::stages::StageLog::pending();
+    stages.begin("scene");
     let scene = match &cli.vlm {
         Some(model) => vlm::prepare(
             &source,
@@ -96,6 +99,7 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         )?,
         None => data::load(&source)?,
     };
+    stages.end()?;
     if scene.features.is_none() {
         eprintln!("{}", report::NO_FEATURES_WARNING);
     }
@@ -132,7 +136,14 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         cli.backend,
         out.display()
     );
-    train_new(&scene, config, cli.holdout_every, &out, &session)
+    train_new_with_stages(
+        std::borrow::Cow::Owned(scene),
+        config,
+        cli.holdout_every,
+        &out,
+        &session,
+        stages,
+    )
 }
 
 /// Lays the novel-view, occupancy-grid and head top-k flags over the configuration.
@@ -179,6 +190,15 @@ fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
     }
     if let Some(o) = cli.novel_oracle {
         novel.oracle = Some(o);
+    }
+    if let Some(n) = cli.novel_normalisation {
+        novel.normalisation = n;
+    }
+    if let Some(w) = cli.novel_color_weight {
+        novel.color_weight = w;
+    }
+    if cli.novel_keep_fog {
+        novel.mask_features = false;
     }
     if let Some(c) = &cli.extractor_command {
         // Refused before this point (`validate::cli`) when it cannot be split.

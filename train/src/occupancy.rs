@@ -101,6 +101,7 @@ pub fn clip_batch(
     let out = RayBatch {
         rays: clipped.rays,
         rgb: keep.iter().map(|&i| batch.rgb[i]).collect(),
+        rgb_weight: batch.rgb_weight.as_ref().map(|w| pick(w, 1)),
         depth: batch.depth.as_ref().map(|d| pick(d, 1)),
         depth_weight: batch.depth_weight.as_ref().map(|d| pick(d, 1)),
         features: batch.features.as_ref().map(|f| pick(f, batch.feature_dim)),
@@ -237,6 +238,7 @@ mod tests {
         RayBatch {
             rays,
             rgb: (0..n).map(|i| [i as f32; 3]).collect(),
+            rgb_weight: Some((0..n).map(|i| 0.5 * (i % 3) as f32).collect()),
             depth: Some((0..n).map(|i| i as f32).collect()),
             depth_weight: Some(vec![1.0; n]),
             features: Some((0..2 * n).map(|i| i as f32).collect()),
@@ -276,6 +278,7 @@ mod tests {
         let j = 1;
         let i = out.pixels[j][1] as usize;
         assert_eq!(out.depth.as_ref().unwrap()[j], i as f32);
+        assert_eq!(out.rgb_weight.as_ref().unwrap()[j], 0.5 * (i % 3) as f32);
         assert_eq!(
             &out.features.as_ref().unwrap()[2 * j..2 * j + 2],
             &[2.0 * i as f32, 2.0 * i as f32 + 1.0]

@@ -34,8 +34,12 @@ pub struct LossTerms {
 pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
     let device = batch.rgb.device();
     let zero = || Tensor::<1>::zeros([1], &device);
-    let rgb = model::rgb_mse(out.fine.rgb.clone(), batch.rgb.clone());
-    let coarse_rgb = model::rgb_mse(out.coarse.rgb.clone(), batch.rgb.clone());
+    let colour = |pred: Tensor<2>| match batch.rgb_weight.as_ref() {
+        Some(w) => model::weighted_rgb_mse(pred, batch.rgb.clone(), w.clone()),
+        None => model::rgb_mse(pred, batch.rgb.clone()),
+    };
+    let rgb = colour(out.fine.rgb.clone());
+    let coarse_rgb = colour(out.coarse.rgb.clone());
     let mut total = rgb.clone() + coarse_rgb.clone().mul_scalar(cfg.coarse_weight);
     let mut depth = zero();
     if let Some((target, weight)) = batch.depth.as_ref()
@@ -241,6 +245,7 @@ mod tests {
         BatchTensors {
             rays: Rays::from_normalized(&rays, device),
             rgb: t(vec![rgb; n * 3], 3),
+            rgb_weight: None,
             depth: Some((t(vec![2.0; n], 1), t(vec![1.0; n], 1))),
             feature: Some(FeatureTargets::dense(t(
                 (0..n * 4).map(|i| (i % 3) as f32 - 1.0).collect(),
@@ -361,5 +366,42 @@ mod tests {
             + 0.02 * coarse_depth;
         assert!((s(t.total) - expected).abs() < 1e-5 * expected.max(1.0));
         assert!(s(t.open) > 0.0);
+    }
+
+    #[test]
+    fn colour_weights_scale_each_ray_against_a_float64_sum() {
+        let device = Device::flex();
+        let model = tiny_model(&device);
+        let mut b = batch(&device, 0.3);
+        let out = model.render(&b.rays, false, None);
+        let cfg = LossConfig::default();
+        let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
+        let plain = s(losses(&out, &b, &cfg).rgb);
+        let n = 16;
+        let w: Vec<f32> = (0..n).map(|i| if i < 4 { 0.0 } else { 0.5 }).collect();
+        b.rgb_weight = Some(Tensor::<2>::from_data(
+            TensorData::new(w.clone(), [n, 1]),
+            &device,
+        ));
+        let weighted = s(losses(&out, &b, &cfg).rgb);
+        let pred: Vec<f32> = out
+            .fine
+            .rgb
+            .clone()
+            .into_data()
+            .try_to_vec::<f32>()
+            .expect("rgb");
+        let mut sum = 0f64;
+        for (i, p) in pred.iter().enumerate() {
+            sum += w[i / 3] as f64 * (*p as f64 - 0.3).powi(2);
+        }
+        let expected = sum / (3 * n) as f64;
+        assert!(
+            (weighted - expected).abs() < 1e-6 * expected.max(1e-3),
+            "{weighted} vs {expected}"
+        );
+        assert!(weighted < 0.5 * plain, "{weighted} vs {plain}");
+        b.rgb_weight = Some(Tensor::<2>::ones([n, 1], &device));
+        assert!((s(losses(&out, &b, &cfg).rgb) - plain).abs() < 1e-7);
     }
 }

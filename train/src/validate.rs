@@ -119,6 +119,13 @@ fn novel_and_grid_flags(cli: &Cli) -> Result<(), TrainError> {
             "--novel-depth-weight {w}: must be a weight in [0, 1] (sensor depth weighs 1)"
         )));
     }
+    if let Some(w) = cli.novel_color_weight
+        && !(w.is_finite() && (0.0..=1.0).contains(&w))
+    {
+        return Err(flag_error(format!(
+            "--novel-color-weight {w}: must be a weight in [0, 1] (captured colour weighs 1)"
+        )));
+    }
     if let Some(v) = cli.novel_scale
         && !(v.is_finite() && v > 0.0 && v <= 1.0)
     {
@@ -159,6 +166,9 @@ fn novel_and_grid_flags(cli: &Cli) -> Result<(), TrainError> {
         || cli.novel_depth_weight.is_some()
         || cli.novel_max_color_error.is_some()
         || cli.novel_oracle.is_some()
+        || cli.novel_normalisation.is_some()
+        || cli.novel_color_weight.is_some()
+        || cli.novel_keep_fog
         || cli.extractor_command.is_some();
     if novel_given && cli.novel_views.is_none() && cli.resume.is_none() {
         return Err(flag_error(
@@ -248,6 +258,9 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("novel-scale", cli.novel_scale.is_some()),
         ("novel-max-color-error", cli.novel_max_color_error.is_some()),
         ("novel-oracle", cli.novel_oracle.is_some()),
+        ("novel-normalisation", cli.novel_normalisation.is_some()),
+        ("novel-color-weight", cli.novel_color_weight.is_some()),
+        ("novel-keep-fog", cli.novel_keep_fog),
         ("extractor-command", cli.extractor_command.is_some()),
         ("occupancy-grid", cli.occupancy_grid),
         ("head-top-k", cli.head_top_k.is_some()),

@@ -240,6 +240,7 @@ fn load_frame(
         },
         rgb,
         depth_weight: if depth.is_some() { 1.0 } else { 0.0 },
+        color_weight: 1.0,
         depth,
         labels: None,
         mask,

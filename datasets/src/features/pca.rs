@@ -150,15 +150,39 @@ impl PcaBasis {
     ///
     /// # Shapes
     /// `x`: `[n, dim]` -> `[n, k]`.
+    ///
+    /// `LANES` rows are projected together: their centred values are laid
+    /// out channel-major, so the inner loop runs across rows (vector
+    /// instructions) while each row's dot product still adds its terms in
+    /// channel order from `-0.0`, exactly as a plain per-row sum does: the
+    /// coefficients are bit for bit those of the one-row-at-a-time loop.
     pub fn project(&self, x: &[f32]) -> Vec<f32> {
-        let mut out = Vec::with_capacity(x.len() / self.dim.max(1) * self.k);
-        let mut centred = vec![0f32; self.dim];
-        for row in x.chunks_exact(self.dim) {
-            for ((c, &v), &m) in centred.iter_mut().zip(row).zip(&self.mean) {
-                *c = v - m;
+        const LANES: usize = 16;
+        let (d, k) = (self.dim, self.k);
+        if d == 0 {
+            return Vec::new();
+        }
+        let n = x.len() / d;
+        let mut out = vec![0f32; n * k];
+        let mut block = vec![[0f32; LANES]; d];
+        for (b, rows) in x[..n * d].chunks(d * LANES).enumerate() {
+            let lanes = rows.len() / d;
+            block.iter_mut().for_each(|column| *column = [0.0; LANES]);
+            for (l, row) in rows.chunks_exact(d).enumerate() {
+                for ((column, &v), &m) in block.iter_mut().zip(row).zip(&self.mean) {
+                    column[l] = v - m;
+                }
             }
-            for comp in self.components.chunks_exact(self.dim) {
-                out.push(comp.iter().zip(&centred).map(|(a, b)| a * b).sum());
+            for (c, comp) in self.components.chunks_exact(d).enumerate() {
+                let mut acc = [-0.0f32; LANES];
+                for (&w, column) in comp.iter().zip(&block) {
+                    for l in 0..LANES {
+                        acc[l] += w * column[l];
+                    }
+                }
+                for (l, &a) in acc[..lanes].iter().enumerate() {
+                    out[(b * LANES + l) * k + c] = a;
+                }
             }
         }
         out
@@ -235,4 +259,29 @@ fn covariance(samples: &[f32], dim: usize, mean: &[f64]) -> Vec<f64> {
         }
     }
     cov
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocked_projection_is_the_per_row_dot_product_bit_for_bit() {
+        let (dim, n) = (37, 21); // rows not a multiple of the block
+        let value = |i: usize| ((i * 7919 % 1000) as f32 / 500.0 - 1.0) * 0.37;
+        let samples: Vec<f32> = (0..n * dim).map(value).collect();
+        let basis = PcaBasis::fit(&samples, dim, PcaSetting::Components(5)).unwrap();
+        let x: Vec<f32> = (0..n * dim).map(|i| value(i * 3 + 1)).collect();
+        let mut want = Vec::new();
+        for row in x.chunks_exact(dim) {
+            let centred: Vec<f32> = row.iter().zip(&basis.mean).map(|(v, m)| v - m).collect();
+            for comp in basis.components.chunks_exact(dim) {
+                want.push(comp.iter().zip(&centred).map(|(a, b)| a * b).sum::<f32>());
+            }
+        }
+        let got = basis.project(&x);
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&got), bits(&want));
+        assert!(basis.project(&x[..dim - 1]).is_empty());
+    }
 }

@@ -286,6 +286,7 @@ pub fn load_scannet_with_report(
             rgb,
             depth: Some(depth),
             depth_weight: 1.0,
+            color_weight: 1.0,
             labels: None,
             mask: None,
         });

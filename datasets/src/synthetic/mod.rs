@@ -6,6 +6,7 @@
 //! `(seed, size)`.
 
 pub mod classes;
+pub mod lift;
 pub mod raytrace;
 pub mod room;
 
@@ -22,7 +23,7 @@ pub use room::{Room, build_room};
 
 use crate::error::DatasetError;
 use crate::extractor::{FeatureExtractor, SimulatedExtractor};
-use crate::features::{FeatureMap, FeatureSet, PcaBasis, PcaSetting, compress_map};
+use crate::features::{FeatureSet, PcaBasis, PcaSetting, compress_map, gather_pixels, sample_plan};
 use crate::points::PointCloud;
 use crate::scene::{Frame, Scene, SceneSource};
 
@@ -33,6 +34,12 @@ pub enum SceneSize {
     Ci,
     /// 200 views at 320x180, for benchmark runs.
     Bench,
+    /// The paper's Replica setting: 200 views at 640x360 (the camera path of
+    /// [`SceneSize::Bench`]) with 768-D feature maps at a quarter of the
+    /// image resolution (160x90, what OpenNeRF's own code caches).
+    Paper,
+    /// [`SceneSize::Paper`] with the feature maps at the full 640x360.
+    PaperFull,
 }
 
 impl SceneSize {
@@ -41,6 +48,7 @@ impl SceneSize {
         match self {
             SceneSize::Ci => (20, 96, 54),
             SceneSize::Bench => (200, 320, 180),
+            SceneSize::Paper | SceneSize::PaperFull => (200, 640, 360),
         }
     }
 
@@ -48,7 +56,7 @@ impl SceneSize {
     fn point_density(self) -> (f64, usize) {
         match self {
             SceneSize::Ci => (30.0, 3),
-            SceneSize::Bench => (250.0, 8),
+            SceneSize::Bench | SceneSize::Paper | SceneSize::PaperFull => (250.0, 8),
         }
     }
 
@@ -57,16 +65,40 @@ impl SceneSize {
     pub fn default_pca(self) -> PcaSetting {
         match self {
             SceneSize::Ci => PcaSetting::Off,
-            SceneSize::Bench => PcaSetting::Auto,
+            SceneSize::Bench | SceneSize::Paper | SceneSize::PaperFull => PcaSetting::Auto,
+        }
+    }
+
+    /// Dimension of the simulated feature maps: that of the class text
+    /// embeddings, or 768 at the paper's scale (the embeddings lifted by
+    /// [`lift::lift_embeddings`]).
+    pub fn feature_dim(self) -> Option<usize> {
+        match self {
+            SceneSize::Ci | SceneSize::Bench => None,
+            SceneSize::Paper | SceneSize::PaperFull => Some(PAPER_FEATURE_DIM),
+        }
+    }
+
+    /// Image pixels per feature-map pixel along each axis.
+    pub fn feature_downsample(self) -> u32 {
+        match self {
+            SceneSize::Ci | SceneSize::Bench | SceneSize::Paper => 4,
+            SceneSize::PaperFull => 1,
         }
     }
 }
+
+/// Feature dimension of the paper-scale presets (that of OpenNeRF's
+/// OpenSeg features).
+pub const PAPER_FEATURE_DIM: usize = 768;
 
 impl fmt::Display for SceneSize {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             SceneSize::Ci => "ci",
             SceneSize::Bench => "bench",
+            SceneSize::Paper => "paper",
+            SceneSize::PaperFull => "paper-full",
         })
     }
 }
@@ -78,9 +110,13 @@ impl FromStr for SceneSize {
         match s.to_ascii_lowercase().as_str() {
             "ci" => Ok(SceneSize::Ci),
             "bench" => Ok(SceneSize::Bench),
+            "paper" => Ok(SceneSize::Paper),
+            "paper-full" => Ok(SceneSize::PaperFull),
             other => Err(DatasetError::invalid(
                 "<synthetic scene>",
-                format!("unknown size {other:?} (expected \"ci\" or \"bench\")"),
+                format!(
+                    "unknown size {other:?} (expected \"ci\", \"bench\", \"paper\" or \"paper-full\")"
+                ),
             )),
         }
     }
@@ -148,17 +184,26 @@ pub fn extractor_for(seed: u64, size: SceneSize) -> SimulatedExtractor {
         .unwrap_or_else(|_| unreachable_extractor())
 }
 
-/// The extractor without class prior.
+/// The extractor without class prior, with the preset's feature dimension
+/// and map resolution.
 fn base_extractor(seed: u64, size: SceneSize) -> SimulatedExtractor {
     let salt = match size {
         SceneSize::Ci => 0,
         SceneSize::Bench => 1,
+        SceneSize::Paper => 2,
+        SceneSize::PaperFull => 3,
+    };
+    let base = class_embeddings();
+    let embeddings = match size.feature_dim() {
+        Some(dim) => lift::lift_embeddings(&base, dim, lift::LIFT_SEED).unwrap_or(base),
+        None => base,
     };
     SimulatedExtractor::new(
-        class_embeddings(),
+        embeddings,
         class_prototypes(seed),
         seed.wrapping_mul(2) + salt,
     )
+    .and_then(|x| x.with_downsample(size.feature_downsample()))
     .unwrap_or_else(|_| unreachable_extractor())
 }
 
@@ -185,7 +230,7 @@ pub fn surface_points(room: &Room, seed: u64, size: SceneSize) -> PointCloud {
 }
 
 /// Generates the scene `(seed, size)`: frames with colour, depth and labels,
-/// simulated feature maps (PCA-compressed for [`SceneSize::Bench`], fitted on
+/// simulated feature maps (PCA-compressed unless the preset is [`SceneSize::Ci`], fitted on
 /// every 10th frame and applied map by map, so all maps are never held at
 /// full dimension), the labelled point cloud and the class embeddings.
 pub fn generate(seed: u64, size: SceneSize) -> Result<Scene, DatasetError> {
@@ -215,6 +260,7 @@ pub fn generate_with(
             rgb: r.rgb,
             depth: Some(r.depth),
             depth_weight: 1.0,
+            color_weight: 1.0,
             labels: Some(r.labels),
             mask: None,
         })
@@ -273,20 +319,12 @@ fn extract_all(
         }
         (Some(b), _) => b.clone(),
         (None, PcaSetting::Off) => {
-            let maps = parallel_maps(frames, |f| extractor.extract(&f.rgb))?;
+            let maps = parallel_map(frames, |_, f| extractor.extract(&f.rgb))?;
             return FeatureSet::from_maps(maps, PcaSetting::Off, seed);
         }
-        (None, pca) => {
-            let fit_frames: Vec<Frame> = frames.iter().step_by(10).cloned().collect();
-            let fit_maps = parallel_maps(&fit_frames, |f| extractor.extract(&f.rgb))?;
-            FeatureSet::from_maps(fit_maps, pca, seed)?
-                .pca
-                .ok_or_else(|| {
-                    DatasetError::invalid("<synthetic scene>", "PCA fit returned no basis")
-                })?
-        }
+        (None, pca) => fit_basis(extractor, frames, pca, seed)?,
     };
-    let maps = parallel_maps(frames, |f| {
+    let maps = parallel_map(frames, |_, f| {
         let m = extractor.extract(&f.rgb)?;
         Ok(compress_map(&m, &basis))
     })?;
@@ -297,23 +335,62 @@ fn extract_all(
     })
 }
 
-/// `f` over all frames in scoped threads, results in frame order.
-fn parallel_maps<F>(frames: &[Frame], f: F) -> Result<Vec<FeatureMap>, DatasetError>
+/// Fits the PCA basis on every 10th frame's map. Each map is extracted at
+/// full dimension and only its pixels in the sample plan are kept (the
+/// plan and sample order of [`FeatureSet::from_maps`], so the basis is the
+/// one fitted on all those maps at once), so at most one full map per
+/// thread is held.
+fn fit_basis(
+    extractor: &SimulatedExtractor,
+    frames: &[Frame],
+    pca: PcaSetting,
+    seed: u64,
+) -> Result<PcaBasis, DatasetError> {
+    let fit_frames: Vec<&Frame> = frames.iter().step_by(10).collect();
+    let sizes: Vec<usize> = fit_frames
+        .iter()
+        .map(|f| {
+            let (w, h) = extractor.map_size(f.rgb.width, f.rgb.height);
+            (w * h) as usize
+        })
+        .collect();
+    let picks = sample_plan(&sizes, seed);
+    let samples = parallel_map(&fit_frames, |i, f| {
+        let map = extractor.extract(&f.rgb)?;
+        let mut out = Vec::new();
+        gather_pixels(&map, &picks[i], &mut out);
+        Ok(out)
+    })?;
+    PcaBasis::fit(&samples.concat(), extractor.dim(), pca)
+}
+
+/// `f(index, item)` over all `items` in scoped threads, results in order.
+fn parallel_map<I, T, F>(items: &[I], f: F) -> Result<Vec<T>, DatasetError>
 where
-    F: Fn(&Frame) -> Result<FeatureMap, DatasetError> + Sync,
+    I: Sync,
+    T: Send,
+    F: Fn(usize, &I) -> Result<T, DatasetError> + Sync,
 {
     let threads = std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1)
         .clamp(1, 16);
-    let chunk = frames.len().div_ceil(threads).max(1);
+    let chunk = items.len().div_ceil(threads).max(1);
     let f = &f;
     std::thread::scope(|s| {
-        let handles: Vec<_> = frames
+        let handles: Vec<_> = items
             .chunks(chunk)
-            .map(|part| s.spawn(move || part.iter().map(f).collect::<Result<Vec<_>, _>>()))
+            .enumerate()
+            .map(|(c, part)| {
+                s.spawn(move || {
+                    part.iter()
+                        .enumerate()
+                        .map(|(i, item)| f(c * chunk + i, item))
+                        .collect::<Result<Vec<_>, _>>()
+                })
+            })
             .collect();
-        let mut out = Vec::with_capacity(frames.len());
+        let mut out = Vec::with_capacity(items.len());
         for h in handles {
             let part = h.join().map_err(|_| {
                 DatasetError::invalid("<synthetic scene>", "feature thread panicked")

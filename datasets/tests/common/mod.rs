@@ -22,6 +22,7 @@ pub fn grey_frame(i: usize, w: u32, h: u32, mask: Option<Vec<bool>>) -> Frame {
         },
         depth: None,
         depth_weight: 0.0,
+        color_weight: 1.0,
         labels: None,
         mask,
     }

@@ -7,5 +7,6 @@ pub mod proposals;
 pub mod query;
 pub mod render;
 pub mod segment;
+pub mod targets;
 pub mod uncertainty;
 pub mod view;

@@ -45,6 +45,14 @@ pub struct UncertaintyArgs {
     /// of a single view's.
     #[arg(long)]
     pub of_mean: bool,
+    /// How the uncertainty becomes each point's chance to be a proposed
+    /// camera's target: `minmax-logdet` (log-determinant rescaled to
+    /// [0, 1]), `det-over-max` (generalized variance over its largest
+    /// value, the paper's draw) or `rank:T` (rank quantile to the power 1/T:
+    /// about T/(1+T) of the points become candidates). Every normalisation's
+    /// draw is reported in `uncertainty.json` (`target_draws`) either way.
+    #[arg(long, default_value_t = field_ops::novel::NovelViewConfig::default().normalisation)]
+    pub normalisation: field_ops::uncertainty::Normalisation,
     /// Voxel size (metres) the point cloud is thinned to (0 keeps every point).
     #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     pub voxel: f64,
@@ -99,6 +107,10 @@ pub struct UncertaintySummary {
     /// Points seen twice whose covariance could not be factorised: they are
     /// given the largest `log det` (a larger `--eps` avoids this).
     pub failed_factorisations: usize,
+    /// The normalisation of `--normalisation`.
+    pub normalisation: String,
+    /// Where 24 targets land under each normalisation (same map, same seed).
+    pub target_draws: Vec<super::targets::TargetDraw>,
 }
 
 /// The coarse cloud of the uncertainty map (see
@@ -178,6 +190,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
         eps: args.eps,
         prior_weight: args.prior_weight,
         of_mean: args.of_mean,
+        normalisation: args.normalisation,
         project: ProjectOptions::default(),
     };
     let bar = field_ops::progress::progress(split.train.len(), "projecting feature maps");
@@ -189,7 +202,14 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
         (Some(l), Some(set)) => Some(feature_errors(&map, l, set.pca.as_ref())?),
         _ => None,
     };
-    let summary = summarise(&map, errors.as_deref(), &opts);
+    let mut summary = summarise(&map, errors.as_deref(), &opts);
+    summary.target_draws = super::targets::draws_by_normalisation(
+        &map,
+        &points,
+        labelled.as_ref(),
+        args.normalisation,
+        args.seed,
+    );
     let out = args
         .out
         .clone()
@@ -224,6 +244,13 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
         summary.log_det_max,
         summary.log_det_median
     );
+    println!(
+        "where {} targets land, by normalisation:",
+        super::targets::REPORT_TARGETS
+    );
+    for line in super::targets::describe(&summary.target_draws) {
+        println!("  {line}");
+    }
     if summary.failed_factorisations > 0 {
         eprintln!(
             "warning: the covariance of {} of the {} points seen twice could not be factorised \
@@ -339,6 +366,8 @@ fn summarise(
         pearson_r: errors.and_then(|_| pearson(&xs, &ys)),
         correlated_points: xs.len(),
         failed_factorisations: map.failed_factorisations,
+        normalisation: opts.normalisation.to_string(),
+        target_draws: Vec::new(),
     }
 }
 

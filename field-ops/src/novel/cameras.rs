@@ -86,6 +86,7 @@ pub fn choose_cameras(
                 train,
                 &points,
                 &UncertaintyOptions {
+                    normalisation: config.normalisation,
                     project: ProjectOptions::default(),
                     ..UncertaintyOptions::default()
                 },

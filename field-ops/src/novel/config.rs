@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::oracle::NovelOracle;
+use crate::uncertainty::Normalisation;
 
 /// How novel cameras are chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
@@ -73,6 +74,31 @@ pub struct NovelViewConfig {
     /// reading (synthetic scenes only; a diagnostic, see [`NovelOracle`]);
     /// `None` (the default): the method as specified.
     pub oracle: Option<NovelOracle>,
+    /// How the uncertainty becomes each point's chance to be a guided
+    /// target (a configuration without the key is read as `minmax-logdet`,
+    /// what runs used before the choice existed).
+    #[serde(default = "legacy_normalisation")]
+    pub normalisation: Normalisation,
+    /// Weight of the novel frames' colour in the colour loss (the captured
+    /// frames have 1): the field's own render is no measurement, so 0 keeps
+    /// it from reinforcing what the field already believes (a configuration
+    /// without the key is read as 1, what runs used before).
+    #[serde(default = "legacy_color_weight")]
+    pub color_weight: f32,
+    /// Feature-map cells of a novel view whose rendered opacity (the share
+    /// of their pixels reaching `min_acc`) is below half carry no feature
+    /// target: the extractor would read fog there (a configuration without
+    /// the key is read as `false`, what runs did before).
+    #[serde(default)]
+    pub mask_features: bool,
+}
+
+fn legacy_normalisation() -> Normalisation {
+    Normalisation::MinmaxLogdet
+}
+
+fn legacy_color_weight() -> f32 {
+    1.0
 }
 
 impl Default for NovelViewConfig {
@@ -90,6 +116,9 @@ impl Default for NovelViewConfig {
             max_color_error: None,
             extractor: None,
             oracle: None,
+            normalisation: Normalisation::MinmaxLogdet,
+            color_weight: 1.0,
+            mask_features: true,
         }
     }
 }
@@ -115,6 +144,12 @@ impl NovelViewConfig {
             return Err(format!(
                 "novel.depth_weight must be in [0, 1], got {}",
                 self.depth_weight
+            ));
+        }
+        if !(self.color_weight.is_finite() && (0.0..=1.0).contains(&self.color_weight)) {
+            return Err(format!(
+                "novel.color_weight must be in [0, 1], got {}",
+                self.color_weight
             ));
         }
         if !(self.min_acc.is_finite() && (0.0..=1.0).contains(&self.min_acc)) {
@@ -213,6 +248,10 @@ mod tests {
                 max_color_error: Some(f64::NAN),
                 ..ok.clone()
             },
+            NovelViewConfig {
+                color_weight: -0.5,
+                ..ok.clone()
+            },
         ];
         for (b, key) in bad.iter().zip([
             "depth_weight",
@@ -225,6 +264,7 @@ mod tests {
             "extractor",
             "max_color_error",
             "max_color_error",
+            "color_weight",
         ]) {
             let e = b.validate().expect_err("invalid");
             assert!(e.contains(key), "{e}");
@@ -239,5 +279,24 @@ mod tests {
         assert!(json.contains("\"max_color_error\":null"), "{json}");
         let back: NovelViewConfig = serde_json::from_str(&json).expect("read back");
         assert_eq!(back, off);
+    }
+
+    #[test]
+    fn a_configuration_written_before_the_loop_settings_reads_as_it_ran() {
+        let old: NovelViewConfig =
+            serde_json::from_str(r#"{"views": 24, "mode": "guided"}"#).expect("old configuration");
+        assert_eq!(old.normalisation, Normalisation::MinmaxLogdet);
+        assert_eq!(old.color_weight, 1.0);
+        assert!(!old.mask_features);
+        let new = NovelViewConfig {
+            normalisation: Normalisation::RankQuantile { temperature: 0.25 },
+            ..NovelViewConfig::default()
+        };
+        let json = serde_json::to_string(&new).expect("json");
+        assert!(json.contains("\"normalisation\":\"rank:0.25\""), "{json}");
+        assert_eq!(
+            serde_json::from_str::<NovelViewConfig>(&json).expect("back"),
+            new
+        );
     }
 }

@@ -3,7 +3,7 @@
 
 use burn::tensor::Device;
 use datasets::extractor::{CommandExtractor, FeatureExtractor};
-use datasets::features::compress_map;
+use datasets::features::{FeatureMap, compress_map};
 use datasets::novel_record::NovelView;
 use datasets::{DepthImage, RgbImage, Scene, SceneSource};
 use model::OpenNerf;
@@ -133,11 +133,25 @@ pub fn render_views(
         .oracle
         .map(|o| GroundTruth::of(scene, o))
         .transpose()?;
+    // Each map is compressed (and its fog cleared) as soon as it is read,
+    // so that one full-dimensional map is held at a time.
+    let finish = |full: FeatureMap, depth: &DepthImage| {
+        let mut features = match pca {
+            Some(basis) => compress_map(&full, basis),
+            None => full,
+        };
+        if config.mask_features {
+            mask_fog_cells(&mut features, depth);
+        }
+        features
+    };
     let extracted: Vec<ExtractedView> = match &truth {
         Some(truth) => {
             let mut views = Vec::with_capacity(cameras.len());
             for (i, aimed) in cameras.iter().enumerate() {
-                views.push(truth.view(&aimed.camera, extractor)?);
+                let view = truth.view(&aimed.camera, extractor)?;
+                let features = finish(view.features, &view.depth);
+                views.push(ExtractedView { features, ..view });
                 progress(i + 1, cameras.len());
             }
             views
@@ -158,11 +172,18 @@ pub fn render_views(
                 progress(i + 1, cameras.len());
             }
             let images: Vec<&RgbImage> = rendered.iter().map(|(rgb, _)| rgb).collect();
-            let maps = extractor.extract_batch(&images)?;
-            if maps.len() != rendered.len() {
+            let mut maps = Vec::with_capacity(rendered.len());
+            let mut returned = 0;
+            extractor.extract_each(&images, &mut |full| {
+                if let Some((_, depth)) = rendered.get(returned) {
+                    maps.push(finish(full, depth));
+                }
+                returned += 1;
+                Ok(())
+            })?;
+            if returned != rendered.len() {
                 return Err(OpsError::Invalid(format!(
-                    "the extractor returned {} feature maps for {} views",
-                    maps.len(),
+                    "the extractor returned {returned} feature maps for {} views",
                     rendered.len()
                 )));
             }
@@ -179,27 +200,54 @@ pub fn render_views(
     };
     let mut out = Vec::with_capacity(cameras.len());
     for (i, (aimed, view)) in cameras.iter().zip(extracted).enumerate() {
-        let ExtractedView {
-            rgb,
-            depth,
-            features: full,
-        } = view;
-        let features = match pca {
-            Some(basis) => compress_map(&full, basis),
-            None => full,
-        };
         out.push(NovelView {
             name: format!("novel_{i:03}"),
             camera: aimed.camera,
-            rgb,
-            depth,
-            features,
+            rgb: view.rgb,
+            depth: view.depth,
+            features: view.features,
             depth_weight: config.depth_weight,
+            color_weight: config.color_weight,
             target: aimed.target,
             uncertainty: aimed.uncertainty,
         });
     }
     Ok(out)
+}
+
+/// Clears (NaN: no target) every cell of `map` whose image pixels mostly
+/// lack trusted depth, i.e. whose rendered opacity stayed below the
+/// threshold [`field_render`] keeps depth at. The extractor reads such cells
+/// off fog or background, and a field trained on them learns what it
+/// rendered, not what is there. A cell covers the image pixels whose centres
+/// fall in its footprint (the map may be coarser than the image); it keeps
+/// its target when at least half of them have depth. Returns the cells
+/// cleared.
+pub fn mask_fog_cells(map: &mut FeatureMap, depth: &DepthImage) -> usize {
+    let (mw, mh) = (map.width as usize, map.height as usize);
+    let (w, h) = (depth.width as usize, depth.height as usize);
+    if mw == 0 || mh == 0 || w == 0 || h == 0 {
+        return 0;
+    }
+    let mut opaque = vec![0u32; mw * mh];
+    let mut total = vec![0u32; mw * mh];
+    for y in 0..h {
+        let cy = (y * mh / h).min(mh - 1);
+        for x in 0..w {
+            let c = cy * mw + (x * mw / w).min(mw - 1);
+            total[c] += 1;
+            opaque[c] += u32::from(depth.data[y * w + x] > 0.0);
+        }
+    }
+    let dim = map.dim;
+    let mut cleared = 0;
+    for (c, (&o, &t)) in opaque.iter().zip(&total).enumerate() {
+        if 2 * o < t {
+            map.data[c * dim..(c + 1) * dim].fill(half::f16::NAN);
+            cleared += 1;
+        }
+    }
+    cleared
 }
 
 /// The field's render of `camera`: colour clamped to [0, 1], depth kept

@@ -5,9 +5,9 @@
 //! the occlusion test and the border margin of [`crate::project`]). Per
 //! point, Welford's single-pass update keeps the mean and covariance of the
 //! observed features in the scene's top-`k` principal subspace, and the
-//! uncertainty is `u = log det(Sigma + eps I)`. Points seen fewer than twice
-//! get the largest uncertainty observed, and so do points whose covariance
-//! cannot be factorised (non-finite, or not positive definite after
+//! uncertainty is `u = log det(Sigma + eps I)`. Points seen once get the
+//! prior's covariance (below); points never seen get the largest uncertainty
+//! observed, and so do points whose covariance cannot be factorised (non-finite, or not positive definite after
 //! rounding with a tiny `eps`); those are counted in
 //! [`UncertaintyMap::failed_factorisations`] so that callers report them
 //! rather than pass them off as measured.
@@ -22,6 +22,7 @@
 //! 0.46 / 0.41.
 
 pub mod coarse;
+pub mod normalise;
 pub mod scatter;
 pub mod welford;
 
@@ -31,6 +32,7 @@ use model::geometry::Vec3;
 
 use crate::error::OpsError;
 use crate::project::{DepthRef, ProjectOptions, visible_pixel};
+pub use normalise::Normalisation;
 use welford::{Welford, log_det_regularised, pooled_covariance};
 
 /// Settings of the uncertainty map.
@@ -47,6 +49,9 @@ pub struct UncertaintyOptions {
     /// Measure the uncertainty of each point's *mean* feature (covariance
     /// divided by the number of views) rather than of a single view's.
     pub of_mean: bool,
+    /// How the log-determinants become target chances
+    /// ([`UncertaintyMap::normalised`]).
+    pub normalisation: Normalisation,
     /// Visibility rules of the projection.
     pub project: ProjectOptions,
 }
@@ -58,6 +63,7 @@ impl Default for UncertaintyOptions {
             eps: 1e-6,
             prior_weight: 16.0,
             of_mean: false,
+            normalisation: Normalisation::default(),
             project: ProjectOptions::default(),
         }
     }
@@ -68,10 +74,11 @@ impl Default for UncertaintyOptions {
 pub struct UncertaintyMap {
     /// Observations per point.
     pub counts: Vec<u64>,
-    /// `log det(Sigma + eps I)` per point; points seen fewer than twice
-    /// hold the largest value of the others.
+    /// `log det(Sigma + eps I)` per point; points never seen (or seen once
+    /// without a prior) hold the largest value of the others.
     pub log_det: Vec<f64>,
-    /// `log_det` rescaled to `[0, 1]` over the cloud.
+    /// `log_det` as chances in `[0, 1]` (see
+    /// [`UncertaintyOptions::normalisation`]).
     pub normalised: Vec<f64>,
     /// Per point, the mean observed feature in the maps' own space (PCA
     /// coefficients or full vectors), `None` where no view saw the point.
@@ -254,9 +261,9 @@ pub fn uncertainty_map(
 }
 
 /// Each point's `log det(Sigma + eps I)` of its shrunk covariance (points
-/// seen fewer than twice, or whose factorisation fails, get the largest
-/// value), the same normalised to `[0, 1]` over the cloud, and how many
-/// points seen twice failed.
+/// seen once get the prior's; points never seen, or whose factorisation
+/// fails, get the largest value), the same as target chances (see
+/// [`Normalisation`]), and how many points seen at least once failed.
 fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>, Vec<f64>, usize) {
     let pooled = pooled_covariance(stats, k).unwrap_or_else(|| vec![0.0; k * k]);
     let raw: Vec<Option<f64>> = stats
@@ -274,24 +281,16 @@ fn log_dets(stats: &[Welford], k: usize, opts: &UncertaintyOptions) -> (Vec<f64>
         .flatten()
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
-    let min = raw.iter().flatten().copied().fold(f64::INFINITY, f64::min);
     let failed = raw
         .iter()
         .zip(stats)
-        .filter(|(u, w)| u.is_none() && w.count >= 2)
+        .filter(|(u, w)| u.is_none() && (w.count >= 2 || (w.count == 1 && opts.prior_weight > 0.0)))
         .count();
-    // With no point seen twice there is nothing to compare: all maximal.
-    let (max, min) = if max.is_finite() {
-        (max, min)
-    } else {
-        (0.0, 0.0)
-    };
+    // With no point measured there is nothing to compare: all maximal.
+    let max = if max.is_finite() { max } else { 0.0 };
     let log_det: Vec<f64> = raw.iter().map(|u| u.unwrap_or(max)).collect();
-    let span = max - min;
-    let normalised = log_det
-        .iter()
-        .map(|&u| if span > 0.0 { (u - min) / span } else { 1.0 })
-        .collect();
+    let counts: Vec<u64> = stats.iter().map(|w| w.count).collect();
+    let normalised = normalise::seen_chances(&raw, &counts, opts.normalisation);
     (log_det, normalised, failed)
 }
 
@@ -348,6 +347,35 @@ mod tests {
         assert!(pearson(&c, &sq).expect("r").abs() < 1e-12);
         assert!(pearson(&x, &vec![1.0; 50]).is_none());
         assert!(pearson(&[1.0], &[2.0]).is_none());
+    }
+
+    #[test]
+    fn a_point_seen_once_gets_the_log_det_of_the_prior() {
+        let mut stats = Vec::new();
+        for xs in [
+            [[0.0f32, 1.0], [1.0, 0.5], [0.2, 0.3]],
+            [[0.4, 0.0], [0.1, 0.9], [0.7, 0.7]],
+        ] {
+            let mut w = Welford::new(2);
+            xs.iter().for_each(|x| w.push(x));
+            stats.push(w);
+        }
+        let mut once = Welford::new(2);
+        once.push(&[0.5, 0.5]);
+        stats.push(once);
+        stats.push(Welford::new(2));
+        let opts = UncertaintyOptions::default();
+        let (log_det, normalised, failed) = log_dets(&stats, 2, &opts);
+        let pooled = pooled_covariance(&stats, 2).expect("pooled");
+        let prior = log_det_regularised(&pooled, 2, opts.eps).expect("definite");
+        assert!((log_det[2] - prior).abs() < 1e-12);
+        assert_eq!(failed, 0);
+        // Never seen: the largest value, chance 1.
+        assert_eq!(
+            log_det[3],
+            log_det[..3].iter().copied().fold(f64::MIN, f64::max)
+        );
+        assert_eq!(normalised[3], 1.0);
     }
 
     #[test]

@@ -84,13 +84,16 @@ impl Welford {
     /// weight)` (the posterior mean of an inverse-Wishart prior). With
     /// `weight = 0` this is [`Welford::covariance`]. A point seen by few
     /// views gets about the prior instead of a rank-deficient estimate whose
-    /// log-determinant is mostly `eps`. `None` with fewer than two samples.
+    /// log-determinant is mostly `eps`. A point seen once has no scatter and
+    /// gets the prior itself (with `weight > 0`), like any other point
+    /// measured by its evidence rather than set to the maximum. `None` without
+    /// samples, or with one sample and no prior weight.
     pub fn shrunk_covariance(&self, prior: &[f64], weight: f64) -> Option<Vec<f64>> {
-        if self.count < 2 {
+        let d = self.count.checked_sub(1)? as f64 + weight;
+        if d <= 0.0 || prior.len() != self.scatter.len() {
             return None;
         }
         let k = self.dim();
-        let d = (self.count - 1) as f64 + weight;
         let mut cov = vec![0.0; k * k];
         for r in 0..k {
             for c in 0..k {
@@ -296,6 +299,31 @@ mod tests {
             assert!((half[i] - 0.5 * (own[i] + pooled[i])).abs() < 1e-12);
         }
         assert!(pooled_covariance(&[Welford::new(2)], 2).is_none());
+    }
+
+    #[test]
+    fn a_point_seen_once_gets_the_prior_and_one_seen_never_gets_nothing() {
+        let prior = [2.0, 0.5, 0.5, 1.0];
+        let mut once = Welford::new(2);
+        once.push(&[3.0, -1.0]);
+        // (0 scatter + w prior) / (1 - 1 + w) = prior, whatever the weight.
+        for weight in [0.5, 16.0] {
+            let cov = once.shrunk_covariance(&prior, weight).expect("prior");
+            assert!(cov.iter().zip(&prior).all(|(a, b)| (a - b).abs() < 1e-15));
+        }
+        // Without prior weight one sample defines no covariance.
+        assert!(once.shrunk_covariance(&prior, 0.0).is_none());
+        assert!(Welford::new(2).shrunk_covariance(&prior, 16.0).is_none());
+        // A prior of the wrong size is refused, not indexed out of bounds.
+        assert!(once.shrunk_covariance(&prior[..3], 16.0).is_none());
+        // Two samples: the scatter enters, (s + w P) / (1 + w).
+        let mut twice = once.clone();
+        twice.push(&[1.0, 1.0]);
+        let cov = twice.shrunk_covariance(&prior, 1.0).expect("cov");
+        let s = [2.0, -2.0, -2.0, 2.0];
+        for i in 0..4 {
+            assert!((cov[i] - (s[i] + prior[i]) / 2.0).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -17,6 +17,7 @@ use crate::error::TrainError;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, initial_eval};
 use crate::summary::Summary;
 use field_ops::json::write_json;
+use field_ops::stages::StageLog;
 
 /// A session whose last step is done.
 pub(super) struct Trained<'a> {
@@ -35,6 +36,7 @@ pub(super) fn finish(
     t: &Trained<'_>,
     log: &mut MetricsLog,
     clock: &Clock,
+    stages: &mut StageLog,
 ) -> Result<RunOutcome, TrainError> {
     let (run, state) = (t.run, t.state);
     save_checkpoint(
@@ -45,9 +47,13 @@ pub(super) fn finish(
         t.config.logging.keep_checkpoints,
     )?;
     field_ops::files::write_atomic(&run.weights(), &model_bytes(t.model)?)?;
-    let last = t
-        .heldout
-        .last(t.model, t.scene, t.session.final_render, &run.renders())?;
+    let last = if t.session.final_render {
+        stages.run("final render", || {
+            t.heldout.last(t.model, t.scene, true, &run.renders())
+        })?
+    } else {
+        t.heldout.last(t.model, t.scene, false, &run.renders())?
+    };
     let (interior, whole) = (last.interior, last.whole);
     let wall_seconds = clock.wall();
     log.write(&MetricsEvent::Final(EvalLine {

@@ -17,4 +17,4 @@ mod train_loop;
 pub use live_viewer::ViewerSettings;
 pub use session::{RunOutcome, SessionOptions};
 pub use snapshot::{model_bytes, restore};
-pub use start::{resume, train_new};
+pub use start::{resume, train_new, train_new_with_stages};

@@ -118,14 +118,12 @@ impl SessionViews {
         self.added.is_none() && due_at(config).is_some_and(|due| it >= due)
     }
 
-    /// The frames batch `it` draws from: `train` and, from their iteration
-    /// on, the novel views.
-    pub(super) fn training_frames(&self, train: &[usize], it: usize) -> Vec<usize> {
-        let mut frames = train.to_vec();
-        if let Some(a) = self.added.as_ref().filter(|a| it >= a.at) {
-            frames.extend(&a.frames);
-        }
-        frames
+    /// The novel views batch `it` draws from (none before their iteration).
+    pub(super) fn novel_frames(&self, it: usize) -> &[usize] {
+        self.added
+            .as_ref()
+            .filter(|a| it >= a.at)
+            .map_or(&[], |a| &a.frames)
     }
 
     /// Whether the views join the sampler's frames at iteration `it` (true
@@ -183,14 +181,14 @@ mod tests {
             },
         };
         let mut views = SessionViews::new(Some(added.clone()), 30);
-        assert_eq!(views.training_frames(&[1, 2], 39), vec![1, 2]);
-        assert_eq!(views.training_frames(&[1, 2], 40), vec![1, 2, 20, 21]);
+        assert!(views.novel_frames(39).is_empty());
+        assert_eq!(views.novel_frames(40), &[20, 21]);
         assert!(!views.join(39));
         assert!(views.join(40));
         assert!(!views.join(41));
         // A session resumed after they joined draws them from its start.
         let mut resumed = SessionViews::new(Some(added), 50);
         assert!(!resumed.join(50));
-        assert_eq!(resumed.training_frames(&[1], 50), vec![1, 20, 21]);
+        assert_eq!(resumed.novel_frames(50), &[20, 21]);
     }
 }

@@ -1,10 +1,12 @@
 //! The start of a session: a new run (its directory, configuration, split
 //! and untrained field) or a resumed one (its newest intact checkpoint).
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use datasets::{Scene, SceneMeta};
 use field_ops::run_dir::{RunDir, Split};
+use field_ops::stages::{STAGES_FILE, StageLog};
 
 use super::session::{RunOutcome, SessionOptions};
 use super::snapshot::{adam, restore};
@@ -19,10 +21,33 @@ use field_ops::json::{read_json, write_json};
 /// and `split.json`, then trains.
 pub fn train_new(
     scene: &Scene,
+    config: TrainConfig,
+    holdout_every: usize,
+    out: &Path,
+    session: &SessionOptions,
+) -> Result<RunOutcome, TrainError> {
+    let stages = StageLog::pending();
+    train_new_with_stages(
+        Cow::Borrowed(scene),
+        config,
+        holdout_every,
+        out,
+        session,
+        stages,
+    )
+}
+
+/// [`train_new`] with the stages timed so far (the scene's build, made
+/// before the run directory exists): they and the session's stages go to
+/// the run's `stages.json`. A scene handed over (`Cow::Owned`) is extended
+/// in place when novel views are added; a borrowed one is copied first.
+pub fn train_new_with_stages(
+    scene: Cow<'_, Scene>,
     mut config: TrainConfig,
     holdout_every: usize,
     out: &Path,
     session: &SessionOptions,
+    mut stages: StageLog,
 ) -> Result<RunOutcome, TrainError> {
     config.set_feature_dim(scene.features.as_ref().map_or(0, |f| f.dim()));
     config.validate()?;
@@ -39,18 +64,19 @@ pub fn train_new(
                 config.schedule.iterations
             )));
         }
-        field_ops::novel::check_extractor(scene, &config.novel)?;
+        field_ops::novel::check_extractor(&scene, &config.novel)?;
     }
     let split = crate::validate::holdout_split(scene.frames.len(), holdout_every)?;
     let run = RunDir::new(out);
     crate::validate::fresh_out_dir(&run.dir)?;
     std::fs::create_dir_all(&run.dir).map_err(|e| TrainError::io(&run.dir, e))?;
     write_json(&run.config(), &config)?;
-    write_json(&run.scene(), &crate::data::meta(scene))?;
+    write_json(&run.scene(), &crate::data::meta(&scene))?;
     if let Some(w) = &scene.world {
         print_world_frame(w, &run.scene());
     }
     write_json(&run.split(), &split)?;
+    stages.attach(run.dir.join(STAGES_FILE))?;
     let _ = std::fs::remove_file(run.metrics());
     let device = training_device(session.backend, session.device_index);
     device.seed(config.seed);
@@ -79,6 +105,7 @@ pub fn train_new(
         state,
         device: &device,
         session,
+        stages,
     })
 }
 
@@ -135,10 +162,11 @@ pub fn resume(
     }
     // config.json is rewritten only once everything it describes checks out.
     config.validate()?;
+    let mut stages = StageLog::for_run(&run.dir);
     let field_ops::run_dir::RunScene {
         scene,
         novel: added,
-    } = field_ops::run_dir::rebuild_scene(&run, &meta)?;
+    } = stages.run("scene", || field_ops::run_dir::rebuild_scene(&run, &meta))?;
     let n = scene.frames.len();
     if split.train.iter().chain(&split.heldout).any(|&i| i >= n) {
         return Err(TrainError::json(
@@ -152,7 +180,7 @@ pub fn resume(
         write_json(&run.config(), &config)?;
     }
     TrainLoop::train(SessionStart {
-        scene: &scene,
+        scene: Cow::Owned(scene),
         added,
         config: &config,
         split: &split,
@@ -162,5 +190,6 @@ pub fn resume(
         state: ckpt.state,
         device: &device,
         session,
+        stages,
     })
 }

@@ -11,6 +11,7 @@ use burn::optim::ModuleOptimizer;
 use burn::tensor::Device;
 use datasets::Scene;
 use field_ops::run_dir::{RunDir, Split};
+use field_ops::stages::StageLog;
 use indicatif::ProgressBar;
 use model::{FeatureSpace, OpenNerf};
 
@@ -35,7 +36,9 @@ use field_ops::novel::record::RecordedViews;
 
 /// Everything a session starts from.
 pub(super) struct SessionStart<'a> {
-    pub scene: &'a Scene,
+    /// Owned when the caller hands the scene over (adding novel views then
+    /// extends it in place instead of copying it first).
+    pub scene: Cow<'a, Scene>,
     /// Novel views already made (read back on resume).
     pub added: Option<RecordedViews>,
     pub config: &'a TrainConfig,
@@ -46,6 +49,8 @@ pub(super) struct SessionStart<'a> {
     pub state: CheckpointState,
     pub device: &'a Device,
     pub session: &'a SessionOptions,
+    /// Where the stages' time and peak memory are recorded.
+    pub stages: StageLog,
 }
 
 /// A session in progress. The model is not held here but passed from step
@@ -79,6 +84,9 @@ pub(super) struct TrainLoop<'a> {
     last_checkpoint: Option<PathBuf>,
     /// The web viewer served while training (`--viewer`).
     viewer: Option<LiveViewer>,
+    /// The `training` stage is open from the start of the session to its
+    /// end; the sampler builds, novel views and final render nest in it.
+    stages: StageLog,
 }
 
 /// What one step did.
@@ -128,15 +136,17 @@ impl<'a> TrainLoop<'a> {
 
     /// Sets the session up; a new run's untrained field is evaluated first.
     fn new(s: SessionStart<'a>) -> Result<(Self, OpenNerf), TrainError> {
+        let mut stages = s.stages;
+        stages.begin("training");
         let config = s.config.clone();
         let end = s.session.end(config.schedule.iterations);
         let fit = ScheduleFit::for_session(s.session, s.state.iteration);
         let inference = s.device.clone().without_autodiff();
-        let heldout = HeldOut::new(s.scene, s.split, &config, inference.clone())?;
+        let heldout = HeldOut::new(&s.scene, s.split, &config, inference.clone())?;
         let mut log = MetricsLog::open(&s.run.metrics())?;
         let clock = Clock::start(s.state.wall_seconds);
         if s.state.iteration == 0 {
-            let m = heldout.sample(&s.model, s.scene);
+            let m = heldout.sample(&s.model, &s.scene);
             log.write(&MetricsEvent::Eval(EvalLine {
                 iteration: 0,
                 wall_seconds: 0.0,
@@ -144,20 +154,23 @@ impl<'a> TrainLoop<'a> {
                 whole: None,
             }))?;
         }
-        let space = feature_space(s.scene, s.device);
+        let space = feature_space(&s.scene, s.device);
         let views = SessionViews::new(s.added, s.state.iteration);
-        let sampler = TrainSampler::new(
-            s.scene,
-            &views.training_frames(&s.split.train, s.state.iteration),
-            &config.sampler,
-            s.state.seed,
-        )?;
+        let sampler = stages.run("sampler", || {
+            TrainSampler::with_novel(
+                &s.scene,
+                &s.split.train,
+                views.novel_frames(s.state.iteration),
+                &config.sampler,
+                s.state.seed,
+            )
+        })?;
         let bar = crate::progress::bar(s.session.progress, s.state.iteration, end);
         let last_checkpoint = list_checkpoints(&s.run.checkpoints())?.pop().map(|c| c.1);
         let viewer = match &s.session.viewer {
             Some(settings) => Some(LiveViewer::start(
                 settings,
-                s.scene,
+                &s.scene,
                 s.split,
                 s.run,
                 &s.model,
@@ -175,7 +188,7 @@ impl<'a> TrainLoop<'a> {
             inference,
             heldout,
             space,
-            scene: Cow::Borrowed(s.scene),
+            scene: s.scene,
             views,
             sampler,
             optim: s.optim,
@@ -190,6 +203,7 @@ impl<'a> TrainLoop<'a> {
             consecutive_bad: 0,
             last_checkpoint,
             viewer,
+            stages,
         };
         Ok((session, s.model))
     }
@@ -239,16 +253,19 @@ impl<'a> TrainLoop<'a> {
         }
         say(&self.bar, super::novel::adding_message(&self.config, it));
         let bar = &self.bar;
-        let report = super::novel::add_views(
-            &model.valid(),
-            self.scene.to_mut(),
-            &self.split.train,
-            &self.config,
-            self.run,
-            it,
-            &self.inference,
-            |done, total| bar.set_message(format!("novel view {done}/{total} rendered")),
-        )?;
+        let (scene, stages) = (&mut self.scene, &mut self.stages);
+        let report = stages.run("novel views", || {
+            super::novel::add_views(
+                &model.valid(),
+                scene.to_mut(),
+                &self.split.train,
+                &self.config,
+                self.run,
+                it,
+                &self.inference,
+                |done, total| bar.set_message(format!("novel view {done}/{total} rendered")),
+            )
+        })?;
         let line = super::novel::log_line(&report, it, self.clock.wall());
         self.log.write(&MetricsEvent::NovelViews(line))?;
         say(
@@ -263,12 +280,11 @@ impl<'a> TrainLoop<'a> {
     /// draws from them too.
     fn join_novel_views(&mut self, it: usize) -> Result<(), TrainError> {
         if self.views.join(it) {
-            self.sampler = TrainSampler::new(
-                &self.scene,
-                &self.views.training_frames(&self.split.train, it),
-                &self.config.sampler,
-                self.state.seed,
-            )?;
+            let novel = self.views.novel_frames(it);
+            let (scene, config, train) = (&self.scene, &self.config, &self.split.train);
+            self.sampler = self.stages.run("sampler", || {
+                TrainSampler::with_novel(scene, train, novel, &config.sampler, self.state.seed)
+            })?;
         }
         Ok(())
     }
@@ -433,6 +449,8 @@ impl<'a> TrainLoop<'a> {
             state: &self.state,
             heldout: &self.heldout,
         };
-        finish(&trained, &mut self.log, &self.clock)
+        let outcome = finish(&trained, &mut self.log, &self.clock, &mut self.stages)?;
+        self.stages.end()?;
+        Ok(outcome)
     }
 }

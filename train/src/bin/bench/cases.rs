@@ -149,6 +149,7 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
         BatchTensors {
             rays: Rays::from_normalized(r, ad),
             rgb: target(3),
+            rgb_weight: None,
             depth: None,
             feature: Some(FeatureTargets::dense(target(size.feature_dim))),
         }
