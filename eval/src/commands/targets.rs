@@ -88,7 +88,7 @@ pub fn describe(draws: &[TargetDraw]) -> Vec<String> {
             by_count.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
             let classes: Vec<String> = by_count.iter().map(|(k, v)| format!("{k} {v}")).collect();
             format!(
-                "{}: {:.0}% of the seen points candidates, {} targets: {}",
+                "{}: {:.1}% of the seen points candidates, {} targets: {}",
                 d.normalisation,
                 100.0 * d.candidate_share,
                 d.targets,
