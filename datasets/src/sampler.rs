@@ -97,8 +97,8 @@ impl RayBatch {
     /// When the two batches' feature channels differ.
     pub fn append(&mut self, other: RayBatch) -> Result<(), DatasetError> {
         let (n, m) = (self.len(), other.len());
-        let features = self.features.is_some() || other.features.is_some();
-        if features && self.feature_dim != other.feature_dim && n > 0 && m > 0 {
+        let both = self.features.is_some() && other.features.is_some();
+        if both && self.feature_dim != other.feature_dim && n > 0 && m > 0 {
             return Err(DatasetError::invalid(
                 "<ray batch>",
                 format!(
@@ -107,6 +107,12 @@ impl RayBatch {
                 ),
             ));
         }
+        let features = self.features.is_some() || other.features.is_some();
+        let dim = if self.features.is_some() && n > 0 {
+            self.feature_dim
+        } else {
+            other.feature_dim
+        };
         fn join<T: Clone>(a: &mut Option<Vec<T>>, b: Option<Vec<T>>, n: usize, m: usize, fill: T) {
             match (a.as_mut(), b) {
                 (Some(a), Some(b)) => a.extend(b),
@@ -119,25 +125,11 @@ impl RayBatch {
                 (None, None) => {}
             }
         }
-        let dim = if n > 0 {
-            self.feature_dim
-        } else {
-            other.feature_dim
-        };
         join(&mut self.rgb_weight, other.rgb_weight, n, m, 1.0);
         join(&mut self.depth, other.depth, n, m, 0.0);
         join(&mut self.depth_weight, other.depth_weight, n, m, 0.0);
         join(&mut self.feature_mask, other.feature_mask, n, m, 0.0);
-        match (self.features.as_mut(), other.features) {
-            (Some(a), Some(b)) => a.extend(b),
-            (Some(a), None) => a.extend(std::iter::repeat_n(0.0, m * dim)),
-            (None, Some(b)) => {
-                let mut v = vec![0.0; n * dim];
-                v.extend(b);
-                self.features = Some(v);
-            }
-            (None, None) => {}
-        }
+        join(&mut self.features, other.features, n * dim, m * dim, 0.0);
         self.feature_dim = if features { dim } else { 0 };
         self.rays.extend(other.rays);
         self.rgb.extend(other.rgb);

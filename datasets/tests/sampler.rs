@@ -361,6 +361,23 @@ fn appended_batches_keep_their_targets_and_fill_the_missing_ones() {
         a.feature_mask.as_ref().expect("m")[16..],
         b0.feature_mask.as_ref().expect("m")[..]
     );
+    // A batch without feature maps joins with no feature target.
+    let bare = sample_batch_from(&cfg, 5, &scene(false), &[0], 0).expect("bare");
+    assert!(bare.features.is_none());
+    let mut with = b0.clone();
+    with.append(bare).expect("append bare");
+    assert_eq!(with.feature_dim, 2);
+    assert_eq!(with.features.as_ref().expect("f").len(), 32 * 2);
+    assert!(
+        with.features.as_ref().expect("f")[32..]
+            .iter()
+            .all(|&v| v == 0.0)
+    );
+    assert!(
+        with.feature_mask.as_ref().expect("m")[16..]
+            .iter()
+            .all(|&v| v == 0.0)
+    );
     // Batches of different feature channels cannot be joined.
     let mut wide = b0.clone();
     wide.feature_dim = 3;

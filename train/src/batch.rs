@@ -156,11 +156,6 @@ impl TrainSampler {
         })
     }
 
-    /// Rays of each batch drawn from the novel views.
-    pub fn novel_rays(&self) -> usize {
-        self.novel_rays
-    }
-
     /// The batch of `iteration`.
     pub fn batch(&self, scene: &Scene, iteration: usize) -> Result<RayBatch, TrainError> {
         let captured = SamplerConfig {

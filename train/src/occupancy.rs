@@ -191,13 +191,7 @@ pub fn validate(c: &OccupancyConfig) -> Result<(), String> {
             c.early_samples
         ));
     }
-    if c.early_updates > 1 << 20 {
-        return Err(format!(
-            "occupancy.early_updates (--grid-early-updates) {}: must be at most {} updates",
-            c.early_updates,
-            1 << 20
-        ));
-    }
+    at_most_updates("early_updates", "grid-early-updates", c.early_updates)?;
     let most = model::occupancy::MAX_DILATION;
     if c.dilation > most {
         return Err(format!(
@@ -205,11 +199,23 @@ pub fn validate(c: &OccupancyConfig) -> Result<(), String> {
             c.dilation
         ));
     }
-    if c.keep_dropped_updates > 1 << 20 {
+    at_most_updates(
+        "keep_dropped_updates",
+        "grid-keep-dropped",
+        c.keep_dropped_updates,
+    )?;
+    Ok(())
+}
+
+/// Most updates a warm-up setting may span.
+const MAX_WARMUP_UPDATES: usize = 1 << 20;
+
+/// Refuses a warm-up of more than [`MAX_WARMUP_UPDATES`] updates, naming the
+/// configuration key and its flag.
+fn at_most_updates(key: &str, flag: &str, updates: usize) -> Result<(), String> {
+    if updates > MAX_WARMUP_UPDATES {
         return Err(format!(
-            "occupancy.keep_dropped_updates (--grid-keep-dropped) {}: must be at most {} updates",
-            c.keep_dropped_updates,
-            1 << 20
+            "occupancy.{key} (--{flag}) {updates}: must be at most {MAX_WARMUP_UPDATES} updates"
         ));
     }
     Ok(())
