@@ -185,11 +185,14 @@ pub struct Cli {
     #[arg(long, default_value_t = 8)]
     pub holdout_every: usize,
 
-    /// Speed/accuracy preset from the measured sweep (README): `fast` (16
+    /// Speed/accuracy preset from the measured sweeps (README): `fast` (16
     /// samples per ray and level, occupancy grid, 1600 iterations),
     /// `balanced` (24 samples, grid, 2300) or `best` (24 samples, grid,
-    /// 5000); a `--config` file and the flags below apply on top of it
-    /// [default: none, the built-in configuration].
+    /// 5000), each with 256 rays a batch for an object seen from outside;
+    /// where most cameras stand inside the scene box (a room), 128 rays a
+    /// batch and 2600, 4150 or 9000 iterations. A `--config` file and the
+    /// flags below apply on top of it [default: none, the built-in
+    /// configuration].
     #[arg(long, value_enum)]
     pub preset: Option<crate::preset::Preset>,
     /// Full training configuration (JSON: model, sampler, losses, optimiser,

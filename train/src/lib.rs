@@ -106,7 +106,17 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
     if let Some(p) = cli.preset {
-        p.apply(&mut base);
+        let centres = || scene.frames.iter().map(|f| f.camera.pose.center());
+        let kind = preset::SceneKind::of(&scene.scene_box, centres());
+        let (inside, all) = preset::cameras_inside(&scene.scene_box, centres());
+        p.apply(&mut base, kind);
+        let (samples, rays, iterations) = p.settings(kind);
+        eprintln!(
+            "preset {} with the {} settings ({inside} of {all} cameras inside the scene box): \
+             {samples} samples per ray and level, {rays} rays a batch, {iterations} iterations",
+            p.name(),
+            kind.name(),
+        );
     }
     let mut config = match &cli.config {
         Some(path) => TrainConfig::from_file(path, &base)?,

@@ -1,35 +1,112 @@
 //! Speed/accuracy presets (`train --preset`), chosen from the measured
-//! sweep (README, "Speed against accuracy"): each sets the samples per ray,
-//! the occupancy grid and the schedule's length of a point of the front;
-//! `--config` keys and explicit flags (`--iters`, `--time-budget`, ...)
-//! still win.
+//! sweeps (README, "Speed against accuracy"): each sets the samples per ray,
+//! the occupancy grid, the rays per batch and the schedule's length of a
+//! measured point; `--config` keys and explicit flags (`--iters`,
+//! `--rays`, `--time-budget`, ...) still win.
+//!
+//! The settings depend on the kind of scene. An object seen from outside
+//! (lego) was swept with 256 rays a batch. On a room, where every ray
+//! starts inside the scene and ends on a wall, the same samples and grid
+//! with 128 rays a batch and as many iterations as fill the same seconds
+//! measured better at every preset's budget.
+
+use model::geometry::{SceneBox, Vec3};
 
 use crate::config::TrainConfig;
 
 /// A named trade of speed for accuracy: the settings and the length of a
-/// point of the lego sweep's Pareto front.
+/// point of the sweeps' Pareto fronts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
     /// 16 samples per ray and level, the occupancy grid, 1600 iterations
-    /// (lego 100x100: 25.3 dB in 60 s of training).
+    /// (lego 100x100: 25.3 dB in 60 s of training); on a room 128 rays a
+    /// batch and 2600 iterations.
     Fast,
     /// 24 samples per ray and level, the occupancy grid, 2300 iterations
-    /// (lego: 27.0 dB in 120 s).
+    /// (lego: 27.0 dB in 120 s); on a room 128 rays a batch and 4150
+    /// iterations.
     Balanced,
     /// 24 samples per ray and level, the occupancy grid, 5000 iterations
-    /// (lego: 29.4 dB in 240 s).
+    /// (lego: 29.4 dB in 240 s); on a room 128 rays a batch and 9000
+    /// iterations.
     Best,
 }
 
+/// What the presets tell apart: a scene seen from outside, whose rays can
+/// miss it, and a scene the cameras stand in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneKind {
+    /// The cameras stand outside the scene box and look in (an object).
+    Object,
+    /// Most cameras stand inside the scene box (a room or a walk-through
+    /// capture: every ray starts inside and ends on a surface).
+    Room,
+}
+
+impl SceneKind {
+    /// `Room` when more than half of the camera centres lie inside the
+    /// scene box, `Object` otherwise (and with no camera).
+    pub fn of(scene_box: &SceneBox, camera_centres: impl IntoIterator<Item = Vec3>) -> Self {
+        let (inside, all) = cameras_inside(scene_box, camera_centres);
+        if 2 * inside > all {
+            SceneKind::Room
+        } else {
+            SceneKind::Object
+        }
+    }
+
+    /// Lower-case name for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            SceneKind::Object => "object",
+            SceneKind::Room => "room",
+        }
+    }
+}
+
+/// How many of the camera centres lie inside the scene box, and how many
+/// there are.
+pub fn cameras_inside(
+    scene_box: &SceneBox,
+    camera_centres: impl IntoIterator<Item = Vec3>,
+) -> (usize, usize) {
+    let (mut inside, mut all) = (0usize, 0usize);
+    for c in camera_centres {
+        all += 1;
+        inside += usize::from(scene_box.contains(c));
+    }
+    (inside, all)
+}
+
 impl Preset {
-    /// Sets this preset's knobs and schedule length on `config`.
-    pub fn apply(self, config: &mut TrainConfig) {
-        let (samples, iterations) = match self {
-            Preset::Fast => (16, 1600),
-            Preset::Balanced => (24, 2300),
-            Preset::Best => (24, 5000),
-        };
+    /// The preset's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Preset::Fast => "fast",
+            Preset::Balanced => "balanced",
+            Preset::Best => "best",
+        }
+    }
+
+    /// The samples per ray and level, rays per batch and iterations of this
+    /// preset on a scene of `kind`.
+    pub fn settings(self, kind: SceneKind) -> (usize, usize, usize) {
+        match (self, kind) {
+            (Preset::Fast, SceneKind::Object) => (16, 256, 1600),
+            (Preset::Balanced, SceneKind::Object) => (24, 256, 2300),
+            (Preset::Best, SceneKind::Object) => (24, 256, 5000),
+            (Preset::Fast, SceneKind::Room) => (16, 128, 2600),
+            (Preset::Balanced, SceneKind::Room) => (24, 128, 4150),
+            (Preset::Best, SceneKind::Room) => (24, 128, 9000),
+        }
+    }
+
+    /// Sets this preset's knobs and schedule length for a scene of `kind`
+    /// on `config`.
+    pub fn apply(self, config: &mut TrainConfig, kind: SceneKind) {
+        let (samples, rays, iterations) = self.settings(kind);
         config.model.num_samples = samples;
+        config.sampler.rays_per_batch = rays;
         config.occupancy.enabled = true;
         config.schedule.iterations = iterations;
     }
@@ -41,14 +118,50 @@ mod tests {
 
     #[test]
     fn presets_grow_in_cost_and_turn_the_grid_on() {
-        let cost = |p: Preset| {
-            let mut c = TrainConfig::default_run(0);
-            p.apply(&mut c);
-            assert!(c.occupancy.enabled);
-            assert!(c.validate().is_ok());
-            c.model.num_samples * c.schedule.iterations
+        for kind in [SceneKind::Object, SceneKind::Room] {
+            let cost = |p: Preset| {
+                let mut c = TrainConfig::default_run(0);
+                p.apply(&mut c, kind);
+                assert!(c.occupancy.enabled);
+                assert!(c.validate().is_ok());
+                c.model.num_samples * c.sampler.rays_per_batch * c.schedule.iterations
+            };
+            assert!(cost(Preset::Fast) < cost(Preset::Balanced));
+            assert!(cost(Preset::Balanced) < cost(Preset::Best));
+        }
+    }
+
+    #[test]
+    fn a_room_halves_the_batch_and_runs_more_iterations() {
+        for p in [Preset::Fast, Preset::Balanced, Preset::Best] {
+            let (s_obj, r_obj, it_obj) = p.settings(SceneKind::Object);
+            let (s_room, r_room, it_room) = p.settings(SceneKind::Room);
+            assert_eq!(s_obj, s_room);
+            assert_eq!((r_obj, r_room), (256, 128));
+            // The same seconds: more iterations, fewer rays in all.
+            assert!(it_room > it_obj && it_room * r_room < it_obj * r_obj);
+        }
+    }
+
+    #[test]
+    fn scene_kind_counts_the_cameras_inside_the_box() {
+        let b = SceneBox {
+            min: [-1.0; 3],
+            max: [1.0; 3],
         };
-        assert!(cost(Preset::Fast) < cost(Preset::Balanced));
-        assert!(cost(Preset::Balanced) < cost(Preset::Best));
+        // A walk through the box, and an orbit around it at radius 4.
+        let walk = (0..10).map(|i| [-0.9 + 0.2 * i as f64, 0.0, 0.3]);
+        let orbit = (0..10).map(|i| {
+            let a = i as f64 * 0.6;
+            [4.0 * a.cos(), 4.0 * a.sin(), 0.5]
+        });
+        assert_eq!(SceneKind::of(&b, walk.clone()), SceneKind::Room);
+        assert_eq!(SceneKind::of(&b, orbit.clone()), SceneKind::Object);
+        // Half inside is not a majority; one more inside is.
+        let half: Vec<Vec3> = walk.clone().take(5).chain(orbit.clone().take(5)).collect();
+        assert_eq!(SceneKind::of(&b, half.clone()), SceneKind::Object);
+        let more = half.into_iter().chain(walk.take(1));
+        assert_eq!(SceneKind::of(&b, more), SceneKind::Room);
+        assert_eq!(SceneKind::of(&b, std::iter::empty()), SceneKind::Object);
     }
 }

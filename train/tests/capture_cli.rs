@@ -274,3 +274,55 @@ fn a_scannet_export_skips_lost_poses_and_refuses_bad_depth() {
         .expect("png");
     assert_refused(tmp.path(), &data, &[], &["depth/1.png"]);
 }
+
+/// `--preset` reads where the cameras stand: the rig looks at its points
+/// from outside their box (an object: 256 rays a batch, the lego
+/// settings), the synthetic room's cameras stand inside it (128 rays a
+/// batch and more iterations); explicit flags still win over the preset.
+#[test]
+fn presets_follow_where_the_cameras_stand() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = capture(tmp.path(), &model_text());
+    let run = |name: &str, scene: &[&str], extra: &[&str]| -> (String, serde_json::Value) {
+        let out = tmp.path().join(name);
+        let mut args = scene.to_vec();
+        args.extend_from_slice(&["--stop-at", "1", "--no-final-render", "--quiet"]);
+        args.extend_from_slice(&["--out", s(&out)]);
+        args.extend_from_slice(extra);
+        let o = train(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{name}: {err}");
+        let config =
+            serde_json::from_slice(&std::fs::read(out.join("config.json")).expect("config"))
+                .expect("config.json parses");
+        (err, config)
+    };
+    let knobs = |c: &serde_json::Value| {
+        (
+            c["model"]["num_samples"].as_u64(),
+            c["sampler"]["rays_per_batch"].as_u64(),
+            c["schedule"]["iterations"].as_u64(),
+            c["occupancy"]["enabled"].as_bool(),
+        )
+    };
+    let rig = ["--data", s(&data), "--holdout-every", "4"];
+    let (err, c) = run("object", &rig, &["--preset", "fast"]);
+    assert!(
+        err.contains("preset fast with the object settings"),
+        "{err}"
+    );
+    assert_eq!(knobs(&c), (Some(16), Some(256), Some(1600), Some(true)));
+    let room = ["--scene-size", "ci"];
+    let (err, c) = run("room", &room, &["--preset", "balanced"]);
+    assert!(
+        err.contains("preset balanced with the room settings"),
+        "{err}"
+    );
+    assert_eq!(knobs(&c), (Some(24), Some(128), Some(4150), Some(true)));
+    let (_, c) = run(
+        "flags",
+        &room,
+        &["--preset", "best", "--rays", "64", "--iters", "9"],
+    );
+    assert_eq!(knobs(&c), (Some(24), Some(64), Some(9), Some(true)));
+}
