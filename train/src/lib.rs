@@ -110,12 +110,15 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         let kind = preset::SceneKind::of(&scene.scene_box, centres());
         let (inside, all) = preset::cameras_inside(&scene.scene_box, centres());
         p.apply(&mut base, kind);
-        let (samples, rays, iterations) = p.settings(kind);
+        let s = p.settings(kind);
         eprintln!(
             "preset {} with the {} settings ({inside} of {all} cameras inside the scene box): \
-             {samples} samples per ray and level, {rays} rays a batch, {iterations} iterations",
+             {} samples per ray and level, {} rays a batch, {} iterations",
             p.name(),
             kind.name(),
+            s.samples,
+            s.rays,
+            s.iterations,
         );
     }
     let mut config = match &cli.config {

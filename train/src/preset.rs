@@ -79,6 +79,17 @@ pub fn cameras_inside(
     (inside, all)
 }
 
+/// What a preset sets (besides turning the occupancy grid on).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PresetSettings {
+    /// Samples per ray and level.
+    pub samples: usize,
+    /// Rays per batch.
+    pub rays: usize,
+    /// The schedule's length.
+    pub iterations: usize,
+}
+
 impl Preset {
     /// The preset's name on the command line.
     pub fn name(self) -> &'static str {
@@ -89,27 +100,31 @@ impl Preset {
         }
     }
 
-    /// The samples per ray and level, rays per batch and iterations of this
-    /// preset on a scene of `kind`.
-    pub fn settings(self, kind: SceneKind) -> (usize, usize, usize) {
-        match (self, kind) {
+    /// This preset's settings on a scene of `kind`.
+    pub fn settings(self, kind: SceneKind) -> PresetSettings {
+        let (samples, rays, iterations) = match (self, kind) {
             (Preset::Fast, SceneKind::Object) => (16, 256, 1600),
             (Preset::Balanced, SceneKind::Object) => (24, 256, 2300),
             (Preset::Best, SceneKind::Object) => (24, 256, 5000),
             (Preset::Fast, SceneKind::Room) => (16, 128, 2600),
             (Preset::Balanced, SceneKind::Room) => (24, 128, 4150),
             (Preset::Best, SceneKind::Room) => (24, 128, 9000),
+        };
+        PresetSettings {
+            samples,
+            rays,
+            iterations,
         }
     }
 
     /// Sets this preset's knobs and schedule length for a scene of `kind`
     /// on `config`.
     pub fn apply(self, config: &mut TrainConfig, kind: SceneKind) {
-        let (samples, rays, iterations) = self.settings(kind);
-        config.model.num_samples = samples;
-        config.sampler.rays_per_batch = rays;
+        let s = self.settings(kind);
+        config.model.num_samples = s.samples;
+        config.sampler.rays_per_batch = s.rays;
         config.occupancy.enabled = true;
-        config.schedule.iterations = iterations;
+        config.schedule.iterations = s.iterations;
     }
 }
 
@@ -135,12 +150,14 @@ mod tests {
     #[test]
     fn a_room_halves_the_batch_and_runs_more_iterations() {
         for p in [Preset::Fast, Preset::Balanced, Preset::Best] {
-            let (s_obj, r_obj, it_obj) = p.settings(SceneKind::Object);
-            let (s_room, r_room, it_room) = p.settings(SceneKind::Room);
-            assert_eq!(s_obj, s_room);
-            assert_eq!((r_obj, r_room), (256, 128));
+            let (obj, room) = (p.settings(SceneKind::Object), p.settings(SceneKind::Room));
+            assert_eq!(obj.samples, room.samples);
+            assert_eq!((obj.rays, room.rays), (256, 128));
             // The same seconds: more iterations, fewer rays in all.
-            assert!(it_room > it_obj && it_room * r_room < it_obj * r_obj);
+            assert!(
+                room.iterations > obj.iterations
+                    && room.iterations * room.rays < obj.iterations * obj.rays
+            );
         }
     }
 
