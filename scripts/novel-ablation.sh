@@ -73,15 +73,9 @@ case "$oracle" in
   *) echo "error: --oracle must be renders or labels, got $oracle" >&2; exit 2 ;;
 esac
 
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/opennerf-target}"
-# The binaries are copied into the output directory once, so that an
-# ablation resumed after the code changed still runs the same program.
-bin="$out/bin"
-if [ ! -x "$bin/train" ] || [ ! -x "$bin/eval" ]; then
-  cargo build --release -q -p train -p eval
-  mkdir -p "$bin"
-  cp "$CARGO_TARGET_DIR/release/train" "$CARGO_TARGET_DIR/release/eval" "$bin/"
-fi
+# The programs are built once and copied into <out>/bin.
+source scripts/frozen-bins.sh
+freeze_bins "$out"
 
 for seed in "${seeds[@]}"; do
   dir="$out/seed-$seed"

@@ -39,13 +39,9 @@ for p in $presets; do
   esac
 done
 
-export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/opennerf-target}"
-bin="$out/bin"
-if [ ! -x "$bin/train" ] || [ ! -x "$bin/eval" ]; then
-  cargo build --release -q -p train -p eval
-  mkdir -p "$bin"
-  cp "$CARGO_TARGET_DIR/release/train" "$CARGO_TARGET_DIR/release/eval" "$bin/"
-fi
+# The programs are built once and copied into <out>/bin.
+source scripts/frozen-bins.sh
+freeze_bins "$out"
 
 # Seconds of training: the clock of the last training line of the log.
 train_seconds() {

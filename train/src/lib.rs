@@ -106,16 +106,17 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
     if let Some(p) = cli.preset {
-        let centres = || scene.frames.iter().map(|f| f.camera.pose.center());
-        let kind = preset::SceneKind::of(&scene.scene_box, centres());
-        let (inside, all) = preset::cameras_inside(&scene.scene_box, centres());
-        p.apply(&mut base, kind);
-        let s = p.settings(kind);
+        let centres = scene.frames.iter().map(|f| f.camera.pose.center());
+        let count = preset::CameraCount::of(&scene.scene_box, centres);
+        let kind = count.kind();
+        let s = p.apply(&mut base, kind);
         eprintln!(
-            "preset {} with the {} settings ({inside} of {all} cameras inside the scene box): \
+            "preset {} with the {} settings ({} of {} cameras inside the scene box): \
              {} samples per ray and level, {} rays a batch, {} iterations",
             p.name(),
             kind.name(),
+            count.inside,
+            count.all,
             s.samples,
             s.rays,
             s.iterations,

@@ -45,17 +45,6 @@ pub enum SceneKind {
 }
 
 impl SceneKind {
-    /// `Room` when more than half of the camera centres lie inside the
-    /// scene box, `Object` otherwise (and with no camera).
-    pub fn of(scene_box: &SceneBox, camera_centres: impl IntoIterator<Item = Vec3>) -> Self {
-        let (inside, all) = cameras_inside(scene_box, camera_centres);
-        if 2 * inside > all {
-            SceneKind::Room
-        } else {
-            SceneKind::Object
-        }
-    }
-
     /// Lower-case name for messages.
     pub fn name(self) -> &'static str {
         match self {
@@ -65,18 +54,35 @@ impl SceneKind {
     }
 }
 
-/// How many of the camera centres lie inside the scene box, and how many
-/// there are.
-pub fn cameras_inside(
-    scene_box: &SceneBox,
-    camera_centres: impl IntoIterator<Item = Vec3>,
-) -> (usize, usize) {
-    let (mut inside, mut all) = (0usize, 0usize);
-    for c in camera_centres {
-        all += 1;
-        inside += usize::from(scene_box.contains(c));
+/// How many of a scene's cameras stand inside its scene box.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CameraCount {
+    /// Camera centres inside the box.
+    pub inside: usize,
+    /// All cameras.
+    pub all: usize,
+}
+
+impl CameraCount {
+    /// Counts the camera centres inside `scene_box`.
+    pub fn of(scene_box: &SceneBox, camera_centres: impl IntoIterator<Item = Vec3>) -> Self {
+        let (mut inside, mut all) = (0usize, 0usize);
+        for c in camera_centres {
+            all += 1;
+            inside += usize::from(scene_box.contains(c));
+        }
+        Self { inside, all }
     }
-    (inside, all)
+
+    /// `Room` when more than half of the cameras stand inside the box,
+    /// `Object` otherwise (and with no camera).
+    pub fn kind(self) -> SceneKind {
+        if 2 * self.inside > self.all {
+            SceneKind::Room
+        } else {
+            SceneKind::Object
+        }
+    }
 }
 
 /// What a preset sets (besides turning the occupancy grid on).
@@ -118,13 +124,14 @@ impl Preset {
     }
 
     /// Sets this preset's knobs and schedule length for a scene of `kind`
-    /// on `config`.
-    pub fn apply(self, config: &mut TrainConfig, kind: SceneKind) {
+    /// on `config`, and returns them.
+    pub fn apply(self, config: &mut TrainConfig, kind: SceneKind) -> PresetSettings {
         let s = self.settings(kind);
         config.model.num_samples = s.samples;
         config.sampler.rays_per_batch = s.rays;
         config.occupancy.enabled = true;
         config.schedule.iterations = s.iterations;
+        s
     }
 }
 
@@ -173,13 +180,20 @@ mod tests {
             let a = i as f64 * 0.6;
             [4.0 * a.cos(), 4.0 * a.sin(), 0.5]
         });
-        assert_eq!(SceneKind::of(&b, walk.clone()), SceneKind::Room);
-        assert_eq!(SceneKind::of(&b, orbit.clone()), SceneKind::Object);
+        assert_eq!(CameraCount::of(&b, walk.clone()).kind(), SceneKind::Room);
+        assert_eq!(CameraCount::of(&b, orbit.clone()).kind(), SceneKind::Object);
         // Half inside is not a majority; one more inside is.
         let half: Vec<Vec3> = walk.clone().take(5).chain(orbit.clone().take(5)).collect();
-        assert_eq!(SceneKind::of(&b, half.clone()), SceneKind::Object);
+        assert_eq!(
+            CameraCount::of(&b, half.clone()),
+            CameraCount { inside: 5, all: 10 }
+        );
+        assert_eq!(CameraCount::of(&b, half.clone()).kind(), SceneKind::Object);
         let more = half.into_iter().chain(walk.take(1));
-        assert_eq!(SceneKind::of(&b, more), SceneKind::Room);
-        assert_eq!(SceneKind::of(&b, std::iter::empty()), SceneKind::Object);
+        assert_eq!(CameraCount::of(&b, more).kind(), SceneKind::Room);
+        assert_eq!(
+            CameraCount::of(&b, std::iter::empty()).kind(),
+            SceneKind::Object
+        );
     }
 }
