@@ -23,3 +23,9 @@ pub use error::ClipError;
 pub use model_dir::{TextModel, load_tokenizer};
 pub use tokenizer::ClipTokenizer;
 pub use vision::{ClipExtractor, DenseOptions, VisionModel, Vlm};
+
+/// The directory this crate was compiled from (its manifest directory).
+/// Every crate of one build names the same checkout; a test checks it, so
+/// that a build never mixes in artifacts compiled from another checkout
+/// sharing the target directory.
+pub const BUILT_FROM: &str = env!("CARGO_MANIFEST_DIR");

@@ -16,3 +16,9 @@ pub mod segment;
 // Scoring and relevancy are shared with training's viewer: they live in
 // `field_ops` and keep their paths here.
 pub use field_ops::{query, similarity, text_query};
+
+/// The directory this crate was compiled from (its manifest directory).
+/// Every crate of one build names the same checkout; a test checks it, so
+/// that a build never mixes in artifacts compiled from another checkout
+/// sharing the target directory.
+pub const BUILT_FROM: &str = env!("CARGO_MANIFEST_DIR");

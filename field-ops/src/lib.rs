@@ -32,3 +32,9 @@ pub mod uncertainty;
 pub mod vlm_maps;
 
 pub use error::OpsError;
+
+/// The directory this crate was compiled from (its manifest directory).
+/// Every crate of one build names the same checkout; a test checks it, so
+/// that a build never mixes in artifacts compiled from another checkout
+/// sharing the target directory.
+pub const BUILT_FROM: &str = env!("CARGO_MANIFEST_DIR");

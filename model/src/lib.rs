@@ -22,3 +22,9 @@ pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb
 pub use march::{MarchedRays, Termination};
 pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, Rays, RenderOutputs};
 pub use occupancy::{ClippedRays, OccupancyConfig, OccupancyGrid};
+
+/// The directory this crate was compiled from (its manifest directory).
+/// Every crate of one build names the same checkout; a test checks it, so
+/// that a build never mixes in artifacts compiled from another checkout
+/// sharing the target directory.
+pub const BUILT_FROM: &str = env!("CARGO_MANIFEST_DIR");

@@ -219,3 +219,9 @@ fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
         novel.extractor = validate::extractor_words(c).ok();
     }
 }
+
+/// The directory this crate was compiled from (its manifest directory).
+/// Every crate of one build names the same checkout; a test checks it, so
+/// that a build never mixes in artifacts compiled from another checkout
+/// sharing the target directory.
+pub const BUILT_FROM: &str = env!("CARGO_MANIFEST_DIR");

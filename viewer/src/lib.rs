@@ -24,3 +24,9 @@ pub mod state;
 pub use error::ViewerError;
 pub use http::{ServerHandle, ServerOptions, start};
 pub use state::{FieldSnapshot, Viewer, ViewerData, ViewerOptions};
+
+/// The directory this crate was compiled from (its manifest directory).
+/// Every crate of one build names the same checkout; a test checks it, so
+/// that a build never mixes in artifacts compiled from another checkout
+/// sharing the target directory.
+pub const BUILT_FROM: &str = env!("CARGO_MANIFEST_DIR");
