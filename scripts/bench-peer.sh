@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Training-step speed against JAX in one run: train's `bench` binary with
+# Training-step speed against JAX in one run: the bench crate's `bench` binary with
 # `--peer`, which first times scripts/peer_step_jax.py (the plain per-sample
 # step written in JAX, CPU) with the same sizes and then reports every Burn
 # row's step time as a multiple of the JAX step time (see `bench --help`).
@@ -10,7 +10,7 @@
 # $(dirname ${CARGO_TARGET_DIR:-$HOME/.cache/opennerf-target})/opennerf-jax,
 # and installs jax (the CPU wheels, about 100 MB) into it from PyPI. Needs
 # python3 with the venv module. Then runs
-#   cargo run --release -p train --bin bench -- --peer VENV/bin/python "$@"
+#   cargo run --release -p bench --bin bench -- --peer VENV/bin/python "$@"
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -27,4 +27,4 @@ if ! "$venv/bin/python" -c "import jax" 2>/dev/null; then
 fi
 
 cd "$here/.."
-exec cargo run --release -p train --bin bench -- --peer "$venv/bin/python" "$@"
+exec cargo run --release -p bench --bin bench -- --peer "$venv/bin/python" "$@"

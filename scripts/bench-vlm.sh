@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Dense CLIP feature extraction speed: the Burn backends against PyTorch in
-# one run (train's `bench-vlm` binary; see its --help).
+# one run (the `bench-vlm` binary of the bench crate; see its --help).
 #
 #   scripts/bench-vlm.sh [bench-vlm flags, e.g. --frames 2 --backend flex]
 #
@@ -10,7 +10,7 @@
 # few GB (torch's default Linux wheels bring the CUDA libraries along); set
 # TORCH_INDEX_URL=https://download.pytorch.org/whl/cpu for the CPU-only wheel
 # (about 200 MB). Needs python3 with the venv module. Then runs
-#   cargo run --release -p train --bin bench-vlm -- --python VENV/bin/python "$@"
+#   cargo run --release -p bench --bin bench-vlm -- --python VENV/bin/python "$@"
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -30,4 +30,4 @@ if ! "$venv/bin/python" -c "import torch, transformers" 2>/dev/null; then
 fi
 
 cd "$here/.."
-exec cargo run --release -p train --bin bench-vlm -- --python "$venv/bin/python" "$@"
+exec cargo run --release -p bench --bin bench-vlm -- --python "$venv/bin/python" "$@"

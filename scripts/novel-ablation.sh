@@ -16,7 +16,7 @@
 # Segmentation projects into the same captured cameras for every mode, so
 # that only the field differs. The table is written by
 # scripts/novel-ablation-table.py, the plot (<out>/ablation.png, with
-# ablation.csv) by the example novel_ablation_plot of the eval crate. The programs are copied into
+# ablation.csv) by the example novel_ablation_plot of the bench crate. The programs are copied into
 # <out>/bin on the first call and reused by later calls. --modes picks the
 # modes (default: all four); --oracle takes the views from the synthetic
 # scene's ground truth (train --novel-oracle) and names the runs
@@ -119,4 +119,4 @@ for seed in "${seeds[@]}"; do
   done
 done
 python3 scripts/novel-ablation-table.py "$out" | tee "$out/ablation.md"
-cargo run -q --release -p eval --example novel_ablation_plot -- "$out"
+cargo run -q --release -p bench --example novel_ablation_plot -- "$out"

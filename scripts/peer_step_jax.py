@@ -3,7 +3,7 @@
 the peer that `bench --peer PYTHON` times against in the same run.
 
 Written after model/src/{mip,field,nerf,composite,sampling,loss}.rs and
-train/src/step.rs, with the sizes of train/src/bin/bench: rays, coarse and
+train/src/step.rs, with the sizes of bench/src/bin/bench: rays, coarse and
 fine samples (the fine posts resampled from the blurred coarse weights by
 inverse-CDF sampling, as model/src/sampling.rs does), Mip-NeRF IPE of the
 conical-frustum Gaussians (degrees 0..16), the 8 x 256 trunk with the encoding
@@ -391,7 +391,7 @@ def step_flops(a):
 
 
 def matmul_ceiling(w):
-    """GFLOP/s of a [4096, w] x [w, w] product loop (as train/src/bin/bench)."""
+    """GFLOP/s of a [4096, w] x [w, w] product loop (as bench/src/bin/bench)."""
     ka, kb = jax.random.split(jax.random.PRNGKey(7))
     a = jax.random.uniform(ka, (4096, w), jnp.float32)
     b = jax.random.uniform(kb, (w, w), jnp.float32)

@@ -1,8 +1,67 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
 //! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
-//! ([`render`]), the MLP with its stop-gradient open-set head ([`field`]),
-//! coarse/fine rendering ([`nerf`]), inference with early ray termination ([`march`]), empty-space skipping ([`occupancy`]), the losses ([`loss`]) and the CLIP text
-//! transformer that embeds free-text queries ([`clip`]). No file I/O.
+//! ([`composite`]), the MLP with its stop-gradient open-set head ([`field`]),
+//! coarse/fine rendering ([`nerf`]), inference with early ray termination
+//! ([`march`]), empty-space skipping ([`occupancy`]), the losses ([`loss`])
+//! and CLIP's text and vision transformers, which embed free-text queries
+//! and make dense image features ([`clip`]). No file I/O.
+//!
+//! # Use from another crate
+//!
+//! A field is built from its configuration (a run stores it under `"model"`
+//! in `config.json`), its weights round-trip through a burnpack file (a
+//! run's `model.bpk`), [`OpenNerf::render_marched`] renders a batch of rays
+//! for inference ([`OpenNerf::render`] for training), and
+//! [`OpenNerf::query_features`] gives the open-set feature of 3D points to
+//! score against a text embedding. `field_ops::run_dir::load_run` does the
+//! first two for a run directory.
+//!
+//! ```
+//! use burn::tensor::{Device, Tensor, TensorData};
+//! use model::geometry::NormalizedRay;
+//! use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays, Termination};
+//!
+//! let device = Device::flex();
+//! let config = OpenNerfConfig::new(FeatureHeadConfig::new(8).with_width(16))
+//!     .with_mlp(MipMlpConfig::new().with_width(32).with_depth(2).with_skip_layer(1).with_max_deg(4))
+//!     .with_num_samples(16);
+//! // The configuration as a run stores it, and back.
+//! let json = serde_json::to_string(&config).unwrap();
+//! let config: OpenNerfConfig = serde_json::from_str(&json).unwrap();
+//!
+//! // Weights saved and loaded into a field built from the same configuration.
+//! let field = config.init(&device);
+//! let path = std::env::temp_dir().join(format!("opennerf-doc-{}.bpk", std::process::id()));
+//! field.clone().save_file(&path).expect("weights written");
+//! let field = config.init(&device).try_load_file(&path).expect("weights read");
+//! std::fs::remove_file(&path).ok();
+//!
+//! // Four rays through the normalised scene cube ([-pi, pi]^3), rendered
+//! // for inference: colour, depth, opacity and feature per ray, on the host.
+//! let rays: Vec<NormalizedRay> = (0..4)
+//!     .map(|i| NormalizedRay {
+//!         origin: [0.2 * i as f32 - 0.3, 0.0, -2.5],
+//!         direction: [0.0, 0.0, 1.0],
+//!         radius: 0.002,
+//!         near: 0.5,
+//!         far: 4.5,
+//!     })
+//!     .collect();
+//! let batch = Rays::from_normalized(&rays, &device);
+//! let out = field.render_marched(&batch, None, FeatureMode::Composited, Termination::default());
+//! assert_eq!((out.rgb.len(), out.depth.len(), out.feature_dim), (12, 4, 8));
+//! assert!(out.acc.iter().all(|a| (0.0..=1.0).contains(a)));
+//!
+//! // Two points scored against a text embedding of the head's dimension
+//! // (with PCA-compressed targets, lift the features first).
+//! let points = Tensor::<2>::from_data(TensorData::new(vec![0.0f32, 0.0, 0.0, 1.0, 0.5, -0.5], [2, 3]), &device);
+//! let features = field.query_features(points, 0.01); // [2, 8]
+//! let text = Tensor::<2>::from_data(TensorData::new(vec![1.0f32; 8], [1, 8]), &device);
+//! let cosine = features.clone().mul(text.clone()).sum_dim(1)
+//!     .div(features.square().sum_dim(1).sqrt().mul(text.square().sum_dim(1).sqrt()));
+//! let cosine: Vec<f32> = cosine.into_data().to_vec().unwrap();
+//! assert!(cosine.iter().all(|c| c.abs() <= 1.0 + 1e-5));
+//! ```
 #![warn(missing_docs)]
 
 pub mod clip;

@@ -26,7 +26,6 @@ pub mod report;
 pub mod schedule;
 pub mod step;
 pub mod summary;
-pub mod sweep;
 pub mod training;
 pub mod validate;
 pub mod vlm;

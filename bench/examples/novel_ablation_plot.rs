@@ -3,7 +3,7 @@
 //! the seeds as a bar with each seed as a dot, all classes on the left and
 //! the tail classes on the right; the numbers beside it in a CSV.
 //!
-//! `cargo run -p eval --release --example novel_ablation_plot -- DIR [METHOD]`
+//! `cargo run -p bench --release --example novel_ablation_plot -- DIR [METHOD]`
 //!
 //! reads `DIR/seed-*/<run>/seg/segmentation_compare.json` (written by
 //! `scripts/novel-ablation.sh`) and writes `DIR/ablation.png` and

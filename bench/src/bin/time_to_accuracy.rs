@@ -4,7 +4,7 @@
 //! machine; the held-out PSNR of the periodic evaluations gives the seconds
 //! each needs to reach every target.
 //!
-//! `cargo run -p train --release --bin time_to_accuracy -- [--data DIR] [--iters N]`
+//! `cargo run -p bench --release --bin time_to_accuracy -- [--data DIR] [--iters N]`
 //!
 //! Writes `time_to_accuracy.{csv,json,png}` into `--out`; a run already
 //! finished there (its `summary.json` present) is reused, so a killed

@@ -11,7 +11,7 @@
 //! the same sizes, prints it as a `jax` row and every row's step time as a
 //! multiple of JAX's (`scripts/bench-peer.sh` makes such a Python).
 //!
-//! `cargo run -p train --release --bin bench -- [--quick] [--steps N] [--peer PYTHON]`
+//! `cargo run -p bench --release --bin bench -- [--quick] [--steps N] [--peer PYTHON]`
 
 mod ball;
 mod cases;

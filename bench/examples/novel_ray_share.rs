@@ -3,7 +3,7 @@
 //! against their share of the pixels, and per class the change of the
 //! captured frames' own rays.
 //!
-//!     cargo run --release -p field-ops --example novel_ray_share -- RUN [RUN...]
+//!     cargo run --release -p bench --example novel_ray_share -- RUN [RUN...]
 //!
 //! The sampler gives every feature cluster the same share of rays. Novel
 //! views whose maps hold features unlike the captured frames' (pure class

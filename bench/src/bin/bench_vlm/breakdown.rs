@@ -12,7 +12,7 @@ use model::clip::{ClipVisionConfig, ResidualAttentionBlock};
 use train::backend::BackendKind;
 
 use super::Geometry;
-use super::timing::timed;
+use super::cpu::timed;
 
 fn busy(b: Option<f64>) -> String {
     b.map_or("-".into(), |x| format!("{x:.2}"))

@@ -1,6 +1,6 @@
 //! How well a scene's PCA basis keeps the class embeddings themselves.
 //!
-//!     cargo run --release -p datasets --example pca_classes -- 21 22 23
+//!     cargo run --release -p bench --example pca_classes -- 21 22 23
 //!
 //! The basis is fitted to the extractor's maps (mixtures of classes plus
 //! noise), but a novel view read with ground-truth labels writes the pure

@@ -8,7 +8,7 @@
 //! of the tower's matrix products alone (the same shapes, nothing else), and
 //! writes `bench_vlm.csv` and `bench_vlm.json` under `--out`.
 //!
-//! `cargo run -p train --release --bin bench-vlm -- [--frames N] [--python PATH]`
+//! `cargo run -p bench --release --bin bench-vlm -- [--frames N] [--python PATH]`
 //! (`scripts/bench-vlm.sh` makes a PyTorch venv and passes `--python`).
 
 use std::fmt::Write as _;
@@ -20,11 +20,13 @@ use clip::vision::DenseOptions;
 use model::clip::{ClipVisionConfig, DenseVariant};
 use serde::Serialize;
 mod breakdown;
+mod cpu;
 mod pytorch;
 mod timing;
 
+use cpu::{cpu_model, logical_cpus};
 use pytorch::{pytorch_row, run_pytorch};
-use timing::{BackendTiming, cpu_model, logical_cpus, random_frame, time_backend, window_flops};
+use timing::{BackendTiming, random_frame, time_backend, window_flops};
 use train::backend::BackendKind;
 
 #[cfg(not(target_env = "msvc"))]

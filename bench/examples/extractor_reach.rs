@@ -8,7 +8,7 @@
 //! the extractor's own (look-alike colours, its prior for large classes),
 //! repeated in every view, and no choice of camera fixes it.
 //!
-//! `cargo run -p datasets --release --example extractor_reach -- [SEED] [SCALE]`
+//! `cargo run -p bench --release --example extractor_reach -- [SEED] [SCALE]`
 //! (seed 21 and scale 0.5, the render scale of novel views, by default).
 
 use datasets::extractor::FeatureExtractor;

@@ -5,7 +5,7 @@
 //! `sweep.{csv,json}` and `psnr_vs_seconds.png` (plus `miou_vs_seconds.png`
 //! on the benchmark synthetic scene) with the Pareto front joined.
 //!
-//! `cargo run -p train --release --bin sweep -- --scene lego [--budget S]`
+//! `cargo run -p bench --release --bin sweep -- --scene lego [--budget S]`
 //!
 //! A point whose run finished earlier (its `summary.json`, and on the
 //! synthetic scene its segmentation, present) is reused: a killed sweep
@@ -15,11 +15,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{Context, Result, bail};
+use bench::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 use clap::{Parser, ValueEnum};
 use field_ops::json::read_json;
 use field_ops::scores::SegmentationScores;
 use train::summary::Summary;
-use train::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 
 #[cfg(not(target_env = "msvc"))]
 #[global_allocator]
@@ -201,7 +201,7 @@ fn main() -> Result<()> {
     {
         results.push(measure(&args, p, &out)?);
     }
-    train::sweep::write_report(&results, &out).map_err(|e| anyhow::anyhow!(e))?;
+    bench::sweep::write_report(&results, &out).map_err(|e| anyhow::anyhow!(e))?;
     let front = pareto(
         &results
             .iter()
