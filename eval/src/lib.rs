@@ -8,6 +8,9 @@
 
 pub mod cameras;
 pub mod checks;
+// Flag help is written for `--help`: `[D]` is a shape and `<scene>` a
+// placeholder there, not a link or an HTML tag.
+#[allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]
 pub mod commands;
 pub mod figures;
 pub mod metrics;

@@ -116,7 +116,7 @@ pub enum Mutation {
     Splice { seed: u16, at: Pos, from: Pos },
 }
 
-/// A position: in the first [`HEAD`] bytes or anywhere.
+/// A position: in the first `HEAD` bytes or anywhere.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Pos {
     head: bool,

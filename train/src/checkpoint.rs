@@ -207,7 +207,7 @@ fn process_alive(pid: u32) -> bool {
     proc.is_dir() && proc.join(pid.to_string()).exists()
 }
 
-/// Deletes the temporary files in `dir` that [`write_atomic`](field_ops::files::write_atomic) calls of
+/// Deletes the temporary files in `dir` that [`field_ops::files::write_atomic`] calls of
 /// processes no longer running left behind (a kill during a write leaves
 /// one; the real file it was to replace is intact). Returns what was deleted.
 pub fn remove_stale_temp_files(dir: &Path) -> Result<Vec<PathBuf>, TrainError> {

@@ -12,6 +12,9 @@ pub mod accuracy;
 pub mod backend;
 pub mod batch;
 pub mod checkpoint;
+// Flag help is written for `--help`, where `<out>` names a placeholder,
+// not an HTML tag.
+#[allow(rustdoc::invalid_html_tags)]
 pub mod cli;
 pub mod config;
 pub mod curve;

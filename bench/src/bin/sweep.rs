@@ -11,6 +11,9 @@
 //! synthetic scene its segmentation, present) is reused: a killed sweep
 //! continues where it stopped.
 
+// Flag help is written for `--help`, where `<scene>` is a placeholder.
+#![allow(rustdoc::invalid_html_tags)]
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -217,7 +217,7 @@ pub fn render_views(
 
 /// Clears (NaN: no target) every cell of `map` whose image pixels mostly
 /// lack trusted depth, i.e. whose rendered opacity stayed below the
-/// threshold [`field_render`] keeps depth at. The extractor reads such cells
+/// threshold `field_render` keeps depth at. The extractor reads such cells
 /// off fog or background, and a field trained on them learns what it
 /// rendered, not what is there. A cell covers the image pixels whose centres
 /// fall in its footprint (the map may be coarser than the image); it keeps
