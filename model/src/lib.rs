@@ -17,6 +17,7 @@
 //! first two for a run directory.
 //!
 //! ```
+//! use burn::module::Module;
 //! use burn::tensor::{Device, Tensor, TensorData};
 //! use model::geometry::NormalizedRay;
 //! use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays, Termination};
@@ -50,7 +51,7 @@
 //! let batch = Rays::from_normalized(&rays, &device);
 //! let out = field.render_marched(&batch, None, FeatureMode::Composited, Termination::default());
 //! assert_eq!((out.rgb.len(), out.depth.len(), out.feature_dim), (12, 4, 8));
-//! assert!(out.acc.iter().all(|a| (0.0..=1.0).contains(a)));
+//! assert!(out.acc.iter().all(|&a| (0.0..=1.0 + 1e-5).contains(&a)));
 //!
 //! // Two points scored against a text embedding of the head's dimension
 //! // (with PCA-compressed targets, lift the features first).
@@ -59,7 +60,7 @@
 //! let text = Tensor::<2>::from_data(TensorData::new(vec![1.0f32; 8], [1, 8]), &device);
 //! let cosine = features.clone().mul(text.clone()).sum_dim(1)
 //!     .div(features.square().sum_dim(1).sqrt().mul(text.square().sum_dim(1).sqrt()));
-//! let cosine: Vec<f32> = cosine.into_data().to_vec().unwrap();
+//! let cosine: Vec<f32> = cosine.into_data().try_to_vec().unwrap();
 //! assert!(cosine.iter().all(|c| c.abs() <= 1.0 + 1e-5));
 //! ```
 #![warn(missing_docs)]
