@@ -131,6 +131,61 @@ fn nan_or_negative_radius_is_refused() {
     }
 }
 
+/// Every subcommand takes the same `--backend` and `--device` (`uncertainty`
+/// included), refused at a bad value before any file is read.
+#[test]
+fn every_subcommand_refuses_a_bad_backend_or_device() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("maps");
+    let out = out.to_str().expect("utf-8");
+    let commands: [&[&str]; 6] = [
+        &["segment", "--run", MISSING],
+        &["query", "--run", MISSING, "--query", "sofa"],
+        &["render", "--run", MISSING],
+        &["uncertainty", "--run", MISSING],
+        &["view", "--run", MISSING],
+        &["extract", "--vlm", MISSING, "--out", out],
+    ];
+    for command in commands {
+        let with = |extra: &[&'static str]| {
+            let mut args = command.to_vec();
+            args.extend_from_slice(extra);
+            args
+        };
+        assert_refused(
+            &with(&["--backend", "cuda"]),
+            &["'cuda'", "--backend", "flex", "ndarray", "wgpu"],
+        );
+        assert_refused(&with(&["--device", "gpu0"]), &["--device", "adapter index"]);
+        assert_refused(
+            &with(&["--backend", "ndarray", "--device", "1"]),
+            &["--device", "the backend is ndarray", "--backend wgpu"],
+        );
+    }
+    assert!(!Path::new(out).exists(), "extract wrote {out}");
+}
+
+/// `segment --mode` and `extract --dense` take a fixed set of values:
+/// another is refused with the set.
+#[test]
+fn a_mode_or_dense_variant_outside_its_set_is_listed_against_it() {
+    assert_refused(
+        &["segment", "--run", MISSING, "--mode", "projected"],
+        &["'projected'", "--mode", "sampled", "project", "hybrid"],
+    );
+    assert_refused(
+        &[
+            "extract", "--vlm", MISSING, "--out", MISSING, "--dense", "clip",
+        ],
+        &["'clip'", "--dense", "naclip", "clearclip", "maskclip"],
+    );
+    let help = eval(&["segment", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("[default: hybrid]"), "{help}");
+    // Every mode explains itself where `--mode` is described.
+    assert!(help.contains("no view sees"), "{help}");
+}
+
 #[test]
 fn device_means_an_adapter_index_as_in_train() {
     assert_refused(

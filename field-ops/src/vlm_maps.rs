@@ -14,6 +14,28 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::OpsError;
 
+/// The value parser of a `--dense` flag (`train --vlm`, `eval extract`,
+/// `bench-vlm`): one of the [`DenseVariant`](model::clip::DenseVariant)
+/// names, listed with what each does in `--help` and by clap when a value
+/// is not one of them.
+pub fn dense_variant_parser()
+-> impl clap::builder::TypedValueParser<Value = model::clip::DenseVariant> {
+    use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+    use model::clip::DenseVariant;
+    let help = |v: DenseVariant| match v {
+        DenseVariant::Naclip => "key-key attention plus a Gaussian window over the patches",
+        DenseVariant::Clearclip => "query-query attention",
+        DenseVariant::Maskclip => "each token's value, no attention across tokens",
+    };
+    PossibleValuesParser::new(DenseVariant::ALL.map(|v| PossibleValue::new(v.name()).help(help(v))))
+        .map(|name| {
+            DenseVariant::ALL
+                .into_iter()
+                .find(|v| v.name() == name)
+                .expect("clap accepts only the variants' names")
+        })
+}
+
 /// The stamp written next to the maps.
 pub const STAMP: &str = "vlm_features.json";
 

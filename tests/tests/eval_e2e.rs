@@ -4,7 +4,7 @@
 
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
-use eval::commands::common::{ComputeArgs, PointArgs};
+use eval::commands::common::PointArgs;
 use eval::commands::segment::{SegmentArgs, segment_command};
 use eval::metrics::format_table;
 use eval::segment::{
@@ -131,7 +131,7 @@ fn train_then_segment_in_every_mode() {
     let out = dir.path().join("seg").join("segmentation.json");
     let args = SegmentArgs {
         run: dir.path().to_path_buf(),
-        mode: "hybrid".into(),
+        mode: SegmentMode::Hybrid,
         data: PointArgs::default(),
         cameras: "train".into(),
         cam_params: None,
@@ -142,7 +142,7 @@ fn train_then_segment_in_every_mode() {
         chunk: 4096,
         split: None,
         out: Some(dir.path().join("seg")),
-        compute: ComputeArgs {
+        compute: field_ops::backend::BackendArgs {
             backend: field_ops::backend::BackendKind::Flex,
             device: None,
         },

@@ -107,7 +107,7 @@ fn train_with_a_clip_model_then_query_and_segment_with_its_text_tower() {
     let out = train(&[
         "--vlm",
         m,
-        "--vlm-short-side",
+        "--short-side",
         "32",
         "--dense",
         "clearclip",
@@ -161,7 +161,7 @@ fn train_with_a_clip_model_then_query_and_segment_with_its_text_tower() {
     train(&[
         "--vlm",
         m,
-        "--vlm-short-side",
+        "--short-side",
         "32",
         "--dense",
         "clearclip",
@@ -235,7 +235,7 @@ fn bad_vlm_input_is_refused_before_anything_is_written() {
     );
     refused(&["--dense", "naclip", "--out", o], &["--vlm"]);
     refused(
-        &["--vlm", m, "--vlm-short-side", "16", "--out", o],
+        &["--vlm", m, "--short-side", "16", "--out", o],
         &["16", "32"],
     );
     // A text-only checkpoint.
@@ -311,7 +311,7 @@ fn eval_extract_writes_maps_and_previews_that_train_reuses() {
     train(&[
         "--vlm",
         m,
-        "--vlm-short-side",
+        "--short-side",
         "32",
         "--features-out",
         o,

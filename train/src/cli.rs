@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Parser;
 
-use crate::backend::BackendKind;
+use field_ops::backend::BackendArgs;
 
 /// Which kind of scene to train on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -106,12 +106,9 @@ impl std::str::FromStr for Resolution {
 #[derive(Debug, Clone, Parser)]
 #[command(name = "train", version)]
 pub struct Cli {
-    /// Compute backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
-    pub backend: BackendKind,
-    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
-    #[arg(long)]
-    pub device: Option<usize>,
+    /// Compute backend and device.
+    #[command(flatten)]
+    pub compute: BackendArgs,
 
     /// Scene source [default: auto when --data is given, else synthetic].
     #[arg(long, value_enum)]
@@ -146,15 +143,17 @@ pub struct Cli {
     /// (key-key attention plus a Gaussian window over the patches),
     /// `clearclip` (query-query attention) or `maskclip` (values only)
     /// [default: naclip].
-    #[arg(long, requires = "vlm")]
+    #[arg(long, requires = "vlm", value_parser = field_ops::vlm_maps::dense_variant_parser())]
     pub dense: Option<model::clip::DenseVariant>,
     /// --vlm resizes each image's short side to this many pixels (at least
     /// the model's input size) before sliding windows of the input size over
     /// it every half window; the maps have one cell per patch, so larger is
     /// finer and slower (time grows with its square) [default: 336, or the
     /// model's input size if larger].
-    #[arg(long, requires = "vlm")]
-    pub vlm_short_side: Option<usize>,
+    // Named as in `eval extract`; `--vlm-short-side`, its former name, is a
+    // hidden alias so that older scripts still run.
+    #[arg(long, alias = "vlm-short-side", requires = "vlm")]
+    pub short_side: Option<usize>,
     /// Where --vlm writes (or finds) its maps [default: <out>/features].
     #[arg(long, value_name = "DIR", requires = "vlm")]
     pub features_out: Option<PathBuf>,
@@ -392,7 +391,7 @@ mod tests {
     fn cli_is_consistent_and_defaults_to_synthetic_flex() {
         Cli::command().debug_assert();
         let cli = Cli::try_parse_from(["train"]).unwrap();
-        assert_eq!(cli.backend, BackendKind::Flex);
+        assert_eq!(cli.compute, BackendArgs::default());
         assert_eq!(cli.dataset_kind(), DatasetKind::Synthetic);
         assert!(cli.resume.is_none());
         let cli = Cli::try_parse_from([
@@ -411,8 +410,16 @@ mod tests {
         .unwrap();
         assert_eq!(cli.downscale, Some(8));
         assert_eq!(cli.iters, Some(100));
-        assert_eq!(cli.backend, BackendKind::Ndarray);
+        assert_eq!(cli.compute.backend, crate::BackendKind::Ndarray);
         assert!(Cli::try_parse_from(["train", "--resolution", "1x1", "--downscale", "2"]).is_err());
+    }
+
+    #[test]
+    fn short_side_keeps_its_former_name_as_an_alias() {
+        for flag in ["--short-side", "--vlm-short-side"] {
+            let cli = Cli::try_parse_from(["train", "--vlm", "/m", flag, "448"]).unwrap();
+            assert_eq!(cli.short_side, Some(448), "{flag}");
+        }
     }
 
     #[test]

@@ -45,8 +45,8 @@ use std::path::PathBuf;
 pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     validate::cli(cli)?;
     let session = SessionOptions {
-        backend: cli.backend,
-        device_index: cli.device,
+        backend: cli.compute.backend,
+        device_index: cli.compute.device,
         time_budget: cli.time_budget,
         stop_at: cli.stop_at,
         progress: !cli.quiet,
@@ -87,7 +87,7 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
                 model: model.clone(),
                 options: clip::DenseOptions {
                     variant: cli.dense.unwrap_or(model::clip::DenseVariant::Naclip),
-                    short_side: cli.vlm_short_side,
+                    short_side: cli.short_side,
                     ..clip::DenseOptions::default()
                 },
                 features: cli
@@ -95,8 +95,8 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
                     .clone()
                     .unwrap_or_else(|| out.join("features")),
                 pca: cli.pca.unwrap_or(datasets::features::PcaSetting::Auto),
-                backend: cli.backend,
-                device_index: cli.device,
+                backend: cli.compute.backend,
+                device_index: cli.compute.device,
             },
         )?,
         None => data::load(&source)?,
@@ -149,7 +149,7 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
             .as_ref()
             .map_or("none".to_string(), |f| format!("{} channels", f.dim())),
         config.schedule.iterations,
-        cli.backend,
+        cli.compute.backend,
         out.display()
     );
     train_new_with_stages(

@@ -107,7 +107,7 @@ fn value_flags(cli: &Cli) -> Result<(), TrainError> {
             )));
         }
     }
-    field_ops::backend::check_device_flag(cli.backend, cli.device).map_err(flag_error)
+    cli.compute.check().map_err(flag_error)
 }
 
 /// The novel-view and occupancy-grid options.

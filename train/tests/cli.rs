@@ -103,6 +103,55 @@ fn scene_flags_that_would_be_ignored_are_refused() {
     assert_refused(&["--data", "/some/room"], &["/some/room", "not found"]);
 }
 
+/// `--backend` and `--device` are the flags of every `eval` subcommand and
+/// the measurement programs: a backend this build does not know is listed
+/// against the ones it does, and `--device` takes a wgpu adapter index only.
+#[test]
+fn bad_backend_and_device_values_are_refused_by_flag() {
+    assert_refused(
+        &["--backend", "cuda"],
+        &["'cuda'", "--backend", "flex", "ndarray", "wgpu"],
+    );
+    assert_refused(&["--device", "gpu0"], &["--device", "adapter index"]);
+    assert_refused(&["--device", "ndarray"], &["--backend ndarray"]);
+    assert_refused(&["--device", "0"], &["--device", "--backend wgpu"]);
+    let help = String::from_utf8_lossy(&train(&["--help"]).stdout).into_owned();
+    for flag in [
+        "--backend <BACKEND>",
+        "--device <INDEX>",
+        "the discrete GPU",
+    ] {
+        assert!(help.contains(flag), "{flag:?} not in the help");
+    }
+}
+
+/// `--short-side` is spelt as in `eval extract`; the former
+/// `--vlm-short-side` still works (and is left out of the help), and a
+/// `--dense` that is no variant is listed against the variants.
+#[test]
+fn short_side_is_named_as_in_eval_extract_and_the_old_name_still_works() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let model = tmp.path().join("no-such-model");
+    let out = tmp.path().join("run");
+    for flag in ["--short-side", "--vlm-short-side"] {
+        let err = assert_refused(
+            &["--vlm", s(&model), flag, "448", "--out", s(&out)],
+            &["no-such-model"],
+        );
+        assert!(!err.contains("unexpected argument"), "{flag}: {err}");
+        // Without --vlm the flag means nothing, under either name.
+        assert_refused(&[flag, "448"], &["--vlm"]);
+    }
+    assert!(!out.exists(), "a refused run wrote {}", out.display());
+    assert_refused(
+        &["--vlm", s(&model), "--dense", "naclipp"],
+        &["'naclipp'", "--dense", "naclip", "clearclip", "maskclip"],
+    );
+    let help = String::from_utf8_lossy(&train(&["--help"]).stdout).into_owned();
+    assert!(help.contains("--short-side <SHORT_SIDE>"), "{help}");
+    assert!(!help.contains("--vlm-short-side"), "{help}");
+}
+
 /// `--dataset auto` (the default with --data) names the format it chose
 /// and why; a directory of no known format is refused with what each
 /// format needs, and nothing is written.

@@ -20,6 +20,7 @@ use std::process::Command;
 use anyhow::{Context, Result, bail};
 use bench::sweep::{SweepPoint, SweepResult, common_points, feature_points, pareto};
 use clap::{Parser, ValueEnum};
+use field_ops::backend::BackendArgs;
 use field_ops::json::read_json;
 use field_ops::scores::SegmentationScores;
 use train::summary::Summary;
@@ -63,6 +64,9 @@ struct Args {
     /// Output directory [default: runs/sweep-<scene>].
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Compute backend and device of every training run and segmentation.
+    #[command(flatten)]
+    compute: BackendArgs,
 }
 
 fn sibling(name: &str) -> Result<PathBuf> {
@@ -107,7 +111,8 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
                 .args(["--scene-size", "bench", "--no-final-render", "--scene-seed"])
                 .arg(args.scene_seed.to_string()),
         };
-        cmd.args(["--quiet", "--time-budget"])
+        cmd.args(args.compute.to_args())
+            .args(["--quiet", "--time-budget"])
             .arg(p.budget.to_string())
             .arg("--out")
             .arg(&dir)
@@ -122,12 +127,10 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
     }
     if bench && !seg.exists() {
         let mut cmd = Command::new(sibling("eval")?);
-        cmd.args(["segment", "--run"]).arg(&dir).args([
-            "--max-views",
-            "20",
-            "--render-scale",
-            "0.5",
-        ]);
+        cmd.args(["segment", "--run"])
+            .arg(&dir)
+            .args(args.compute.to_args())
+            .args(["--max-views", "20", "--render-scale", "0.5"]);
         run(&mut cmd, &format!("segmenting {}", p.name))?;
     }
     let s: Summary = read_json(&dir.join("summary.json"))?;
@@ -163,6 +166,7 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    args.compute.check().map_err(anyhow::Error::msg)?;
     let (budget, points) = match args.scene {
         SweepScene::Lego => {
             let b = args.budget.unwrap_or(60.0);

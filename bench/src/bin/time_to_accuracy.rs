@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
+use field_ops::backend::BackendArgs;
 use field_ops::json::read_json;
 use plotters::prelude::*;
 use serde::Serialize;
@@ -52,6 +53,9 @@ struct Args {
     /// Output directory (one run directory per variant inside).
     #[arg(long, default_value = "runs/time-to-accuracy")]
     out: PathBuf,
+    /// Compute backend and device of both runs.
+    #[command(flatten)]
+    compute: BackendArgs,
 }
 
 /// Seconds of the first evaluation at `target` or above.
@@ -91,6 +95,7 @@ fn train(args: &Args, dir: &Path, config: &Path, grid: bool) -> Result<()> {
         "--out".into(),
         dir.display().to_string(),
     ]);
+    argv.extend(args.compute.to_args());
     if grid {
         argv.extend([
             "--occupancy-grid".into(),
@@ -160,6 +165,7 @@ fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<(Row, Vec<(f64,
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    args.compute.check().map_err(anyhow::Error::msg)?;
     if !args.data.join("transforms_train.json").exists()
         && !args.data.join("transforms.json").exists()
     {

@@ -1,4 +1,4 @@
-//! What the subcommands share: the device, the point and class arguments,
+//! What the subcommands share: the point and class arguments,
 //! the loaded run with its scene, and the choice of cameras.
 
 use std::path::{Path, PathBuf};
@@ -13,33 +13,8 @@ use datasets::text::TextEmbeddings;
 use crate::cameras::{NamedCamera, load_traj, load_transforms_json};
 use crate::segment::EvalPoints;
 use field_ops::OpsError;
-use field_ops::backend::{BackendKind, check_device_flag, parse_device_index};
 use field_ops::frame::OutputFrame;
 use field_ops::run_dir::{LoadedRun, load_run};
-
-/// The compute device of a command: `--backend` and, for wgpu, `--device`
-/// (the same flags as `train`'s).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
-pub struct ComputeArgs {
-    /// Compute backend.
-    #[arg(long, value_enum, default_value_t = BackendKind::Flex)]
-    pub backend: BackendKind,
-    /// wgpu only: index of the discrete GPU to use [default: wgpu's default adapter].
-    #[arg(long, value_parser = parse_device_index)]
-    pub device: Option<usize>,
-}
-
-impl ComputeArgs {
-    /// The Burn device of these flags.
-    pub fn device(&self) -> Device {
-        field_ops::backend::device(self.backend, self.device)
-    }
-
-    /// Refuses `--device` with a backend other than wgpu.
-    pub fn check(&self) -> Result<(), OpsError> {
-        check_device_flag(self.backend, self.device).map_err(OpsError::Invalid)
-    }
-}
 
 /// Where the points and classes come from (all optional: the run's scene
 /// provides defaults when it carries a labelled cloud and class embeddings).

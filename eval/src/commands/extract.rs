@@ -13,11 +13,10 @@ use datasets::imageio::save_rgb8;
 use datasets::npy::NpyInfo;
 use datasets::{LoaderOptions, Scene, SceneSource};
 use field_ops::OpsError;
+use field_ops::backend::BackendArgs;
 use field_ops::colormap::{to_u8, turbo};
 use field_ops::images::pca_colors;
 use model::clip::DenseVariant;
-
-use super::common::ComputeArgs;
 
 /// The scene formats `extract` reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -57,7 +56,8 @@ pub struct ExtractArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Dense variant of the last block: naclip, clearclip or maskclip.
-    #[arg(long, default_value_t = DenseVariant::Naclip)]
+    #[arg(long, default_value_t = DenseVariant::Naclip,
+          value_parser = field_ops::vlm_maps::dense_variant_parser())]
     pub dense: DenseVariant,
     /// Short side images are resized to, in pixels [default: 336, or the
     /// model's input size if larger].
@@ -69,7 +69,7 @@ pub struct ExtractArgs {
     pub text: Option<String>,
     /// Compute backend and device.
     #[command(flatten)]
-    pub compute: ComputeArgs,
+    pub compute: BackendArgs,
 }
 
 fn loader(format: Format) -> LoaderOptions {
@@ -123,7 +123,7 @@ fn scene_of(args: &ExtractArgs) -> Result<Scene, OpsError> {
 
 /// Runs `extract`; returns the files written (maps, then previews).
 pub fn extract_command(args: &ExtractArgs) -> Result<Vec<PathBuf>, OpsError> {
-    args.compute.check()?;
+    args.compute.check().map_err(OpsError::Invalid)?;
     if let Some(t) = &args.text
         && t.trim().is_empty()
     {

@@ -15,7 +15,7 @@ use model::geometry::{Camera, Intrinsics, Pose, Vec3};
 use rand::SeedableRng;
 use serde_json::json;
 
-use field_ops::backend::BackendKind;
+use field_ops::backend::BackendArgs;
 
 /// Width of the preview renders, pixels (the aspect ratio is kept).
 const PREVIEW_WIDTH: u32 = 160;
@@ -52,8 +52,8 @@ pub struct ProposalRequest {
     pub views: usize,
     /// Seed of the target draw and the position noise.
     pub seed: u64,
-    /// Backend of the field's checks and the previews.
-    pub backend: BackendKind,
+    /// Backend and device of the field's checks and the previews.
+    pub compute: BackendArgs,
 }
 
 /// Proposes cameras, writes `novel_views.json` and previews into `out`.
@@ -67,7 +67,7 @@ pub fn write_proposals(
     map: &UncertaintyMap,
     out: &Path,
 ) -> Result<Vec<PathBuf>, OpsError> {
-    let device = field_ops::backend::device(args.backend, None);
+    let device = args.compute.device();
     let run = load_run(&run_dir.dir, &device)?;
     let opts = ProposalOptions {
         max_views: args.views,

@@ -3,12 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use super::common::{ComputeArgs, Context, evenly, select_cameras};
+use super::common::{Context, evenly, select_cameras};
 use crate::checks::{at_least_one, invalid, max_views};
 
 use crate::cameras::{NamedCamera, camera_path, resized};
 use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
+use field_ops::backend::BackendArgs;
 use field_ops::frame::{FrameArgs, OutputFrame};
 use field_ops::images::save_view_pngs;
 use field_ops::render::{RenderSettings, render_view_with};
@@ -50,7 +51,7 @@ pub struct RenderArgs {
     pub out: Option<PathBuf>,
     /// Compute backend and device.
     #[command(flatten)]
-    pub compute: ComputeArgs,
+    pub compute: BackendArgs,
     /// Frame of the written camera poses (`cameras.json`) and point clouds.
     #[command(flatten)]
     pub frame: FrameArgs,
@@ -241,5 +242,5 @@ pub fn check(a: &RenderArgs) -> Result<(), OpsError> {
             a.termination
         )));
     }
-    a.compute.check()
+    a.compute.check().map_err(OpsError::Invalid)
 }

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use datasets::features::FeatureSet;
 
-use super::common::{ComputeArgs, Context, PointArgs, evenly, load_points_with, select_cameras};
+use super::common::{Context, PointArgs, evenly, load_points_with, select_cameras};
 use crate::checks::{at_least_one, invalid, max_views, radius};
 
 use burn::tensor::Device;
@@ -19,6 +19,7 @@ use crate::segment::{
     segment_with_field_modes, write_prediction_plys,
 };
 use field_ops::OpsError;
+use field_ops::backend::BackendArgs;
 use field_ops::frame::{FrameArgs, OutputFrame};
 use field_ops::json::{read_json, write_json};
 use field_ops::project::ProjectOptions;
@@ -30,9 +31,10 @@ pub struct SegmentArgs {
     /// Run directory.
     #[arg(long)]
     pub run: PathBuf,
-    /// Feature mode: sampled, project or hybrid.
-    #[arg(long, default_value = "hybrid")]
-    pub mode: String,
+    /// How each point's feature is obtained from the field: sampled,
+    /// project or hybrid.
+    #[arg(long, value_enum, default_value_t = SegmentMode::Hybrid)]
+    pub mode: SegmentMode,
     /// Points and classes.
     #[command(flatten)]
     pub data: PointArgs,
@@ -70,7 +72,7 @@ pub struct SegmentArgs {
     pub out: Option<PathBuf>,
     /// Compute backend and device.
     #[command(flatten)]
-    pub compute: ComputeArgs,
+    pub compute: BackendArgs,
     /// Also score the other field modes, the projection of the scene's own 2D
     /// feature maps (no field: the bound the field is measured against) and
     /// the ground-truth-feature oracle, in one table (`segmentation_compare.json`).
@@ -102,7 +104,7 @@ pub struct SegmentArgs {
 pub fn segment_command(args: &SegmentArgs) -> Result<Option<SegmentationScores>, OpsError> {
     check(args)?;
     let device = args.compute.device();
-    let mode: SegmentMode = args.mode.parse()?;
+    let mode = args.mode;
     let ctx = Context::load(&args.run, &device)?;
     let frame = args.frame.resolve(&ctx.run.meta)?;
     let scene = ctx.scene.as_ref();
@@ -371,5 +373,5 @@ pub fn check(a: &SegmentArgs) -> Result<(), OpsError> {
             out.display()
         )));
     }
-    a.compute.check()
+    a.compute.check().map_err(OpsError::Invalid)
 }

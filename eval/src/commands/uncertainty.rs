@@ -72,9 +72,9 @@ pub struct UncertaintyArgs {
     /// Output directory [default: `uncertainty/` in the run directory].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Compute backend (for the proposals' field checks and previews).
-    #[arg(long, value_enum, default_value_t = field_ops::backend::BackendKind::Flex)]
-    pub backend: field_ops::backend::BackendKind,
+    /// Compute backend and device (of the proposals' field checks and previews).
+    #[command(flatten)]
+    pub compute: field_ops::backend::BackendArgs,
     /// Frame of the written points.
     #[command(flatten)]
     pub frame: field_ops::frame::FrameArgs,
@@ -163,7 +163,7 @@ fn check_flags(args: &UncertaintyArgs) -> Result<(), OpsError> {
             args.max_memory
         )));
     }
-    Ok(())
+    args.compute.check().map_err(OpsError::Invalid)
 }
 
 /// Runs `eval uncertainty` and returns the files written.
@@ -264,7 +264,7 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
             ProposalRequest {
                 views: args.views,
                 seed: args.seed,
-                backend: args.backend,
+                compute: args.compute,
             },
             &dir,
             &scene,

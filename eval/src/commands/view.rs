@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
-use super::common::ComputeArgs;
 use crate::checks::{invalid, radius};
 use field_ops::OpsError;
+use field_ops::backend::BackendArgs;
 use field_ops::run_dir::{RunDir, load_run, rebuild_scene};
 use viewer::{ServerOptions, Viewer, ViewerData, ViewerOptions};
 
@@ -55,12 +55,12 @@ pub struct ViewArgs {
     pub seconds: Option<f64>,
     /// Compute backend and device.
     #[command(flatten)]
-    pub compute: ComputeArgs,
+    pub compute: BackendArgs,
 }
 
 /// Checks `view`'s flags before anything is loaded.
 pub fn check(a: &ViewArgs) -> Result<IpAddr, OpsError> {
-    a.compute.check()?;
+    a.compute.check().map_err(OpsError::Invalid)?;
     radius(a.radius)?;
     for (flag, v) in [("max-points", a.max_points), ("chunk", a.chunk)] {
         if v == 0 {

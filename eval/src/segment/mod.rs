@@ -29,7 +29,7 @@ pub use features::{projected_2d_features, projected_features, scaled_index};
 pub use field_ops::sample::sampled_features;
 
 /// How per-point features are obtained from the field.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum SegmentMode {
     /// Query the field's feature at each point.
     Sampled,

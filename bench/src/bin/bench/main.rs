@@ -26,8 +26,9 @@ use std::time::Instant;
 
 use burn::tensor::{Device, Distribution, Tensor};
 use clap::Parser;
+use field_ops::backend::{BackendKind, BackendListArgs};
 use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Termination};
-use train::backend::{BackendKind, device, peak_memory_bytes};
+use train::backend::peak_memory_bytes;
 
 #[cfg(not(target_env = "msvc"))]
 #[global_allocator]
@@ -35,7 +36,7 @@ static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemallo
 
 /// Benchmark options.
 #[derive(Debug, Parser)]
-#[command(name = "bench", about = "Training-step throughput on the CPU backends")]
+#[command(name = "bench", about = "Training-step throughput per backend")]
 struct Args {
     /// Small sizes (256 rays x 16+16 samples, width 64, 64-d head) for a quick check.
     #[arg(long)]
@@ -50,9 +51,10 @@ struct Args {
     /// Samples whose weights feed the head in the composited path.
     #[arg(long, default_value_t = 16)]
     top_k: usize,
-    /// Backends to measure.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [BackendKind::Flex, BackendKind::Ndarray])]
-    backends: Vec<BackendKind>,
+    /// Backends to measure (`--backend`, comma-separated) and wgpu's
+    /// adapter (`--device`).
+    #[command(flatten)]
+    compute: BackendListArgs,
     /// A Python interpreter with jax: first times `scripts/peer_step_jax.py`
     /// (the plain per-sample step in JAX on the CPU) with the same sizes,
     /// prints it as a `jax` row and adds a "vs JAX" column (each row's step
@@ -170,7 +172,7 @@ fn run_backend(
     backend: BackendKind,
     peer: Option<&peer::Peer>,
 ) {
-    let plain = device(backend, None);
+    let plain = args.compute.of(backend).device();
     let ceiling = matmul_ceiling(&plain, size.width);
     let ad = plain.clone().autodiff();
     let grid = object_grid();
@@ -231,6 +233,7 @@ fn run_backend(
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    args.compute.check().map_err(anyhow::Error::msg)?;
     let size = size_of(&args);
     let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
     let mlp = MipMlpConfig::new()
@@ -274,7 +277,7 @@ fn main() -> anyhow::Result<()> {
         };
         report::print_row(&row, peer.as_ref());
     }
-    for &backend in &args.backends {
+    for &backend in &args.compute.backend {
         run_backend(&args, size, &mlp, backend, peer.as_ref());
     }
     report::print_notes(size, args.fit_steps, peer.is_some());

@@ -25,9 +25,9 @@ mod pytorch;
 mod timing;
 
 use cpu::{cpu_model, logical_cpus};
+use field_ops::backend::BackendListArgs;
 use pytorch::{pytorch_row, run_pytorch};
 use timing::{BackendTiming, random_frame, time_backend, window_flops};
-use train::backend::BackendKind;
 
 #[cfg(not(target_env = "msvc"))]
 #[global_allocator]
@@ -40,14 +40,10 @@ static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemallo
     about = "Dense CLIP (ViT-B/16, NACLIP) feature extraction speed per backend, against PyTorch"
 )]
 struct Args {
-    /// Backends to time, comma-separated (flex, ndarray, wgpu). wgpu needs a
-    /// Vulkan driver (a GPU, or lavapipe on the CPU: slow, for checking only).
-    #[arg(long, alias = "backends", value_enum, value_delimiter = ',',
-          default_values_t = [BackendKind::Flex, BackendKind::Ndarray])]
-    backend: Vec<BackendKind>,
-    /// wgpu only: the index of the discrete GPU (default: wgpu's default adapter).
-    #[arg(long)]
-    device: Option<usize>,
+    /// Backends to time (`--backend`, comma-separated) and wgpu's adapter
+    /// (`--device`).
+    #[command(flatten)]
+    compute: BackendListArgs,
     /// Timed frames per implementation, after one untimed warm-up frame.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     frames: u64,
@@ -64,7 +60,8 @@ struct Args {
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u64).range(1..=1024))]
     batch: u64,
     /// The last block's dense variant: naclip, clearclip or maskclip.
-    #[arg(long, default_value = "naclip", value_parser = parse_variant)]
+    #[arg(long, default_value_t = DenseVariant::Naclip,
+          value_parser = field_ops::vlm_maps::dense_variant_parser())]
     dense: DenseVariant,
     /// Seed of the frame's content and of the random weights.
     #[arg(long, default_value_t = 1)]
@@ -89,10 +86,6 @@ struct Args {
     /// Directory for bench_vlm.csv and bench_vlm.json (created if missing).
     #[arg(long, default_value = "runs/bench-vlm")]
     out: PathBuf,
-}
-
-fn parse_variant(s: &str) -> Result<DenseVariant, String> {
-    s.parse()
 }
 
 /// The frame and window geometry shared by every implementation.
@@ -258,8 +251,9 @@ fn print_table(
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    args.compute.check().map_err(anyhow::Error::msg)?;
     ensure!(
-        !args.backend.is_empty() || args.python.is_some(),
+        !args.compute.backend.is_empty() || args.python.is_some(),
         "nothing to time: give --backend or --python"
     );
     let (h, w) = (args.height as usize, args.width as usize);
@@ -281,7 +275,7 @@ fn main() -> Result<()> {
 
     let mut rows = Vec::new();
     let mut geometry = None;
-    for &kind in &args.backend {
+    for &kind in &args.compute.backend {
         let BackendTiming {
             per_frame: times,
             geometry: geo,

@@ -5,8 +5,9 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail, ensure};
 use burn::tensor::{Device, Distribution, Tensor};
 use clip::vision::{DenseOptions, VisionModel};
+use field_ops::backend::{BackendArgs, BackendKind};
 use model::clip::{ClipVisionConfig, DenseVariant};
-use train::backend::{BackendKind, device, vulkan_available};
+use train::backend::vulkan_available;
 
 use super::cpu::timed;
 use super::{Args, Geometry, breakdown};
@@ -50,9 +51,10 @@ pub(crate) fn random_frame(height: usize, width: usize, seed: u64) -> Vec<f32> {
         .collect()
 }
 
-/// The device for `kind`, refused with a reason where it cannot run here.
-pub(crate) fn checked_device(kind: BackendKind, index: Option<usize>) -> Result<Device> {
-    field_ops::backend::check_device_flag(kind, index).map_err(anyhow::Error::msg)?;
+/// The device of `compute`, refused with a reason where it cannot run here.
+pub(crate) fn checked_device(compute: BackendArgs) -> Result<Device> {
+    compute.check().map_err(anyhow::Error::msg)?;
+    let kind = compute.backend;
     if kind == BackendKind::Wgpu && !vulkan_available() {
         bail!(
             "--backend wgpu: no Vulkan driver is installed (no manifest under \
@@ -67,7 +69,7 @@ pub(crate) fn checked_device(kind: BackendKind, index: Option<usize>) -> Result<
              CUBECL_AUTOTUNE_LEVEL=minimal shortens it); on lavapipe (no GPU) a frame takes minutes"
         );
     }
-    Ok(device(kind, index))
+    Ok(compute.device())
 }
 
 /// Seconds per frame of the tower's matrix products alone, at the shapes a
@@ -169,7 +171,7 @@ pub(crate) fn time_backend(
     frame: &[f32],
     options: &DenseOptions,
 ) -> Result<BackendTiming> {
-    let dev = checked_device(kind, args.device)?;
+    let dev = checked_device(args.compute.of(kind))?;
     dev.seed(args.seed);
     let config = ClipVisionConfig::vit_b_16();
     let encoder = config.init(&dev);
