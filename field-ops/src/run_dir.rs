@@ -9,7 +9,8 @@
 use std::path::{Path, PathBuf};
 
 use burn::module::Module;
-use burn::tensor::Device;
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, Device};
 use datasets::SceneMeta;
 use model::{OpenNerf, OpenNerfConfig};
 
@@ -160,13 +161,7 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, OpsError> {
             what: "model weights (burnpack)".into(),
         });
     }
-    let model = config
-        .init(device)
-        .try_load_file(&weights)
-        .map_err(|e| OpsError::Weights {
-            path: weights.clone(),
-            message: e.to_string(),
-        })?;
+    let model = load_weights(config.init(device), &weights)?;
     let grid_path = run.occupancy();
     let grid = if grid_path.exists() {
         let bytes = std::fs::read(&grid_path).map_err(|e| OpsError::io(&grid_path, e))?;
@@ -188,6 +183,25 @@ pub fn load_run(dir: &Path, device: &Device) -> Result<LoadedRun, OpsError> {
         split,
         dir: run,
     })
+}
+
+/// Loads the weights of `weights` into `model`, read whole into memory.
+///
+/// Burn's own file loading keeps the tensors file-backed and reads them on
+/// first use; a run directory is rewritten while runs are loaded (training
+/// resumes, a checkpoint renamed over `model.bpk`), and a lazily read model
+/// would then fail on first use or, worse, render with another run's bytes.
+pub fn load_weights(model: OpenNerf, weights: &Path) -> Result<OpenNerf, OpsError> {
+    let weights_error = |message: String| OpsError::Weights {
+        path: weights.to_path_buf(),
+        message,
+    };
+    let bytes = std::fs::read(weights).map_err(|e| OpsError::io(weights, e))?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes))
+        .map_err(|e| weights_error(e.to_string()))?;
+    model
+        .try_load_record(record)
+        .map_err(|e| weights_error(e.to_string()))
 }
 
 /// The scene a run was trained on, rebuilt from its directory.

@@ -18,7 +18,8 @@
 //!
 //! ```
 //! use burn::module::Module;
-//! use burn::tensor::{Device, Tensor, TensorData};
+//! use burn::store::ModuleRecord;
+//! use burn::tensor::{Bytes, Device, Tensor, TensorData};
 //! use model::geometry::NormalizedRay;
 //! use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays, Termination};
 //!
@@ -31,11 +32,16 @@
 //! let config: OpenNerfConfig = serde_json::from_str(&json).unwrap();
 //!
 //! // Weights saved and loaded into a field built from the same configuration.
+//! // The bytes are read whole: Burn's `try_load_file` keeps tensors
+//! // file-backed and reads them on first use, so the file must outlive the
+//! // field (`field_ops::run_dir::load_weights` reads it whole).
 //! let field = config.init(&device);
 //! let path = std::env::temp_dir().join(format!("opennerf-doc-{}.bpk", std::process::id()));
 //! field.clone().save_file(&path).expect("weights written");
-//! let field = config.init(&device).try_load_file(&path).expect("weights read");
+//! let bytes = std::fs::read(&path).expect("weights read");
 //! std::fs::remove_file(&path).ok();
+//! let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(bytes)).expect("a burnpack");
+//! let field = config.init(&device).try_load_record(record).expect("weights match");
 //!
 //! // Four rays through the normalised scene cube ([-pi, pi]^3), rendered
 //! // for inference: colour, depth, opacity and feature per ray, on the host.
