@@ -44,7 +44,6 @@ fn oracle_views(
         extractor.as_ref(),
         &config,
         4096,
-        &Device::flex(),
         |_, _| {},
     )
     .expect("oracle views")
@@ -234,7 +233,6 @@ fn the_field_s_novel_views_are_read_by_the_extractor_in_one_batch() {
         &extractor,
         &config,
         4096,
-        &Device::flex(),
         |done, total| progress.push((done, total)),
     )
     .expect("views");

@@ -139,15 +139,9 @@ fn the_probe_renders_the_target_as_the_full_render_does_and_rejects_a_wrong_colo
         background: Some([0.2, 0.4, 0.6]),
     };
     let centre = probe.centre_color(&cam);
-    let view = field_ops::render::render_view(
-        &model,
-        &cam,
-        &scene.scene_box,
-        Some([0.2, 0.4, 0.6]),
-        64,
-        false,
-        &device,
-    );
+    let settings = field_ops::render::ViewSettings::new(Some([0.2, 0.4, 0.6]), 64);
+    let view = field_ops::render::render_view(&model, &cam, &scene.scene_box, &settings)
+        .expect("never cancelled without an observer");
     // The 3 x 3 patch around pixel (4, 4) of the full render.
     let mut want = [0.0f64; 3];
     for y in 3..=5 {

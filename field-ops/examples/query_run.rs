@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use burn::tensor::Device;
 use field_ops::query::{cosine_scores, embedding_by_name};
-use field_ops::render::render_view;
+use field_ops::render::{ViewSettings, render_view};
 use field_ops::run_dir::{load_run, load_run_scene};
 use field_ops::sample::sampled_features;
 use field_ops::similarity::ClassScorer;
@@ -40,15 +40,9 @@ fn main() -> Result<()> {
     let camera = frame
         .camera
         .scaled((k.width / 4).max(1), (k.height / 4).max(1));
-    let view = render_view(
-        &run.model,
-        &camera,
-        &run.meta.scene_box,
-        run.meta.background,
-        4096,
-        false,
-        &device,
-    );
+    let settings = ViewSettings::new(run.meta.background, 4096);
+    let view = render_view(&run.model, &camera, &run.meta.scene_box, &settings)
+        .expect("never cancelled without an observer");
     let opacity = view.acc.iter().sum::<f32>() / view.pixels() as f32;
     println!(
         "rendered {} ({}x{}): mean opacity {opacity:.3}",

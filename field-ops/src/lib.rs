@@ -22,7 +22,7 @@
 //! use datasets::SceneMeta;
 //! use datasets::synthetic::{SceneSize, generate};
 //! use field_ops::query::{cosine_scores, embedding_by_name};
-//! use field_ops::render::render_view;
+//! use field_ops::render::{ViewSettings, render_view};
 //! use field_ops::run_dir::{RunDir, load_run};
 //! use field_ops::sample::sampled_features;
 //! use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
@@ -52,7 +52,8 @@
 //! // Loaded back: a camera of the scene rendered at 16x9 with features.
 //! let loaded = load_run(dir.path(), &device).unwrap();
 //! let camera = scene.frames[0].camera.scaled(16, 9);
-//! let view = render_view(&loaded.model, &camera, &loaded.meta.scene_box, loaded.meta.background, 4096, true, &device);
+//! let settings = ViewSettings::new(loaded.meta.background, 4096).with_features(true);
+//! let view = render_view(&loaded.model, &camera, &loaded.meta.scene_box, &settings).unwrap();
 //! assert_eq!((view.pixels(), view.feature_dim), (144, maps.dim()));
 //!
 //! // 100 of the room's points scored against the first class's embedding.

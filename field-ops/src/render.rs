@@ -1,9 +1,10 @@
 //! Rendering a trained field at a camera: colour, depth, opacity and feature
-//! images (written as pictures by [`crate::images`]).
+//! images (written as pictures by [`crate::images`]), with the inference
+//! pass of [`OpenNerf::render`].
 
-use burn::tensor::{Device, Tensor};
+use burn::tensor::Tensor;
 use model::geometry::{Camera, NormalizedRay, SceneBox};
-use model::{FeatureMode, OpenNerf, Rays, Termination};
+use model::{Cancelled, FeatureMode, GridUse, OpenNerf, RenderRequest, Termination};
 
 /// Lower bound on the ray parameter (metres) of rendered rays; the same as
 /// the training ray sampler's default, so views render as they were trained.
@@ -68,144 +69,106 @@ pub fn tensor_to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
         .expect("a float tensor converts to f32")
 }
 
-/// Renders every pixel of `camera` with the fine level of `model`, `chunk`
-/// rays at a time (the peak memory is that of one chunk). The feature image
-/// is rendered only when `features` is set (runs trained without feature
-/// targets have no meaningful head, and skipping it saves its cost).
-pub fn render_view(
-    model: &OpenNerf,
-    camera: &Camera,
-    scene_box: &SceneBox,
-    background: Option<[f32; 3]>,
-    chunk: usize,
-    features: bool,
-    device: &Device,
-) -> RenderedView {
-    let settings = RenderSettings::view(background, chunk, features);
-    render_view_with(model, camera, scene_box, settings, device)
-}
-
-/// Fine-level outputs of a list of rays, on the host: colours, depths,
-/// opacities, features and the samples evaluated.
-pub type RenderedRays = model::MarchedRays;
-
-/// Renders `rays` with the fine level of `model`, `chunk` rays at a time,
-/// each ray ending once its transmittance falls below 1e-4 (see
-/// [`Termination`]). With an occupancy grid on the model, each ray is first
-/// clipped to its occupied cells and rays that cross none are not
-/// evaluated: they get the background (black without one), zero opacity,
-/// depth and feature — what the field renders for a ray that meets no
-/// density.
-pub fn render_rays(
-    model: &OpenNerf,
-    rays: &[NormalizedRay],
-    background: Option<[f32; 3]>,
-    chunk: usize,
-    mode: FeatureMode,
-    device: &Device,
-) -> RenderedRays {
-    render_rays_with(
-        model,
-        rays,
-        background,
-        chunk,
-        mode,
-        Termination::default(),
-        device,
-    )
-}
-
-/// [`render_rays`] with an explicit ray termination
-/// ([`Termination::off`] evaluates every sample).
-pub fn render_rays_with(
-    model: &OpenNerf,
-    rays: &[NormalizedRay],
-    background: Option<[f32; 3]>,
-    chunk: usize,
-    mode: FeatureMode,
-    termination: Termination,
-    device: &Device,
-) -> RenderedRays {
-    let settings = RenderSettings {
-        background,
-        chunk,
-        mode,
-        termination,
-    };
-    render_rays_observed(model, rays, settings, device, &mut |_, _| true).unwrap_or_default()
-}
-
-/// How rays are rendered.
-#[derive(Debug, Clone, Copy)]
-pub struct RenderSettings {
+/// How a view is rendered.
+#[derive(Clone, Copy)]
+pub struct ViewSettings<'a> {
     /// Colour behind the unoccluded part of a ray (black without one).
     pub background: Option<[f32; 3]>,
     /// Rays per forward pass (the peak memory is that of one chunk).
     pub chunk: usize,
-    /// Whether and how the feature head is evaluated.
-    pub mode: FeatureMode,
+    /// Whether and how the feature head is evaluated (runs trained without
+    /// feature targets have no meaningful head, and skipping it saves its
+    /// cost).
+    pub features: FeatureMode,
     /// When a ray stops being evaluated.
     pub termination: Termination,
+    /// How the model's occupancy grid is used: with [`GridUse::Model`],
+    /// pixels whose ray crosses no occupied cell get the background (black
+    /// without one) with zero opacity, depth and feature.
+    pub grid: GridUse,
+    /// Called with `(rays rendered, rays to render)` after every chunk;
+    /// returning `false` cancels the render.
+    pub observer: Option<&'a dyn Fn(usize, usize) -> bool>,
 }
 
-impl RenderSettings {
-    /// The settings [`render_view`] uses: features composited when asked
-    /// for, the default termination.
-    pub fn view(background: Option<[f32; 3]>, chunk: usize, features: bool) -> Self {
-        RenderSettings {
+impl<'a> ViewSettings<'a> {
+    /// Over `background`, `chunk` rays at a time: no feature image, the
+    /// default termination (1e-4, see [`Termination`]), the model's grid,
+    /// no observer.
+    pub fn new(background: Option<[f32; 3]>, chunk: usize) -> Self {
+        ViewSettings {
             background,
             chunk,
-            mode: if features {
-                FeatureMode::Composited
-            } else {
-                FeatureMode::None
-            },
+            features: FeatureMode::None,
             termination: Termination::default(),
+            grid: GridUse::Model,
+            observer: None,
         }
+    }
+
+    /// With the feature image composited when `features` is set, none
+    /// otherwise.
+    pub fn with_features(mut self, features: bool) -> Self {
+        self.features = if features {
+            FeatureMode::Composited
+        } else {
+            FeatureMode::None
+        };
+        self
+    }
+
+    /// With ray termination `termination` ([`Termination::off`] evaluates
+    /// every sample).
+    pub fn with_termination(mut self, termination: Termination) -> Self {
+        self.termination = termination;
+        self
+    }
+
+    /// With the model's grid used as `grid` says.
+    pub fn with_grid(mut self, grid: GridUse) -> Self {
+        self.grid = grid;
+        self
+    }
+
+    /// With progress and cancellation through `observer`.
+    pub fn with_observer(mut self, observer: &'a dyn Fn(usize, usize) -> bool) -> Self {
+        self.observer = Some(observer);
+        self
     }
 }
 
-/// [`render_view`] with explicit settings.
-pub fn render_view_with(
-    model: &OpenNerf,
-    camera: &Camera,
-    scene_box: &SceneBox,
-    settings: RenderSettings,
-    device: &Device,
-) -> RenderedView {
-    view_observed(model, camera, scene_box, settings, device, &mut |_, _| true).unwrap_or_default()
+impl std::fmt::Debug for ViewSettings<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ViewSettings")
+            .field("background", &self.background)
+            .field("chunk", &self.chunk)
+            .field("features", &self.features)
+            .field("termination", &self.termination)
+            .field("grid", &self.grid)
+            .field("observer", &self.observer.is_some())
+            .finish()
+    }
 }
 
-/// [`render_view`] that reports its progress after every chunk to `go`
-/// (`(rays done, rays to render)`) and stops, returning `None`, as soon as
-/// `go` returns `false` (a cancelled request).
-#[allow(clippy::too_many_arguments)]
-pub fn render_view_observed(
+/// Renders every pixel of `camera` with the fine level of `model` as
+/// `settings` say. `Err` only when the settings' observer cancels the
+/// render (never without an observer).
+pub fn render_view(
     model: &OpenNerf,
     camera: &Camera,
     scene_box: &SceneBox,
-    background: Option<[f32; 3]>,
-    chunk: usize,
-    features: bool,
-    device: &Device,
-    go: &mut dyn FnMut(usize, usize) -> bool,
-) -> Option<RenderedView> {
-    let settings = RenderSettings::view(background, chunk, features);
-    view_observed(model, camera, scene_box, settings, device, go)
-}
-
-/// Every pixel of `camera`, with progress and cancellation.
-fn view_observed(
-    model: &OpenNerf,
-    camera: &Camera,
-    scene_box: &SceneBox,
-    settings: RenderSettings,
-    device: &Device,
-    go: &mut dyn FnMut(usize, usize) -> bool,
-) -> Option<RenderedView> {
+    settings: &ViewSettings<'_>,
+) -> Result<RenderedView, Cancelled> {
     let rays = camera_rays(camera, scene_box);
-    let r = render_rays_observed(model, &rays, settings, device, go)?;
-    Some(RenderedView {
+    let request = RenderRequest::inference(&rays)
+        .with_chunk(settings.chunk)
+        .with_termination(settings.termination)
+        .with_observer(settings.observer)
+        .with_features(settings.features)
+        .with_background(settings.background)
+        .with_grid(settings.grid);
+    let r = model.render(&request)?;
+    Ok(RenderedView {
         width: camera.intrinsics.width,
         height: camera.intrinsics.height,
         rgb: r.rgb,
@@ -215,72 +178,4 @@ fn view_observed(
         feature_dim: r.feature_dim,
         samples_evaluated: r.samples_evaluated,
     })
-}
-
-/// [`render_rays`] with progress and cancellation (see
-/// [`render_view_observed`]).
-fn render_rays_observed(
-    model: &OpenNerf,
-    rays: &[NormalizedRay],
-    settings: RenderSettings,
-    device: &Device,
-    go: &mut dyn FnMut(usize, usize) -> bool,
-) -> Option<RenderedRays> {
-    let RenderSettings {
-        background,
-        chunk,
-        mode,
-        termination,
-    } = settings;
-    let clipped = model.occupancy().map(|g| g.clip(rays));
-    let to_render: &[NormalizedRay] = clipped.as_ref().map_or(rays, |c| &c.rays);
-    let chunk = chunk.max(1);
-    let mut out = RenderedRays::default();
-    let total = to_render.len();
-    for (i, part) in to_render.chunks(chunk).enumerate() {
-        if !go((i * chunk).min(total), total) {
-            return None;
-        }
-        let batch = Rays::from_normalized(part, device);
-        let fine = model.render_marched(&batch, background, mode, termination);
-        out.rgb.extend(fine.rgb);
-        out.depth.extend(fine.depth);
-        out.acc.extend(fine.acc);
-        out.feature_dim = fine.feature_dim;
-        out.feature.extend(fine.feature);
-        out.samples_evaluated += fine.samples_evaluated;
-    }
-    if !go(total, total) {
-        return None;
-    }
-    let Some(clipped) = clipped else {
-        return Some(out);
-    };
-    if clipped.kept.len() == rays.len() {
-        return Some(out);
-    }
-    let dim = match mode {
-        FeatureMode::None => 0,
-        _ => model.head.output.weight.dims()[1],
-    };
-    let n = rays.len();
-    let bg = background.unwrap_or([0.0; 3]);
-    let mut full = RenderedRays {
-        rgb: bg.repeat(n),
-        depth: vec![0.0; n],
-        acc: vec![0.0; n],
-        feature: vec![0.0; n * dim],
-        feature_dim: dim,
-        samples_evaluated: out.samples_evaluated,
-    };
-    for (j, &i) in clipped.kept.iter().enumerate() {
-        full.rgb[3 * i..3 * i + 3].copy_from_slice(&out.rgb[3 * j..3 * j + 3]);
-        full.depth[i] = out.depth[j];
-        full.acc[i] = out.acc[j];
-        if dim > 0 {
-            full.feature[i * dim..(i + 1) * dim]
-                .copy_from_slice(&out.feature[j * dim..(j + 1) * dim]);
-        }
-    }
-    Some(full)
 }

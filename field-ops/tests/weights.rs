@@ -7,9 +7,7 @@ use burn::tensor::Device;
 use field_ops::error::OpsError;
 use field_ops::run_dir::load_weights;
 use model::geometry::NormalizedRay;
-use model::{
-    FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays, Termination,
-};
+use model::{FeatureHeadConfig, MipMlpConfig, OpenNerf, OpenNerfConfig, RenderRequest};
 
 fn config() -> OpenNerfConfig {
     OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
@@ -23,7 +21,7 @@ fn config() -> OpenNerfConfig {
         .with_num_samples(8)
 }
 
-fn render(field: &OpenNerf, device: &Device) -> Vec<f32> {
+fn render(field: &OpenNerf) -> Vec<f32> {
     let rays: Vec<NormalizedRay> = (0..3)
         .map(|i| NormalizedRay {
             origin: [0.3 * i as f32 - 0.3, 0.1, -2.5],
@@ -33,12 +31,9 @@ fn render(field: &OpenNerf, device: &Device) -> Vec<f32> {
             far: 4.5,
         })
         .collect();
-    let out = field.render_marched(
-        &Rays::from_normalized(&rays, device),
-        None,
-        FeatureMode::Composited,
-        Termination::default(),
-    );
+    let out = field
+        .render(&RenderRequest::inference(&rays))
+        .expect("never cancelled without an observer");
     out.rgb.into_iter().chain(out.depth).collect()
 }
 
@@ -52,7 +47,7 @@ fn loaded_weights_do_not_follow_the_file_after_loading() {
     device.seed(11);
     let trained = config().init(&device);
     trained.clone().save_file(&path).expect("save");
-    let expected = render(&trained, &device);
+    let expected = render(&trained);
 
     device.seed(12);
     let loaded = load_weights(config().init(&device), &path).expect("load");
@@ -60,10 +55,10 @@ fn loaded_weights_do_not_follow_the_file_after_loading() {
     device.seed(13);
     let other = config().init(&device);
     other.clone().save_file(&path).expect("overwrite");
-    assert_ne!(render(&other, &device), expected, "the two fields differ");
-    assert_eq!(render(&loaded, &device), expected);
+    assert_ne!(render(&other), expected, "the two fields differ");
+    assert_eq!(render(&loaded), expected);
     std::fs::remove_file(&path).expect("remove");
-    assert_eq!(render(&loaded, &device), expected);
+    assert_eq!(render(&loaded), expected);
 
     let missing = load_weights(config().init(&device), &path).unwrap_err();
     assert!(matches!(missing, OpsError::Io { .. }), "{missing}");

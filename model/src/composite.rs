@@ -136,20 +136,45 @@ pub fn composite(
 ) -> Composite {
     let weights = compute_weights(density, t_vals.clone(), dir_norm);
     let acc = weights.clone().sum_dim(1);
-    let depth = weights
-        .clone()
-        .mul(t_mids(t_vals))
-        .sum_dim(1)
-        .div(acc.clone().clamp_min(DEPTH_ACC_EPS));
-    let mut color = composite_values(weights.clone(), rgb);
-    if let Some(bg) = background {
-        let bg = Tensor::from_data(TensorData::new(bg.to_vec(), [1, 3]), &color.device());
-        color = color.add(acc.clone().neg().add_scalar(1.0).mul(bg));
-    }
+    let depth = expected_depth(weights.clone().mul(t_mids(t_vals)).sum_dim(1), acc.clone());
+    let color = over_background(
+        composite_values(weights.clone(), rgb),
+        acc.clone(),
+        background,
+    );
     Composite {
         weights,
         rgb: color,
         depth,
         acc,
+    }
+}
+
+/// The expected depth from the weighted sum of a ray's sample midpoints
+/// (over one segment or several): `sum w t_mid / max(acc, eps)`.
+///
+/// # Shapes
+/// - `depth_sum`, `acc`: `[rays, 1]`; output: `[rays, 1]`.
+pub fn expected_depth(depth_sum: Tensor<2>, acc: Tensor<2>) -> Tensor<2> {
+    depth_sum.div(acc.clamp_min(DEPTH_ACC_EPS))
+}
+
+/// The colour from the weighted sum of a ray's sample colours (over one
+/// segment or several): `sum w c + (1 - acc) background`, or the sum as it
+/// is without a background.
+///
+/// # Shapes
+/// - `rgb_sum`: `[rays, 3]`; `acc`: `[rays, 1]`; output: `[rays, 3]`.
+pub fn over_background(
+    rgb_sum: Tensor<2>,
+    acc: Tensor<2>,
+    background: Option<[f32; 3]>,
+) -> Tensor<2> {
+    match background {
+        Some(bg) => {
+            let bg = Tensor::from_data(TensorData::new(bg.to_vec(), [1, 3]), &rgb_sum.device());
+            rgb_sum.add(acc.neg().add_scalar(1.0).mul(bg))
+        }
+        None => rgb_sum,
     }
 }

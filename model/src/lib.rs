@@ -1,17 +1,21 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
 //! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
-//! ([`composite`]), the MLP with its stop-gradient open-set head ([`field`]),
-//! coarse/fine rendering ([`nerf`]), inference with early ray termination
-//! ([`march`]), empty-space skipping ([`occupancy`]), the losses ([`loss`])
-//! and CLIP's text and vision transformers, which embed free-text queries
-//! and make dense image features ([`clip`]). No file I/O.
+//! ([`composite`]), the MLP with its stop-gradient open-set head
+//! ([`field`]), the model that holds them ([`nerf`]), rendering through one
+//! entry point, [`OpenNerf::render`], for training (coarse/fine, dense) and
+//! inference (marched with early ray termination) ([`render`]),
+//! empty-space skipping with the occupancy grid, its update and byte/hex
+//! formats ([`occupancy`]), the losses ([`loss`]) and CLIP's text and vision
+//! transformers, which embed free-text queries and make dense image features
+//! ([`clip`]). No file I/O.
 //!
 //! # Use from another crate
 //!
 //! A field is built from its configuration (a run stores it under `"model"`
 //! in `config.json`), its weights round-trip through a burnpack file (a
-//! run's `model.bpk`), [`OpenNerf::render_marched`] renders a batch of rays
-//! for inference ([`OpenNerf::render`] for training), and
+//! run's `model.bpk`), [`OpenNerf::render`] renders a batch of rays (here
+//! for inference, [`RenderRequest::inference`]; [`RenderRequest::train`]
+//! gives both levels as tensors for the losses), and
 //! [`OpenNerf::query_features`] gives the open-set feature of 3D points to
 //! score against a text embedding. `field_ops::run_dir::load_run` does the
 //! first two for a run directory.
@@ -21,7 +25,7 @@
 //! use burn::store::ModuleRecord;
 //! use burn::tensor::{Bytes, Device, Tensor, TensorData};
 //! use model::geometry::NormalizedRay;
-//! use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays, Termination};
+//! use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig, RenderRequest};
 //!
 //! let device = Device::flex();
 //! let config = OpenNerfConfig::new(FeatureHeadConfig::new(8).with_width(16))
@@ -54,8 +58,7 @@
 //!         far: 4.5,
 //!     })
 //!     .collect();
-//! let batch = Rays::from_normalized(&rays, &device);
-//! let out = field.render_marched(&batch, None, FeatureMode::Composited, Termination::default());
+//! let out = field.render(&RenderRequest::inference(&rays)).expect("no observer, never cancelled");
 //! assert_eq!((out.rgb.len(), out.depth.len(), out.feature_dim), (12, 4, 8));
 //! assert!(out.acc.iter().all(|&a| (0.0..=1.0 + 1e-5).contains(&a)));
 //!
@@ -76,18 +79,21 @@ pub mod composite;
 pub mod field;
 pub mod geometry;
 pub mod loss;
-pub mod march;
 pub mod mip;
 pub mod nerf;
 pub mod occupancy;
+pub mod render;
 pub mod sampling;
 
 pub use composite::Composite;
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb_mse};
-pub use march::{MarchedRays, Termination};
-pub use nerf::{FeatureMode, LevelOutputs, OpenNerf, OpenNerfConfig, Rays, RenderOutputs};
-pub use occupancy::{ClippedRays, OccupancyConfig, OccupancyGrid};
+pub use nerf::{OpenNerf, OpenNerfConfig, Rays};
+pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};
+pub use render::{
+    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, RenderOutputs, RenderPass,
+    RenderRequest, RenderedRays, Termination, Train,
+};
 
 /// The directory this crate was compiled from (its manifest directory).
 /// Every crate of one build names the same checkout; a test checks it, so

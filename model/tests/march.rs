@@ -1,7 +1,8 @@
 //! Inference with early ray termination: segment-by-segment compositing
-//! against a float64 oracle, the marcher without termination against the
-//! plain deterministic render in every feature mode, and an opaque field
-//! that ends its rays early and still renders what the plain render does.
+//! against a float64 oracle, the marcher (the inference pass) without
+//! termination against the plain deterministic render (the dense pass
+//! without jitter) in every feature mode, and an opaque field that ends its
+//! rays early and still renders what the plain render does.
 
 mod common;
 
@@ -9,9 +10,10 @@ use burn::module::Param;
 use burn::tensor::{Device, Tensor};
 use common::{assert_close, camera_rays, devices, tensor, vec};
 use model::composite::segment_weights;
+use model::geometry::NormalizedRay;
 use model::{
-    FeatureHeadConfig, FeatureMode, MarchedRays, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays,
-    Termination,
+    FeatureHeadConfig, FeatureMode, LevelOutputs, MipMlpConfig, OpenNerf, OpenNerfConfig,
+    RenderRequest, RenderedRays, Termination,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -90,7 +92,36 @@ fn chained_segments_equal_the_whole_ray() {
     }
 }
 
-fn compare(got: &MarchedRays, want: &model::LevelOutputs, tol: f32, what: &str) {
+/// The fine level of the deterministic dense render of `rays`.
+fn dense(
+    m: &OpenNerf,
+    rays: &[NormalizedRay],
+    bg: Option<[f32; 3]>,
+    mode: FeatureMode,
+) -> LevelOutputs {
+    let request = RenderRequest::train(rays)
+        .with_randomized(false)
+        .with_background(bg)
+        .with_features(mode);
+    m.render(&request).fine
+}
+
+/// The inference pass over `rays` in one chunk.
+fn marched(
+    m: &OpenNerf,
+    rays: &[NormalizedRay],
+    bg: Option<[f32; 3]>,
+    mode: FeatureMode,
+    termination: Termination,
+) -> RenderedRays {
+    let request = RenderRequest::inference(rays)
+        .with_background(bg)
+        .with_features(mode)
+        .with_termination(termination);
+    m.render(&request).expect("no observer")
+}
+
+fn compare(got: &RenderedRays, want: &LevelOutputs, tol: f32, what: &str) {
     assert_close(
         &got.rgb,
         &vec(want.rgb.clone()),
@@ -136,7 +167,7 @@ fn without_termination_the_march_is_the_plain_render() {
     };
     for (name, device) in devices(false) {
         device.seed(11);
-        let rays = Rays::from_normalized(&camera_rays(9, 2), &device);
+        let rays = camera_rays(9, 2);
         for (top_k, mode) in [
             (None, FeatureMode::None),
             (None, FeatureMode::PerSample),
@@ -144,12 +175,12 @@ fn without_termination_the_march_is_the_plain_render() {
             (Some(4), FeatureMode::Composited),
         ] {
             let m = model(12, top_k, &device);
-            let want = m.render_inference(&rays, 4, bg, mode).fine;
-            let got = m.render_marched(&rays, bg, mode, off);
+            let want = dense(&m, &rays, bg, mode);
+            let got = marched(&m, &rays, bg, mode, off);
             let what = format!("{name} {mode:?} top-k {top_k:?}");
             compare(&got, &want, 2e-5, &what);
             assert_eq!(got.samples_evaluated, 2 * 9 * 12, "{what}: every sample");
-            let whole = m.render_marched(&rays, bg, mode, Termination::off());
+            let whole = marched(&m, &rays, bg, mode, Termination::off());
             compare(&whole, &want, 2e-5, &format!("{what} one segment"));
         }
     }
@@ -162,7 +193,7 @@ fn without_termination_the_march_is_the_plain_render() {
 fn an_opaque_field_ends_rays_early_and_renders_the_same() {
     for (name, device) in devices(false) {
         device.seed(5);
-        let rays = Rays::from_normalized(&camera_rays(16, 7), &device);
+        let rays = camera_rays(16, 7);
         for (top_k, mode) in [
             (Some(4), FeatureMode::Composited),
             (None, FeatureMode::PerSample),
@@ -170,12 +201,12 @@ fn an_opaque_field_ends_rays_early_and_renders_the_same() {
             let mut m = model(16, top_k, &device);
             let bias = Tensor::<1>::from_data([12.0f32], &device);
             m.mlp.density.bias = Some(Param::from_tensor(bias));
-            let want = m.render_inference(&rays, 16, None, mode).fine;
+            let want = dense(&m, &rays, None, mode);
             let term = Termination {
                 segment: 4,
                 ..Termination::default()
             };
-            let got = m.render_marched(&rays, None, mode, term);
+            let got = marched(&m, &rays, None, mode, term);
             let what = format!("{name} {mode:?}");
             let all = 2 * 16 * 16;
             assert!(
@@ -197,7 +228,12 @@ fn an_opaque_field_ends_rays_early_and_renders_the_same() {
 fn no_rays_render_nothing() {
     let device = Device::flex();
     let m = model(8, Some(2), &device);
-    let rays = Rays::from_normalized(&[], &device);
-    let got = m.render_marched(&rays, None, FeatureMode::Composited, Termination::default());
+    let got = marched(
+        &m,
+        &[],
+        None,
+        FeatureMode::Composited,
+        Termination::default(),
+    );
     assert!(got.rgb.is_empty() && got.feature.is_empty() && got.samples_evaluated == 0);
 }

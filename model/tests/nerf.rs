@@ -13,8 +13,22 @@ use common::{assert_close, camera_rays, devices, tensor, vec};
 use model::geometry::{NormalizedRay, SceneBox};
 use model::{
     FeatureHeadConfig, FeatureMode, FeatureSpace, MipMlpConfig, OpenNerf, OpenNerfConfig, Rays,
-    open_set_cosine, rgb_mse,
+    RenderOutputs, RenderRequest, Termination, open_set_cosine, rgb_mse,
 };
+
+/// The dense render of `rays` (jitter as `randomized` says, composited
+/// features unless `mode` says otherwise), no background.
+fn dense(
+    model: &OpenNerf,
+    rays: &[NormalizedRay],
+    randomized: bool,
+    mode: FeatureMode,
+) -> RenderOutputs {
+    let request = RenderRequest::train(rays)
+        .with_randomized(randomized)
+        .with_features(mode);
+    model.render(&request)
+}
 
 fn small_config(out_dim: usize, samples: usize) -> OpenNerfConfig {
     OpenNerfConfig::new(FeatureHeadConfig::new(out_dim).with_width(16))
@@ -62,7 +76,7 @@ fn open_set_loss_does_not_reach_density_or_colour() {
         let device = device.autodiff();
         device.seed(11);
         let model = small_config(8, 8).init(&device);
-        let rays = Rays::from_normalized(&camera_rays(16, 1), &device);
+        let rays = camera_rays(16, 1);
         let target = Tensor::<2>::random(
             [16, 8],
             burn::tensor::Distribution::Normal(0.0, 1.0),
@@ -70,7 +84,7 @@ fn open_set_loss_does_not_reach_density_or_colour() {
         );
 
         for mode in [FeatureMode::Composited, FeatureMode::PerSample] {
-            let out = model.render_with(&rays, true, None, mode);
+            let out = dense(&model, &rays, true, mode);
             let feat = out.fine.feature.expect("fine feature");
             let mask = Tensor::<2>::ones([16, 1], &device);
             let grads =
@@ -88,7 +102,7 @@ fn open_set_loss_does_not_reach_density_or_colour() {
             );
         }
 
-        let out = model.render(&rays, true, None);
+        let out = model.render(&RenderRequest::train(&rays));
         let target_rgb = Tensor::<2>::random(
             [16, 3],
             burn::tensor::Distribution::Uniform(0.0, 1.0),
@@ -119,9 +133,9 @@ fn composited_head_equals_per_sample_head() {
         device.seed(5);
         let cfg = small_config(6, 8).with_coarse_features(true);
         let model = cfg.init(&device);
-        let rays = Rays::from_normalized(&camera_rays(12, 2), &device);
-        let a = model.render_with(&rays, false, None, FeatureMode::Composited);
-        let b = model.render_with(&rays, false, None, FeatureMode::PerSample);
+        let rays = camera_rays(12, 2);
+        let a = dense(&model, &rays, false, FeatureMode::Composited);
+        let b = dense(&model, &rays, false, FeatureMode::PerSample);
         for (lvl, x, y) in [
             ("fine", &a.fine.feature, &b.fine.feature),
             ("coarse", &a.coarse.feature, &b.coarse.feature),
@@ -142,7 +156,7 @@ fn composited_head_equals_per_sample_head() {
             .with_head_top_k(Some(8))
             .init(&device)
             .load_record(model.clone().into_record());
-        let c = top.render_with(&rays, false, None, FeatureMode::Composited);
+        let c = dense(&top, &rays, false, FeatureMode::Composited);
         let x = vec(c.fine.feature.expect("feature"));
         let y = vec(b.fine.feature.expect("feature"));
         assert_close(&x, &y, 1e-5, 1e-4, &format!("{name} top-k = all"));
@@ -162,11 +176,12 @@ fn top_k_one_uses_the_heaviest_sample() {
         .with_head_top_k(Some(1))
         .init(&device)
         .load_record(model.clone().into_record());
-    let rays = Rays::from_normalized(&camera_rays(5, 3), &device);
-    let out = top.render(&rays, false, None);
+    let host_rays = camera_rays(5, 3);
+    let rays = Rays::from_normalized(&host_rays, &device);
+    let out = top.render(&RenderRequest::train(&host_rays).with_randomized(false));
     let got = vec(out.fine.feature.expect("feature"));
     // Per-sample reference at the same fine posts.
-    let full = model.render_with(&rays, false, None, FeatureMode::PerSample);
+    let full = dense(&model, &host_rays, false, FeatureMode::PerSample);
     assert_close(
         &vec(full.fine.t_vals.clone()),
         &vec(out.fine.t_vals.clone()),
@@ -211,7 +226,6 @@ fn overfits_a_fixed_batch() {
     device.seed(1);
     let mut model: OpenNerf = small_config(4, 16).init(&device);
     let rays_cpu = camera_rays(64, 4);
-    let rays = Rays::from_normalized(&rays_cpu, &device);
     // Smooth colours as a function of the direction.
     let target: Vec<f32> = rays_cpu
         .iter()
@@ -230,7 +244,7 @@ fn overfits_a_fixed_batch() {
     let mut first = None;
     let mut last = 0.0;
     for _ in 0..150 {
-        let out = model.render(&rays, true, None);
+        let out = model.render(&RenderRequest::train(&rays_cpu));
         let loss = rgb_mse(out.fine.rgb, target.clone())
             .add(rgb_mse(out.coarse.rgb, target.clone()).mul_scalar(0.1));
         let value = loss.clone().into_scalar::<f32>();
@@ -256,19 +270,22 @@ fn save_load_round_trip() {
     device.seed(2);
     let cfg = small_config(5, 8);
     let model = cfg.init(&device);
-    let rays = Rays::from_normalized(&camera_rays(6, 5), &device);
-    let a = model.render(&rays, false, Some([1.0, 1.0, 1.0]));
+    let rays = camera_rays(6, 5);
+    let white = RenderRequest::train(&rays)
+        .with_randomized(false)
+        .with_background(Some([1.0, 1.0, 1.0]));
+    let a = model.render(&white);
     model.clone().save_file(&path).expect("save");
     device.seed(3);
     let fresh = cfg.init(&device);
-    let before = fresh.render(&rays, false, None);
+    let before = dense(&fresh, &rays, false, FeatureMode::Composited);
     assert_ne!(
         vec(before.fine.rgb),
         vec(a.fine.rgb.clone()),
         "fresh init must differ"
     );
     let loaded = fresh.load_file(&path);
-    let b = loaded.render(&rays, false, Some([1.0, 1.0, 1.0]));
+    let b = loaded.render(&white);
     assert_eq!(vec(a.fine.rgb), vec(b.fine.rgb));
     assert_eq!(vec(a.fine.depth), vec(b.fine.depth));
     assert_eq!(
@@ -284,42 +301,34 @@ fn inference_chunks_and_point_queries() {
     for (name, device) in devices(false) {
         device.seed(4);
         let model = small_config(3, 8).init(&device);
-        let rays = Rays::from_normalized(&camera_rays(10, 6), &device);
-        let whole = model.render(&rays, false, None);
-        let chunked = model.render_inference(&rays, 3, None, FeatureMode::Composited);
-        // Without the feature head: same colour and depth, no feature image.
-        let plain = model.render_inference(&rays, 3, None, FeatureMode::None);
-        assert!(plain.fine.feature.is_none() && plain.coarse.feature.is_none());
+        let rays = camera_rays(10, 6);
+        let whole = dense(&model, &rays, false, FeatureMode::Composited);
+        let inference = |mode| {
+            let request = RenderRequest::inference(&rays)
+                .with_chunk(3)
+                .with_termination(Termination::off())
+                .with_features(mode);
+            model.render(&request).expect("no observer")
+        };
+        let chunked = inference(FeatureMode::Composited);
+        // Without the feature head: same colour and depth, no feature image
+        // (at either level of the dense render).
+        let plain = inference(FeatureMode::None);
+        assert!(plain.feature.is_empty() && plain.feature_dim == 0);
+        let plain_dense = dense(&model, &rays, false, FeatureMode::None);
+        assert!(plain_dense.fine.feature.is_none() && plain_dense.coarse.feature.is_none());
+        assert_close(&plain.rgb, &vec(whole.fine.rgb.clone()), 1e-6, 1e-5, name);
         assert_close(
-            &vec(plain.fine.rgb.clone()),
-            &vec(whole.fine.rgb.clone()),
-            1e-6,
-            1e-5,
-            name,
-        );
-        assert_close(
-            &vec(plain.fine.depth.clone()),
+            &plain.depth,
             &vec(whole.fine.depth.clone()),
             1e-5,
             1e-5,
             name,
         );
+        assert_close(&chunked.rgb, &vec(whole.fine.rgb), 1e-6, 1e-5, name);
+        assert_close(&chunked.depth, &vec(whole.fine.depth), 1e-5, 1e-5, name);
         assert_close(
-            &vec(chunked.fine.rgb),
-            &vec(whole.fine.rgb),
-            1e-6,
-            1e-5,
-            name,
-        );
-        assert_close(
-            &vec(chunked.fine.depth),
-            &vec(whole.fine.depth),
-            1e-5,
-            1e-5,
-            name,
-        );
-        assert_close(
-            &vec(chunked.fine.feature.expect("f")),
+            &chunked.feature,
             &vec(whole.fine.feature.expect("f")),
             1e-5,
             1e-4,
@@ -391,11 +400,13 @@ fn render_extremes_stay_finite() {
         rays.push(degenerate);
         assert_eq!(rays[3].near, rays[3].far, "missing ray must be empty");
         assert!(rays[0].near < rays[0].far && rays[1].near < rays[1].far);
-        let r = Rays::from_normalized(&rays, &device);
         for samples in [1, 8] {
             let model = small_config(3, samples).init(&device);
             for randomized in [false, true] {
-                let out = model.render(&r, randomized, Some([0.5, 0.5, 0.5]));
+                let request = RenderRequest::train(&rays)
+                    .with_randomized(randomized)
+                    .with_background(Some([0.5, 0.5, 0.5]));
+                let out = model.render(&request);
                 for (what, t) in [
                     ("rgb", out.fine.rgb.clone()),
                     ("depth", out.fine.depth.clone()),
@@ -455,9 +466,8 @@ fn features_are_weighted_means_also_where_acc_is_below_one() {
                 r
             })
             .collect();
-        let rays = Rays::from_normalized(&rays, &device);
         for mode in [FeatureMode::Composited, FeatureMode::PerSample] {
-            let out = model.render_with(&rays, false, None, mode).fine;
+            let out = dense(&model, &rays, false, mode).fine;
             let acc = vec(out.acc);
             assert!(
                 acc.iter().all(|&a| a > 1e-4 && a < 0.5),

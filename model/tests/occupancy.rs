@@ -1,7 +1,7 @@
 //! The occupancy grid against brute force: the cells a known density marks,
 //! the occupied span of random rays against dense marching, rendering with
-//! a grid that covers all the density against rendering without, and the
-//! byte format. These tests use the grid without its conservative rules
+//! a grid that covers all the density against rendering without, the
+//! update from the field's density, and the byte and hex formats. These tests use the grid without its conservative rules
 //! (see `occupancy_conservative.rs` for those).
 
 mod common;
@@ -12,8 +12,8 @@ use burn::tensor::{Device, Tensor, TensorData};
 use common::vec;
 use model::composite::composite;
 use model::geometry::NormalizedRay;
-use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, Rays};
-use model::{OccupancyConfig, OccupancyGrid};
+use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, RenderRequest};
+use model::{GridDecodeError, OccupancyConfig, OccupancyGrid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -226,20 +226,52 @@ fn a_complete_grid_leaves_every_ray_and_render_unchanged() {
         )
         .with_num_samples(8)
         .init(&device);
-    let a = model.render_inference(
-        &Rays::from_normalized(&rays, &device),
-        64,
-        None,
-        FeatureMode::Composited,
-    );
-    let b = model.render_inference(
-        &Rays::from_normalized(&clipped.rays, &device),
-        64,
-        None,
-        FeatureMode::Composited,
-    );
+    let render = |m: &model::OpenNerf, rays: &[NormalizedRay]| {
+        let request = RenderRequest::train(rays)
+            .with_randomized(false)
+            .with_features(FeatureMode::Composited);
+        m.render(&request)
+    };
+    let a = render(&model, &rays);
+    let b = render(&model, &clipped.rays);
+    // The same grid on the model: every ray kept, in place.
+    let with = model.clone().with_occupancy(Some(g));
+    let c = render(&with, &rays);
+    assert_eq!(c.kept, None);
+    let stats = c.clip.expect("the model's grid");
+    assert_eq!((stats.drawn, stats.kept, stats.empty), (40, 40, 0));
+    assert_eq!(vec(c.fine.rgb), vec(a.fine.rgb.clone()));
     assert_eq!(vec(a.fine.rgb), vec(b.fine.rgb));
     assert_eq!(vec(a.fine.feature.unwrap()), vec(b.fine.feature.unwrap()));
+}
+
+/// The update from the field queries its density at the grid's jittered
+/// points (a quarter cell wide) and folds it in as an update with those
+/// densities does.
+#[test]
+fn the_update_from_the_field_folds_in_its_density_at_the_jittered_points() {
+    let device = Device::flex();
+    device.seed(2);
+    let model = OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
+        .with_mlp(
+            MipMlpConfig::new()
+                .with_width(16)
+                .with_depth(2)
+                .with_skip_layer(1),
+        )
+        .init(&device);
+    let mut by_field = grid(4);
+    let mut by_hand = grid(4);
+    for seed in [5, 6] {
+        by_field.update_from_field(&model, seed);
+        let points = by_hand.sample_points(seed);
+        let flat: Vec<f32> = points.iter().flatten().copied().collect();
+        let p = Tensor::<2>::from_data(TensorData::new(flat, [points.len(), 3]), &device);
+        let radius = 0.25 * by_hand.cell_size() as f32;
+        by_hand.update(&vec(model.query_density(p, radius)));
+        assert_eq!(by_field, by_hand, "update with seed {seed}");
+    }
+    assert_eq!(by_field.updates(), 2);
 }
 
 /// Composites the sphere density along `ray` with `n` evenly spaced
@@ -331,6 +363,25 @@ fn bytes_round_trip_and_damage_is_named() {
             .unwrap_err()
             .contains("header")
     );
+    // As hex: the same bytes, and the damage named by kind.
+    assert_eq!(OccupancyGrid::from_hex(&g.to_hex()), Ok(g.clone()));
+    assert!(g.to_hex().bytes().all(|c| c.is_ascii_hexdigit()));
+    assert_eq!(
+        OccupancyGrid::from_hex("abc"),
+        Err(GridDecodeError::OddLength)
+    );
+    let not_hex = OccupancyGrid::from_hex("00zz").unwrap_err();
+    assert_eq!(
+        not_hex,
+        GridDecodeError::NotHex {
+            index: 1,
+            text: "zz".into()
+        }
+    );
+    assert_eq!(not_hex.to_string(), "byte 1: \"zz\" is not two hex digits");
+    let cut = OccupancyGrid::from_hex(&g.to_hex()[..40]).unwrap_err();
+    assert!(matches!(cut, GridDecodeError::Format(_)), "{cut:?}");
+    assert!(cut.to_string().contains("header"), "{cut}");
 }
 
 #[test]

@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use burn::tensor::Device;
+use field_ops::render::ViewSettings;
 use model::{OccupancyConfig, OccupancyGrid};
 use tests::{
     ci_scene, flex_session as session, max_abs_diff, scratch_dir, serial, tiny_config, weights,
@@ -76,16 +77,10 @@ fn a_grid_run_resumes_identically_and_evaluation_renders_with_its_grid() {
     // background with zero opacity; the others are rendered by the field
     // over their clipped span.
     let frame = &scene.frames[1];
+    let settings = ViewSettings::new(scene.background, 512).with_features(true);
     let render = |m: &model::OpenNerf| {
-        field_ops::render::render_view(
-            m,
-            &frame.camera,
-            &scene.scene_box,
-            scene.background,
-            512,
-            true,
-            &Device::flex(),
-        )
+        field_ops::render::render_view(m, &frame.camera, &scene.scene_box, &settings)
+            .expect("never cancelled without an observer")
     };
     let with = render(&ra.model);
     let rays = field_ops::render::camera_rays(&frame.camera, &scene.scene_box);

@@ -1,11 +1,11 @@
 //! Rendering with early ray termination on a trained field: the CI room's
 //! views render with the same PSNR (within 0.05 dB) and the same colours
-//! and features as the plain deterministic render (every sample evaluated,
-//! [`model::OpenNerf::render_inference`]).
+//! and features as the plain deterministic render (every sample evaluated:
+//! the dense pass, [`model::Train`] without jitter).
 
 use burn::tensor::Device;
-use field_ops::render::{camera_rays, render_rays_with, tensor_to_vec};
-use model::{FeatureMode, Rays, Termination};
+use field_ops::render::{camera_rays, tensor_to_vec};
+use model::{FeatureMode, RenderRequest, Termination};
 use tests::{ci_scene, flex_session as session, scratch_dir, serial, tiny_config};
 
 /// PSNR of `a` against `b`.
@@ -45,9 +45,20 @@ fn terminated_rays_render_the_trained_room_as_the_plain_render_does() {
         for frame in scene.frames.iter().step_by(5) {
             let rays = camera_rays(&frame.camera, &run.meta.scene_box);
             let mode = FeatureMode::Composited;
-            let fast = render_rays_with(&run.model, &rays, bg, 4096, mode, term, &device);
-            let batch = Rays::from_normalized(&rays, &device);
-            let plain = run.model.render_inference(&batch, 4096, bg, mode).fine;
+            let fast = run
+                .model
+                .render(
+                    &RenderRequest::inference(&rays)
+                        .with_termination(term)
+                        .with_features(mode)
+                        .with_background(bg),
+                )
+                .expect("never cancelled without an observer");
+            let dense = RenderRequest::train(&rays)
+                .with_randomized(false)
+                .with_features(mode)
+                .with_background(bg);
+            let plain = run.model.render(&dense).fine;
             let plain_rgb = tensor_to_vec(plain.rgb);
             let truth = &frame.rgb.data;
             let (p_fast, p_plain) = (psnr(&fast.rgb, truth), psnr(&plain_rgb, truth));

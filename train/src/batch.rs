@@ -5,19 +5,21 @@
 //! seed, so the whole sampler position is the iteration number: a resumed run
 //! draws exactly the batches the uninterrupted run would have drawn.
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Int, Tensor, TensorData};
 use datasets::Scene;
 use datasets::balance::{BalanceConfig, BalancedSampler};
 use datasets::sampler::{RayBatch, SamplerConfig, sample_batch_from};
-use model::{FeatureSpace, Rays};
+use model::FeatureSpace;
+use model::geometry::NormalizedRay;
 
 use crate::error::TrainError;
 
-/// The batch as device tensors.
+/// A training batch: its rays on the host (rendering uploads them) and
+/// its targets as device tensors, row `i` the target of ray `i`.
 #[derive(Debug, Clone)]
 pub struct BatchTensors {
-    /// Rays.
-    pub rays: Rays,
+    /// Rays in the normalised frame.
+    pub rays: Vec<NormalizedRay>,
     /// `[n, 3]`.
     pub rgb: Tensor<2>,
     /// `[n, 1]` colour-loss weights (`None`: all 1).
@@ -37,6 +39,28 @@ pub struct FeatureTargets {
     pub mask: Tensor<2>,
     /// Identity, or the lift of PCA coefficients.
     pub space: FeatureSpace,
+}
+
+impl BatchTensors {
+    /// The rays `rows` (indices into the batch, e.g. those a render kept,
+    /// see `model::RenderOutputs::kept`) with their targets, in that order.
+    pub fn select(&self, rows: &[usize]) -> BatchTensors {
+        let device = self.rgb.device();
+        let ids: Vec<i64> = rows.iter().map(|&r| r as i64).collect();
+        let idx = Tensor::<1, Int>::from_data(TensorData::new(ids, [rows.len()]), &device);
+        let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
+        BatchTensors {
+            rays: rows.iter().map(|&r| self.rays[r]).collect(),
+            rgb: pick(&self.rgb),
+            rgb_weight: self.rgb_weight.as_ref().map(pick),
+            depth: self.depth.as_ref().map(|(d, w)| (pick(d), pick(w))),
+            feature: self.feature.as_ref().map(|f| FeatureTargets {
+                values: pick(&f.values),
+                mask: pick(&f.mask),
+                space: f.space.clone(),
+            }),
+        }
+    }
 }
 
 impl FeatureTargets {
@@ -207,7 +231,7 @@ pub fn to_tensors(batch: &RayBatch, space: &FeatureSpace, device: &Device) -> Ba
     let n = batch.len();
     let t2 = |v: Vec<f32>, c: usize| Tensor::<2>::from_data(TensorData::new(v, [n, c]), device);
     BatchTensors {
-        rays: Rays::from_normalized(&batch.rays, device),
+        rays: batch.rays.clone(),
         rgb: t2(batch.rgb.as_flattened().to_vec(), 3),
         rgb_weight: batch.rgb_weight.as_ref().map(|w| t2(w.clone(), 1)),
         depth: batch
@@ -231,6 +255,99 @@ pub fn to_tensors(batch: &RayBatch, space: &FeatureSpace, device: &Device) -> Ba
 mod tests {
     use super::*;
     use datasets::synthetic::{SceneSize, generate};
+    use model::{
+        FeatureHeadConfig, MipMlpConfig, OccupancyConfig, OccupancyGrid, OpenNerfConfig,
+        RenderRequest,
+    };
+
+    fn ray_batch(n: usize) -> RayBatch {
+        let rays = (0..n)
+            .map(|i| {
+                // Rays along +x at heights from -3 to 3: the low ones pass
+                // through the lower half of the cube only.
+                let y = -3.0 + 6.0 * i as f32 / (n - 1) as f32;
+                NormalizedRay {
+                    origin: [-4.0, y, 0.1],
+                    direction: [1.0, 0.0, 0.0],
+                    radius: 0.01,
+                    near: 1.0,
+                    far: 7.0,
+                }
+            })
+            .collect();
+        RayBatch {
+            rays,
+            rgb: (0..n).map(|i| [i as f32; 3]).collect(),
+            rgb_weight: Some((0..n).map(|i| 0.5 * (i % 3) as f32).collect()),
+            depth: Some((0..n).map(|i| i as f32).collect()),
+            depth_weight: Some(vec![1.0; n]),
+            features: Some((0..2 * n).map(|i| i as f32).collect()),
+            feature_mask: Some(vec![1.0; n]),
+            feature_dim: 2,
+            pixels: (0..n as u32).map(|i| [0, i, 0]).collect(),
+        }
+    }
+
+    fn host(t: &Tensor<2>) -> Vec<f32> {
+        t.clone().into_data().try_into_vec_as::<f32>().expect("f32")
+    }
+
+    /// The rays a render keeps behind the grid and the targets selected for
+    /// them stay paired.
+    #[test]
+    fn targets_follow_their_rays_through_the_clip() {
+        // Only cells with y < 0 hold density; the first update decides
+        // alone, no dilation, rays over free space skipped at once.
+        let config = OccupancyConfig::new()
+            .with_resolution(4)
+            .with_early_samples(1)
+            .with_early_updates(0)
+            .with_dilation(0)
+            .with_keep_dropped_updates(0);
+        let mut grid = OccupancyGrid::new(&config);
+        let d: Vec<f32> = (0..64)
+            .map(|c| if (c / 4) % 4 < 2 { 10.0 } else { 0.0 })
+            .collect();
+        grid.update(&d);
+        let device = Device::flex();
+        let model = OpenNerfConfig::new(FeatureHeadConfig::new(2).with_width(8))
+            .with_mlp(
+                MipMlpConfig::new()
+                    .with_width(16)
+                    .with_depth(2)
+                    .with_skip_layer(1),
+            )
+            .with_num_samples(4)
+            .init(&device)
+            .with_occupancy(Some(grid));
+        let b = ray_batch(9);
+        let tensors = to_tensors(&b, &FeatureSpace::Identity, &device);
+        let out = model.render(&RenderRequest::train(&b.rays).with_randomized(false));
+        let stats = out.clip.expect("the model's grid");
+        assert_eq!(stats.drawn, 9);
+        let kept = out.kept.expect("rays dropped");
+        assert_eq!(kept.len(), stats.kept);
+        assert_eq!(out.fine.rgb.dims()[0], stats.kept);
+        assert!(stats.kept > 0 && stats.kept < 9, "kept {}", stats.kept);
+        let t = tensors.select(&kept);
+        let rgb = host(&t.rgb);
+        for (j, (&i, r)) in kept.iter().zip(&t.rays).enumerate() {
+            assert!(r.origin[1] < 0.0);
+            assert_eq!(*r, b.rays[i]);
+            assert_eq!(rgb[3 * j..3 * j + 3], [b.pixels[i][1] as f32; 3]);
+        }
+        let j = 1;
+        let i = kept[j];
+        let (depth, _) = t.depth.as_ref().expect("depth");
+        assert_eq!(host(depth)[j], i as f32);
+        let w = host(t.rgb_weight.as_ref().expect("weights"));
+        assert_eq!(w[j], 0.5 * (i % 3) as f32);
+        let f = host(&t.feature.as_ref().expect("features").values);
+        assert_eq!(
+            &f[2 * j..2 * j + 2],
+            &[2.0 * i as f32, 2.0 * i as f32 + 1.0]
+        );
+    }
 
     #[test]
     fn novel_views_get_their_pixel_share_and_leave_the_capture_stream_alone() {

@@ -3,11 +3,11 @@
 
 use std::path::Path;
 
-use burn::tensor::Device;
 use datasets::Scene;
 use datasets::sampler::{SamplerConfig, sample_batch_from};
-use model::OpenNerf;
+use field_ops::render::{ViewSettings, render_view};
 use model::geometry::NormalizedRay;
+use model::{FeatureMode, OpenNerf, RenderRequest};
 
 use crate::accuracy::{EvalAccumulator, EvalMetrics};
 use crate::error::TrainError;
@@ -82,19 +82,23 @@ pub fn evaluate_pixels(
     scene: &Scene,
     pixels: &EvalPixels,
     chunk: usize,
-    device: &Device,
 ) -> EvalMetrics {
     let mut acc = EvalAccumulator::default();
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut start = 0;
     for part in pixels.rays.chunks(chunk.max(1)) {
         let mode = if dim > 0 {
-            model::FeatureMode::Composited
+            FeatureMode::Composited
         } else {
-            model::FeatureMode::None
+            FeatureMode::None
         };
-        let out =
-            field_ops::render::render_rays(model, part, scene.background, chunk, mode, device);
+        let request = RenderRequest::inference(part)
+            .with_chunk(chunk)
+            .with_features(mode)
+            .with_background(scene.background);
+        let out = model
+            .render(&request)
+            .expect("never cancelled without an observer");
         let (rgb, depth) = (out.rgb, out.depth);
         let feat = match (out.feature_dim > 0, pixels.feature.as_ref()) {
             (true, Some(_)) => Some(lift_features(scene, out.feature)),
@@ -147,22 +151,16 @@ pub fn evaluate_views(
     frames: &[usize],
     margin: u32,
     chunk: usize,
-    device: &Device,
     renders_dir: &Path,
 ) -> Result<ViewMetrics, TrainError> {
     let mut interior = EvalAccumulator::default();
     let mut whole = EvalAccumulator::default();
+    let settings =
+        ViewSettings::new(scene.background, chunk).with_features(scene.features.is_some());
     for &f in frames {
         let frame = &scene.frames[f];
-        let mut view = field_ops::render::render_view(
-            model,
-            &frame.camera,
-            &scene.scene_box,
-            scene.background,
-            chunk,
-            scene.features.is_some(),
-            device,
-        );
+        let mut view = render_view(model, &frame.camera, &scene.scene_box, &settings)
+            .expect("never cancelled without an observer");
         if scene.features.is_none() {
             // The head of a scene without features is a stub: no feature image.
             view.feature.clear();

@@ -5,7 +5,7 @@ use burn::module::{Module, ModuleVisitor, Param, ParamGroup};
 use burn::optim::lr_scheduler::module_lr_scheduler::ModuleLrScheduler;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
-use model::{FeatureMode, OpenNerf, RenderOutputs};
+use model::{ClipStats, FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
 
 use crate::batch::BatchTensors;
 use crate::config::LossConfig;
@@ -30,7 +30,8 @@ pub struct LossTerms {
 /// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
 /// fine level) with the coarse level's colour and depth terms weighted by
 /// `c`. Depth only where the target is valid (> 0); features only where the
-/// target is non-zero.
+/// target is non-zero. Row `i` of `batch` is the target of rendered ray `i`
+/// (see [`BatchTensors::select`]).
 pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
     let device = batch.rgb.device();
     let zero = || Tensor::<1>::zeros([1], &device);
@@ -99,6 +100,8 @@ pub struct StepReport {
     pub grad_l1: f64,
     /// Whether the update was applied (false: non-finite loss or gradient).
     pub applied: bool,
+    /// What the occupancy grid clipped (`None` without a grid).
+    pub clip: Option<ClipStats>,
 }
 
 impl StepReport {
@@ -132,8 +135,9 @@ pub fn head_group(model: &OpenNerf) -> ParamGroup {
     ParamGroup::ids_from_module(model.head.clone())
 }
 
-/// One step: render the batch (stratified jitter on) over `background`,
-/// compute the losses, backpropagate, and — only when the loss and every
+/// One step: render the batch (stratified jitter on) over `background`
+/// with the model's occupancy grid used as `grid` says, compute the losses
+/// on the rays rendered, backpropagate, and — only when the loss and every
 /// gradient are finite — apply Adam with the head at its own rate. Returns
 /// the (possibly unchanged) model and what was measured. One device read
 /// per step.
@@ -142,6 +146,7 @@ pub fn train_step(
     optim: &mut ModuleOptimizer,
     batch: &BatchTensors,
     background: Option<[f32; 3]>,
+    grid: GridUse,
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
@@ -150,12 +155,17 @@ pub fn train_step(
     } else {
         FeatureMode::None
     };
-    let out = model.render_with(&batch.rays, true, background, mode);
+    let request = RenderRequest::train(&batch.rays)
+        .with_features(mode)
+        .with_background(background)
+        .with_grid(grid);
+    let out = model.render(&request);
     train_step_from(model, optim, out, batch, cfg, rates)
 }
 
-/// [`train_step`] for outputs already rendered (e.g. with a background
-/// colour or another feature path).
+/// [`train_step`] for outputs already rendered from `batch.rays` (e.g. with
+/// another feature path); the targets of the rays the render kept
+/// ([`RenderOutputs::kept`]) are selected here.
 pub fn train_step_from(
     model: OpenNerf,
     optim: &mut ModuleOptimizer,
@@ -164,6 +174,15 @@ pub fn train_step_from(
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
+    let kept;
+    let batch = match &out.kept {
+        Some(rows) => {
+            kept = batch.select(rows);
+            &kept
+        }
+        None => batch,
+    };
+    let clip = out.clip;
     let terms = losses(&out, batch, cfg);
     let grads = terms.total.backward();
     let grads = GradientsParams::from_grads(grads, &model);
@@ -195,6 +214,7 @@ pub fn train_step_from(
         open: v[3] as f64,
         grad_l1: v[4] as f64,
         applied: false,
+        clip,
     };
     if !v.iter().all(|x| x.is_finite()) {
         return (model, report);
@@ -214,7 +234,7 @@ mod tests {
     use burn::optim::AdamConfig;
     use burn::tensor::{Device, TensorData};
     use model::geometry::NormalizedRay;
-    use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig, Rays};
+    use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 
     fn tiny_model(device: &Device) -> OpenNerf {
         device.seed(3);
@@ -243,7 +263,7 @@ mod tests {
             .collect();
         let t = |v: Vec<f32>, c: usize| Tensor::<2>::from_data(TensorData::new(v, [n, c]), device);
         BatchTensors {
-            rays: Rays::from_normalized(&rays, device),
+            rays,
             rgb: t(vec![rgb; n * 3], 3),
             rgb_weight: None,
             depth: Some((t(vec![2.0; n], 1), t(vec![1.0; n], 1))),
@@ -295,6 +315,7 @@ mod tests {
             &mut optim,
             &batch(&device, f32::NAN),
             None,
+            GridUse::Model,
             &cfg,
             rates,
         );
@@ -306,8 +327,15 @@ mod tests {
             record.contains("num_tensors: 0"),
             "no optimiser state may be created: {record}"
         );
-        let (model, report) =
-            train_step(model, &mut optim, &batch(&device, 0.5), None, &cfg, rates);
+        let (model, report) = train_step(
+            model,
+            &mut optim,
+            &batch(&device, 0.5),
+            None,
+            GridUse::Model,
+            &cfg,
+            rates,
+        );
         assert!(report.applied && report.loss.is_finite() && report.grad_l1 > 0.0);
         assert_ne!(values(&model), before);
     }
@@ -329,6 +357,7 @@ mod tests {
             &mut optim,
             &batch(&device, 0.5),
             None,
+            GridUse::Model,
             &LossConfig::default(),
             rates,
         );
@@ -344,7 +373,7 @@ mod tests {
         let device = Device::flex();
         let model = tiny_model(&device);
         let b = batch(&device, 0.3);
-        let out = model.render(&b.rays, false, None);
+        let out = model.render(&RenderRequest::train(&b.rays).with_randomized(false));
         let cfg = LossConfig {
             lambda_open: 0.7,
             lambda_depth: 0.2,
@@ -373,7 +402,7 @@ mod tests {
         let device = Device::flex();
         let model = tiny_model(&device);
         let mut b = batch(&device, 0.3);
-        let out = model.render(&b.rays, false, None);
+        let out = model.render(&RenderRequest::train(&b.rays).with_randomized(false));
         let cfg = LossConfig::default();
         let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
         let plain = s(losses(&out, &b, &cfg).rgb);

@@ -15,7 +15,7 @@ use crate::query::{QueryRequest, resolve, score_points, scores};
 use crate::state::Viewer;
 use field_ops::colormap::{to_u8, turbo};
 use field_ops::query::{RelevancyScale, relevancy_overlay};
-use field_ops::render::render_view_observed;
+use field_ops::render::{ViewSettings, render_view};
 
 /// Finished jobs kept for their images.
 const KEPT: usize = 16;
@@ -297,7 +297,7 @@ fn render(viewer: &Viewer, job: &Job) -> Result<bool, ViewerError> {
         _ => None,
     };
     let field = viewer.field();
-    let mut go = |done: usize, total: usize| {
+    let go = |done: usize, total: usize| {
         let p = if total == 0 {
             1.0
         } else {
@@ -306,16 +306,10 @@ fn render(viewer: &Viewer, job: &Job) -> Result<bool, ViewerError> {
         job.progress.store(p.to_bits(), Ordering::Relaxed);
         !job.cancel.load(Ordering::Relaxed)
     };
-    let Some(v) = render_view_observed(
-        &field.model,
-        &job.camera,
-        &d.meta.scene_box,
-        d.meta.background,
-        d.options.chunk,
-        query.is_some(),
-        &viewer.device,
-        &mut go,
-    ) else {
+    let settings = ViewSettings::new(d.meta.background, d.options.chunk)
+        .with_features(query.is_some())
+        .with_observer(&go);
+    let Ok(v) = render_view(&field.model, &job.camera, &d.meta.scene_box, &settings) else {
         return Ok(false);
     };
     let (w, h) = (v.width, v.height);

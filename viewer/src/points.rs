@@ -6,13 +6,12 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use burn::tensor::Device;
 use datasets::Scene;
 use model::OpenNerf;
 use model::geometry::{Camera, SceneBox, Vec3};
 
 use field_ops::OpsError;
-use field_ops::render::render_view;
+use field_ops::render::{ViewSettings, render_view};
 
 /// "No class" in the predicted and ground-truth arrays.
 pub const NO_CLASS: u16 = u16::MAX;
@@ -141,7 +140,6 @@ pub fn from_rendered_depth(
     scene_box: &SceneBox,
     background: Option<[f32; 3]>,
     (views, width): (usize, u32),
-    device: &Device,
 ) -> PointSet {
     let step = cameras.len().div_ceil(views.max(1)).max(1);
     let mut set = PointSet {
@@ -157,7 +155,9 @@ pub fn from_rendered_depth(
             as u32)
             .max(1);
         let c = cam.scaled(w, h);
-        let v = render_view(model, &c, scene_box, background, 4096, false, device);
+        let settings = ViewSettings::new(background, 4096);
+        let v = render_view(model, &c, scene_box, &settings)
+            .expect("never cancelled without an observer");
         for y in 0..h {
             for x in 0..w {
                 let i = (y * w + x) as usize;

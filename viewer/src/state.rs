@@ -90,7 +90,6 @@ impl ViewerData {
         novel: &[usize],
         classes: Option<TextEmbeddings>,
         model: &OpenNerf,
-        device: &Device,
         options: ViewerOptions,
     ) -> Result<Self, OpsError> {
         let n_classes = classes.as_ref().map_or(0, |c| c.names.len());
@@ -122,14 +121,7 @@ impl ViewerData {
                     .filter(|c| c.kind != "heldout")
                     .map(|c| c.camera)
                     .collect();
-                from_rendered_depth(
-                    model,
-                    &train,
-                    &meta.scene_box,
-                    meta.background,
-                    (16, 96),
-                    device,
-                )
+                from_rendered_depth(model, &train, &meta.scene_box, meta.background, (16, 96))
             }
         };
         let mut points = points.thinned(options.max_points);

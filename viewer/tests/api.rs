@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
 use datasets::{Scene, SceneMeta};
-use field_ops::render::render_view;
+use field_ops::render::{ViewSettings, render_view};
 use field_ops::run_dir::{RunDir, Split};
 use field_ops::sample::sampled_features;
 use viewer::{ServerHandle, ServerOptions, Viewer, ViewerData, ViewerOptions};
@@ -57,7 +57,6 @@ fn serve(chunk: usize) -> Served {
         &[],
         scene.classes.clone(),
         &model,
-        &device,
         options,
     )
     .expect("viewer data");
@@ -408,11 +407,9 @@ fn renders_equal_the_field_rendered_directly_and_can_be_cancelled() {
         &v.field().model,
         &cam,
         &v.data.meta.scene_box,
-        v.data.meta.background,
-        64,
-        false,
-        &v.device,
-    );
+        &ViewSettings::new(v.data.meta.background, 64),
+    )
+    .expect("never cancelled without an observer");
     for (got, want) in img.as_raw().iter().zip(&direct.rgb) {
         assert!(
             (*got as f32 - want.clamp(0.0, 1.0) * 255.0).abs() <= 1.0,

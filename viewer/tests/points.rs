@@ -7,7 +7,7 @@ mod common;
 use burn::nn::{Initializer, LinearConfig};
 use burn::tensor::Device;
 use datasets::synthetic::{SceneSize, generate};
-use field_ops::render::render_view;
+use field_ops::render::{ViewSettings, render_view};
 use viewer::points::{NO_CLASS, PointSource, encode, from_rendered_depth};
 
 #[test]
@@ -28,18 +28,15 @@ fn points_from_rendered_depth_project_back_onto_their_pixels_at_that_depth() {
         &scene.scene_box,
         scene.background,
         (1, 32),
-        &device,
     );
     let small = camera.scaled(32, 18);
     let view = render_view(
         &model,
         &small,
         &scene.scene_box,
-        scene.background,
-        4096,
-        false,
-        &device,
-    );
+        &ViewSettings::new(scene.background, 4096),
+    )
+    .expect("never cancelled without an observer");
     let solid: Vec<usize> = (0..view.acc.len())
         .filter(|&i| view.acc[i] >= 0.5)
         .collect();

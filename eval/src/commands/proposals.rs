@@ -8,7 +8,7 @@ use field_ops::OpsError;
 use field_ops::images::save_view_pngs;
 use field_ops::novel::cameras::{mean_centre, scene_up};
 use field_ops::novel::guided::{FieldProbe, GuidedProposals, ProposalOptions, guided_proposals};
-use field_ops::render::render_view;
+use field_ops::render::{ViewSettings, render_view};
 use field_ops::run_dir::{RunDir, Split, load_run};
 use field_ops::uncertainty::UncertaintyMap;
 use model::geometry::{Camera, Intrinsics, Pose, Vec3};
@@ -134,15 +134,9 @@ pub fn write_proposals(
             intrinsics: k.scaled(w, h),
             pose: p.camera.pose,
         };
-        let view = render_view(
-            &run.model,
-            &cam,
-            &run.meta.scene_box,
-            run.meta.background,
-            4096,
-            false,
-            &device,
-        );
+        let settings = ViewSettings::new(run.meta.background, 4096);
+        let view = render_view(&run.model, &cam, &run.meta.scene_box, &settings)
+            .expect("never cancelled without an observer");
         written.extend(save_view_pngs(&view, &previews, &format!("novel_{i:03}"))?);
     }
     Ok(written)

@@ -18,7 +18,7 @@ use crate::query::{
 use crate::segment::sampled_features;
 use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
-use field_ops::render::render_view_with;
+use field_ops::render::render_view;
 
 /// Arguments of `query`.
 #[derive(Debug, Clone, clap::Args)]
@@ -191,13 +191,13 @@ pub fn query_command(args: &QueryArgs) -> Result<Vec<PathBuf>, OpsError> {
     let bar = field_ops::progress::progress(cams.len(), "rendering");
     let mut views = Vec::with_capacity(cams.len());
     for c in &cams {
-        let v = render_view_with(
+        let v = render_view(
             &ctx.run.model,
             &c.camera,
             &m.scene_box,
-            r.settings(m.background, true),
-            &device,
-        );
+            &r.settings(m.background, true),
+        )
+        .expect("never cancelled without an observer");
         let scores = view_cosines(&v, &query, pca)?;
         views.push((c, v.width, v.height, v.rgb, scores));
         bar.inc(1);

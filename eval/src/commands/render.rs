@@ -12,7 +12,7 @@ use field_ops::OpsError;
 use field_ops::backend::BackendArgs;
 use field_ops::frame::{FrameArgs, OutputFrame};
 use field_ops::images::save_view_pngs;
-use field_ops::render::{RenderSettings, render_view_with};
+use field_ops::render::{ViewSettings, render_view};
 use model::Termination;
 
 /// Arguments of `render` and the camera part of `query`.
@@ -60,14 +60,13 @@ pub struct RenderArgs {
 impl RenderArgs {
     /// How views are rendered: `--chunk`, `--termination`, and features
     /// when `features` is set.
-    pub fn settings(&self, background: Option<[f32; 3]>, features: bool) -> RenderSettings {
-        RenderSettings {
-            termination: Termination {
+    pub fn settings(&self, background: Option<[f32; 3]>, features: bool) -> ViewSettings<'static> {
+        ViewSettings::new(background, self.chunk)
+            .with_features(features)
+            .with_termination(Termination {
                 transmittance: self.termination,
                 ..Termination::default()
-            },
-            ..RenderSettings::view(background, self.chunk, features)
-        }
+            })
     }
 }
 
@@ -125,7 +124,8 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
     for c in &cams {
         let m = &ctx.run.meta;
         let settings = args.settings(m.background, m.feature_dim.is_some());
-        let v = render_view_with(&ctx.run.model, &c.camera, &m.scene_box, settings, &device);
+        let v = render_view(&ctx.run.model, &c.camera, &m.scene_box, &settings)
+            .expect("never cancelled without an observer");
         rays += v.pixels();
         samples += v.samples_evaluated;
         written.extend(save_view_pngs(&v, &out, &c.name)?);

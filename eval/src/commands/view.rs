@@ -129,7 +129,7 @@ pub fn view_command(args: &ViewArgs) -> Result<String, OpsError> {
     };
     let busy = field_ops::progress::spinner("preparing the viewer's points".into());
     let data = ViewerData::build(
-        dir, run.meta, &scene, &run.split, &novel, classes, &run.model, &device, options,
+        dir, run.meta, &scene, &run.split, &novel, classes, &run.model, options,
     )?;
     // The iterations the weights were trained for, when the run finished.
     let iteration = field_ops::json::read_json::<serde_json::Value>(&run.dir.summary())

@@ -2,7 +2,6 @@
 //! point, or projected from rendered (or 2D) feature images with the
 //! occlusion test.
 
-use burn::tensor::Device;
 use datasets::FeatureMap;
 use datasets::features::FeatureSet;
 use model::OpenNerf;
@@ -10,7 +9,7 @@ use model::geometry::{SceneBox, Vec3};
 
 use field_ops::OpsError;
 use field_ops::project::{DepthRef, FeatureAccumulator, Hit, ProjectOptions};
-use field_ops::render::render_view;
+use field_ops::render::{ViewSettings, render_view};
 
 use super::{SegmentOptions, View};
 
@@ -27,7 +26,6 @@ pub fn scaled_index(u: f64, v: f64, w: u32, h: u32, fw: u32, fh: u32) -> usize {
 /// it lands on when it passes the occlusion test against the view's sensor
 /// depth (or the rendered depth without one). Sums stay in the field's
 /// output space (k channels), so memory is `points * k` floats.
-#[allow(clippy::too_many_arguments)]
 pub fn projected_features(
     model: &OpenNerf,
     points: &[Vec3],
@@ -35,7 +33,6 @@ pub fn projected_features(
     scene_box: &SceneBox,
     background: Option<[f32; 3]>,
     opts: &SegmentOptions,
-    device: &Device,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<FeatureAccumulator, OpsError> {
     let mut acc: Option<FeatureAccumulator> = None;
@@ -46,7 +43,9 @@ pub fn projected_features(
             ((k.height as f64 * opts.render_scale).round() as u32).max(1),
         );
         let cam = view.camera.scaled(rw, rh);
-        let r = render_view(model, &cam, scene_box, background, opts.chunk, true, device);
+        let settings = ViewSettings::new(background, opts.chunk).with_features(true);
+        let r = render_view(model, &cam, scene_box, &settings)
+            .expect("never cancelled without an observer");
         if r.feature_dim == 0 {
             return Err(OpsError::Invalid("the model renders no features".into()));
         }

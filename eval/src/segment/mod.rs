@@ -255,16 +255,7 @@ pub fn segment_with_field_modes(
     };
     let needs_views = modes.iter().any(|m| *m != SegmentMode::Sampled);
     let projected = if needs_views {
-        let acc = projected_features(
-            model,
-            pos,
-            views,
-            scene_box,
-            background,
-            opts,
-            device,
-            |_, _| {},
-        )?;
+        let acc = projected_features(model, pos, views, scene_box, background, opts, |_, _| {})?;
         check_dim(acc.dim)?;
         let means: Vec<Option<Vec<f32>>> = (0..pos.len()).map(|i| acc.mean(i)).collect();
         let pred = predict(&scorer, means.iter().map(|m| m.as_deref()));

@@ -14,7 +14,7 @@ use super::config::NovelViewConfig;
 use super::oracle::GroundTruth;
 use super::view::ExtractedView;
 use crate::error::OpsError;
-use crate::render::render_view;
+use crate::render::{ViewSettings, render_view};
 
 /// Where a scene's novel views get their features, as far as can be told
 /// without loading anything.
@@ -125,7 +125,6 @@ pub fn render_views(
     extractor: &dyn FeatureExtractor,
     config: &NovelViewConfig,
     chunk: usize,
-    device: &Device,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Vec<NovelView>, OpsError> {
     let pca = scene.features.as_ref().and_then(|f| f.pca.as_ref());
@@ -161,14 +160,7 @@ pub fn render_views(
             // one batch: an external command starts once, not per view.
             let mut rendered = Vec::with_capacity(cameras.len());
             for (i, aimed) in cameras.iter().enumerate() {
-                rendered.push(field_render(
-                    model,
-                    &aimed.camera,
-                    scene,
-                    config,
-                    chunk,
-                    device,
-                ));
+                rendered.push(field_render(model, &aimed.camera, scene, config, chunk));
                 progress(i + 1, cameras.len());
             }
             let images: Vec<&RgbImage> = rendered.iter().map(|(rgb, _)| rgb).collect();
@@ -258,17 +250,10 @@ fn field_render(
     scene: &Scene,
     config: &NovelViewConfig,
     chunk: usize,
-    device: &Device,
 ) -> (RgbImage, DepthImage) {
-    let view = render_view(
-        model,
-        camera,
-        &scene.scene_box,
-        scene.background,
-        chunk,
-        false,
-        device,
-    );
+    let settings = ViewSettings::new(scene.background, chunk);
+    let view = render_view(model, camera, &scene.scene_box, &settings)
+        .expect("never cancelled without an observer");
     let rgb = RgbImage {
         width: view.width,
         height: view.height,

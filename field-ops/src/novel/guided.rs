@@ -5,11 +5,11 @@
 //! capture saw there.
 
 use burn::tensor::{Device, Tensor, TensorData};
-use model::OpenNerf;
 use model::geometry::{Camera, Intrinsics, SceneBox, Vec3, add_scaled, look_at, norm, sub};
+use model::{FeatureMode, OpenNerf, RenderRequest};
 use rand::Rng;
 
-use crate::render::{RENDER_MIN_NEAR, render_rays, tensor_to_vec};
+use crate::render::{RENDER_MIN_NEAR, tensor_to_vec};
 use crate::uncertainty::UncertaintyMap;
 
 /// Targets drawn per view wanted: a partly trained field rejects many
@@ -194,14 +194,14 @@ impl FieldProbe<'_> {
                 self.scene_box.normalize_ray(&ray, RENDER_MIN_NEAR)
             })
             .collect();
-        let out = render_rays(
-            self.model,
-            &rays,
-            self.background,
-            rays.len(),
-            model::FeatureMode::None,
-            self.device,
-        );
+        let request = RenderRequest::inference(&rays)
+            .with_chunk(rays.len())
+            .with_features(FeatureMode::None)
+            .with_background(self.background);
+        let out = self
+            .model
+            .render(&request)
+            .expect("never cancelled without an observer");
         let n = (out.rgb.len() / 3).max(1) as f64;
         let mut mean = [0.0; 3];
         for px in out.rgb.chunks(3) {

@@ -5,6 +5,9 @@
 //! then the densities (f32), all little-endian. Version 1 (`OCCGRID1`, no
 //! sampling or dilation fields) still loads, with the rules it was built
 //! under: one sample per cell, no early updates, no dilation.
+//!
+//! As text (a checkpoint's JSON state), the same bytes in lower-case hex,
+//! two digits a byte.
 
 use super::{MAX_DILATION, MAX_EARLY_SAMPLES, OccupancyGrid};
 
@@ -85,5 +88,65 @@ impl OccupancyGrid {
         };
         grid.refresh_bits();
         Ok(grid)
+    }
+}
+
+/// Why a grid could not be read back from its hex text.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum GridDecodeError {
+    /// The text has an odd number of characters.
+    OddLength,
+    /// Byte `index` (two characters, shown as `text`) is not two hex digits.
+    NotHex {
+        /// Index of the byte.
+        index: usize,
+        /// Its two characters (lossily decoded).
+        text: String,
+    },
+    /// The bytes are not a grid ([`OccupancyGrid::from_bytes`]'s reason).
+    Format(String),
+}
+
+impl std::fmt::Display for GridDecodeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            GridDecodeError::OddLength => f.write_str("odd number of hex digits"),
+            GridDecodeError::NotHex { index, text } => {
+                write!(f, "byte {index}: {text:?} is not two hex digits")
+            }
+            GridDecodeError::Format(reason) => f.write_str(reason),
+        }
+    }
+}
+
+impl std::error::Error for GridDecodeError {}
+
+impl OccupancyGrid {
+    /// The grid's bytes ([`OccupancyGrid::to_bytes`]) as lower-case hex.
+    pub fn to_hex(&self) -> String {
+        self.to_bytes().iter().map(|b| format!("{b:02x}")).collect()
+    }
+
+    /// Reads [`OccupancyGrid::to_hex`]'s text.
+    pub fn from_hex(hex: &str) -> Result<Self, GridDecodeError> {
+        if !hex.len().is_multiple_of(2) {
+            return Err(GridDecodeError::OddLength);
+        }
+        // Pairs of bytes, not of characters: a damaged state may hold any
+        // text, and slicing a `str` inside a multi-byte character would panic.
+        let digit = |c: u8| (c as char).to_digit(16);
+        let bytes = hex
+            .as_bytes()
+            .chunks_exact(2)
+            .enumerate()
+            .map(|(index, pair)| match (digit(pair[0]), digit(pair[1])) {
+                (Some(h), Some(l)) => Ok((h * 16 + l) as u8),
+                _ => Err(GridDecodeError::NotHex {
+                    index,
+                    text: String::from_utf8_lossy(pair).into_owned(),
+                }),
+            })
+            .collect::<Result<Vec<u8>, _>>()?;
+        OccupancyGrid::from_bytes(&bytes).map_err(GridDecodeError::Format)
     }
 }

@@ -5,11 +5,10 @@
 use std::time::Instant;
 
 use indicatif::ProgressBar;
-use model::OccupancyGrid;
+use model::{ClipStats, OccupancyGrid};
 
 use crate::accuracy::EvalMetrics;
 use crate::metrics_log::GridLine;
-use crate::occupancy::ClipStats;
 use crate::progress::say;
 use crate::step::StepReport;
 

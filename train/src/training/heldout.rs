@@ -5,7 +5,6 @@
 use std::path::Path;
 
 use burn::module::Module;
-use burn::tensor::Device;
 use datasets::Scene;
 use field_ops::run_dir::Split;
 use model::OpenNerf;
@@ -23,17 +22,15 @@ pub(super) struct HeldOut {
     pixels: EvalPixels,
     render_chunk: usize,
     border_margin: u32,
-    /// The inference device rendering runs on.
-    device: Device,
 }
 
 impl HeldOut {
-    /// Draws the pixel sample (fixed by the run's seed).
+    /// Draws the pixel sample (fixed by the run's seed). Rendering runs on
+    /// the device of the model it is given (an inference model).
     pub(super) fn new(
         scene: &Scene,
         split: &Split,
         config: &TrainConfig,
-        device: Device,
     ) -> Result<Self, TrainError> {
         let frames: Vec<usize> = if split.heldout.is_empty() {
             split.train.clone()
@@ -53,19 +50,12 @@ impl HeldOut {
             pixels,
             render_chunk: config.logging.render_chunk,
             border_margin: config.sampler.border_margin,
-            device,
         })
     }
 
     /// Figures of `model` on the pixel sample.
     pub(super) fn sample(&self, model: &OpenNerf, scene: &Scene) -> EvalMetrics {
-        evaluate_pixels(
-            &model.valid(),
-            scene,
-            &self.pixels,
-            self.render_chunk,
-            &self.device,
-        )
+        evaluate_pixels(&model.valid(), scene, &self.pixels, self.render_chunk)
     }
 
     /// The final figures of `model`: with `render`, the views in full
@@ -87,7 +77,6 @@ impl HeldOut {
                 &self.frames,
                 self.border_margin,
                 self.render_chunk,
-                &self.device,
                 renders,
             )?;
             let rays: usize = self
@@ -100,7 +89,7 @@ impl HeldOut {
                 .sum();
             (m.interior, Some(m.whole), rays)
         } else {
-            let m = evaluate_pixels(&valid, scene, &self.pixels, self.render_chunk, &self.device);
+            let m = evaluate_pixels(&valid, scene, &self.pixels, self.render_chunk);
             (m, None, self.pixels.rays.len())
         };
         Ok(FinalEval {

@@ -60,7 +60,6 @@ impl LiveViewer {
             &[],
             scene.classes.clone(),
             &field,
-            device,
             options,
         )?;
         let viewer = Arc::new(Viewer::new(data, field, Some(iteration), device.clone()));

@@ -74,7 +74,6 @@ pub fn add_views(
         extractor.as_ref(),
         novel,
         config.logging.render_chunk,
-        device,
         &mut progress,
     )?;
     // The record says where the views came from, so that a run whose views

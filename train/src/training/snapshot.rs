@@ -8,7 +8,7 @@ use burn::optim::{AdamConfig, ModuleOptimizer};
 use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Device};
 use field_ops::run_dir::RunDir;
-use model::OpenNerf;
+use model::{OccupancyGrid, OpenNerf};
 
 use crate::checkpoint::{Checkpoint, CheckpointState, checkpoint_path, prune_checkpoints};
 use crate::config::TrainConfig;
@@ -45,7 +45,7 @@ pub fn restore(
         .map_err(|e| TrainError::checkpoint(path, format!("optimiser record: {e}")))?;
     let grid = match &ckpt.state.occupancy {
         Some(hex) => Some(crate::occupancy::decode(hex, path)?),
-        None => crate::occupancy::initial_grid(&config.occupancy),
+        None => config.occupancy.initial_grid(),
     };
     Ok((model.with_occupancy(grid), optim))
 }
@@ -74,7 +74,7 @@ pub(super) fn save_checkpoint(
         .map_err(|e| TrainError::Device(format!("cannot serialise the optimiser: {e}")))?
         .to_vec();
     let mut state = state.clone();
-    state.occupancy = model.occupancy().map(crate::occupancy::encode);
+    state.occupancy = model.occupancy().map(OccupancyGrid::to_hex);
     let ckpt = Checkpoint {
         state,
         model: model_bytes(model)?,

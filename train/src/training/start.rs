@@ -83,7 +83,7 @@ pub fn train_new_with_stages(
     let model = config
         .model
         .init(&device)
-        .with_occupancy(crate::occupancy::initial_grid(&config.occupancy));
+        .with_occupancy(config.occupancy.initial_grid());
     let optim = adam(&config);
     let state = CheckpointState {
         iteration: 0,

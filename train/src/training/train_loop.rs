@@ -13,7 +13,7 @@ use datasets::Scene;
 use field_ops::run_dir::{RunDir, Split};
 use field_ops::stages::StageLog;
 use indicatif::ProgressBar;
-use model::{FeatureSpace, OpenNerf};
+use model::{ClipStats, FeatureSpace, GridUse, OpenNerf};
 
 use super::budget::ScheduleFit;
 use super::console::{Clock, RayRate, describe, grid_line, show_step};
@@ -28,7 +28,6 @@ use crate::checkpoint::{CheckpointState, list_checkpoints};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
-use crate::occupancy::ClipStats;
 use crate::progress::say;
 use crate::step::{StepRates, StepReport, train_step};
 use field_ops::json::write_json;
@@ -142,7 +141,7 @@ impl<'a> TrainLoop<'a> {
         let end = s.session.end(config.schedule.iterations);
         let fit = ScheduleFit::for_session(s.session, s.state.iteration);
         let inference = s.device.clone().without_autodiff();
-        let heldout = HeldOut::new(&s.scene, s.split, &config, inference.clone())?;
+        let heldout = HeldOut::new(&s.scene, s.split, &config)?;
         let mut log = MetricsLog::open(&s.run.metrics())?;
         let clock = Clock::start(s.state.wall_seconds);
         if s.state.iteration == 0 {
@@ -290,7 +289,7 @@ impl<'a> TrainLoop<'a> {
     }
 
     /// The step of iteration `it`: the grid's update when due, the batch
-    /// (clipped to the grid), the loss and the update.
+    /// (rendered behind the grid), the loss and the update.
     fn step(&mut self, model: OpenNerf, it: usize) -> Result<(OpenNerf, Step), TrainError> {
         let mut model = model;
         let lr = self.config.schedule.lr(it);
@@ -305,29 +304,25 @@ impl<'a> TrainLoop<'a> {
         {
             let mut grid = grid.clone();
             let seed = grid_update_seed(self.state.seed, it);
-            crate::occupancy::update_grid(&mut grid, &model.valid(), seed, &self.inference);
+            grid.update_from_field(&model.valid(), seed);
             model = model.with_occupancy(Some(grid));
         }
         let drawn = self.sampler.batch(&self.scene, it)?;
         let rays = drawn.len() as u64;
-        let drawn = match model.occupancy() {
-            Some(grid) => {
-                let (clipped, stats) =
-                    crate::occupancy::clip_batch(grid, &self.config.occupancy, drawn);
-                self.skipping.add(stats);
-                clipped
-            }
-            None => drawn,
-        };
         let batch = to_tensors(&drawn, &self.space, self.device);
+        let grid = GridUse::for_training(&self.config.occupancy, model.occupancy());
         let (next, report) = train_step(
             model,
             &mut self.optim,
             &batch,
             self.scene.background,
+            grid,
             &self.config.losses,
             rates,
         );
+        if let Some(clip) = report.clip {
+            self.skipping.add(clip);
+        }
         self.state.train_seconds += step_start.elapsed().as_secs_f64();
         self.state.iteration += 1;
         Ok((next, Step { report, lr, rays }))

@@ -6,11 +6,10 @@ use std::time::Instant;
 use burn::module::Module;
 use burn::optim::AdamConfig;
 use burn::tensor::{Device, Tensor, TensorData};
-use field_ops::render::render_rays_with;
 use model::geometry::NormalizedRay;
 use model::{
     FeatureHeadConfig, FeatureMode, MipMlp, MipMlpConfig, OccupancyConfig, OccupancyGrid,
-    OpenNerfConfig, Rays, Termination,
+    OpenNerfConfig, RenderRequest, Termination,
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
@@ -139,6 +138,9 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
             .with_head_top_k((case.top_k > 0).then_some(case.top_k));
     let mut model = config.init(ad);
     model.mlp = fitted.clone();
+    if case.with_grid {
+        model = model.with_occupancy(Some(grid.clone()));
+    }
     let mut optim = AdamConfig::new().init();
     let n = size.rays;
     let host_rays = rays(n, 1);
@@ -147,7 +149,7 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
         let target =
             |c: usize| Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), ad);
         BatchTensors {
-            rays: Rays::from_normalized(r, ad),
+            rays: r.to_vec(),
             rgb: target(3),
             rgb_weight: None,
             depth: None,
@@ -162,15 +164,11 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
     let mut times = Vec::new();
     for step in 0..=steps {
         let start = Instant::now();
-        // The grid path clips the host rays every step, as training does.
-        let batch = if case.with_grid {
-            let clipped = grid.clip(&host_rays);
-            rendered = clipped.kept.len();
-            batch_of(&clipped.rays)
-        } else {
-            batch_of(&host_rays)
-        };
-        let out = model.render_with(&batch.rays, true, None, case.path);
+        // The grid case's model clips the host rays every step, as
+        // training does.
+        let batch = batch_of(&host_rays);
+        let out = model.render(&RenderRequest::train(&batch.rays).with_features(case.path));
+        rendered = out.clip.map_or(n, |c| c.kept);
         let (next, report) = train_step_from(
             model,
             &mut optim,
@@ -189,7 +187,7 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
     Timing {
         secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
         rendered,
-        infer: inference(&model, case, grid, ad, n, segment),
+        infer: inference(&model, case, grid, n, segment),
     }
 }
 
@@ -200,11 +198,9 @@ fn inference(
     model: &model::OpenNerf,
     case: Case,
     grid: &OccupancyGrid,
-    ad: &Device,
     n: usize,
     segment: usize,
 ) -> Inference {
-    let plain = ad.clone().without_autodiff();
     let valid = model.valid();
     let valid = if case.with_grid {
         valid.with_occupancy(Some(grid.clone()))
@@ -213,10 +209,18 @@ fn inference(
     };
     let mode = case.path;
     let many = rays(4 * n, 2);
+    let render = |rays: &[NormalizedRay], termination: Termination| {
+        let request = RenderRequest::inference(rays)
+            .with_features(mode)
+            .with_termination(termination);
+        valid
+            .render(&request)
+            .expect("never cancelled without an observer")
+    };
     let time = |termination: Termination| {
-        let _ = render_rays_with(&valid, &rays(256, 3), None, 4096, mode, termination, &plain);
+        let _ = render(&rays(256, 3), termination);
         let start = Instant::now();
-        let out = render_rays_with(&valid, &many, None, 4096, mode, termination, &plain);
+        let out = render(&many, termination);
         let secs = start.elapsed().as_secs_f64();
         (many.len() as f64 / secs, out.samples_evaluated)
     };

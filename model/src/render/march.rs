@@ -7,11 +7,12 @@
 
 use burn::tensor::{Device, Int, Tensor, TensorData};
 
+use super::FeatureMode;
 use crate::composite::{
-    DEPTH_ACC_EPS, FEATURE_ACC_EPS, composite_features_mean, composite_values, segment_weights,
-    t_mids,
+    FEATURE_ACC_EPS, composite_features_mean, composite_values, expected_depth, over_background,
+    segment_weights, t_mids,
 };
-use crate::nerf::{FeatureMode, OpenNerf, Rays};
+use crate::nerf::{OpenNerf, Rays};
 use crate::sampling::{resample_t_vals, stratified_t_vals};
 
 /// When a ray stops being evaluated.
@@ -35,7 +36,9 @@ impl Default for Termination {
 }
 
 impl Termination {
-    /// Every sample evaluated: the same result as [`OpenNerf::render_inference`].
+    /// Every sample evaluated: the fine level of the deterministic dense
+    /// render ([`super::Train`] without jitter), the same numbers on the
+    /// CPU backends (checked by the model's tests).
     pub fn off() -> Self {
         Termination {
             transmittance: 0.0,
@@ -44,9 +47,9 @@ impl Termination {
     }
 }
 
-/// The fine level of rendered rays, on the host.
+/// The fine level of rendered rays, on the host, ray after ray.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct MarchedRays {
+pub struct RenderedRays {
     /// `3 n` colours (with the background behind the unoccluded part).
     pub rgb: Vec<f32>,
     /// `n` expected depths along the ray (metres of `t`).
@@ -59,6 +62,37 @@ pub struct MarchedRays {
     pub feature_dim: usize,
     /// Samples evaluated over both levels (of `2 n samples` in all).
     pub samples_evaluated: usize,
+}
+
+impl RenderedRays {
+    /// No rays, with `feature_dim` channels per feature.
+    pub(super) fn empty(feature_dim: usize) -> Self {
+        RenderedRays {
+            feature_dim,
+            ..RenderedRays::default()
+        }
+    }
+
+    /// `n` rays of zeros.
+    fn zeros(n: usize, feature_dim: usize) -> Self {
+        RenderedRays {
+            rgb: vec![0.0; 3 * n],
+            depth: vec![0.0; n],
+            acc: vec![0.0; n],
+            feature: vec![0.0; n * feature_dim],
+            feature_dim,
+            samples_evaluated: 0,
+        }
+    }
+
+    /// Appends the rays of `more` (with as many feature channels).
+    pub(super) fn append(&mut self, more: RenderedRays) {
+        self.rgb.extend(more.rgb);
+        self.depth.extend(more.depth);
+        self.acc.extend(more.acc);
+        self.feature.extend(more.feature);
+        self.samples_evaluated += more.samples_evaluated;
+    }
 }
 
 /// The rays still being marched, compacted: row `i` is ray `ids[i]`.
@@ -164,30 +198,19 @@ impl FineState {
 impl OpenNerf {
     /// The fine level of `rays` (deterministic, no autodiff graph), marched
     /// front to back with early termination (see [`Termination`]); the
-    /// occupancy grid, if any, is the caller's to apply. With
-    /// [`Termination::off`] it equals the fine level of
-    /// [`OpenNerf::render_inference`]; otherwise each output differs from it
-    /// by what a transmittance below the threshold can still add.
-    pub fn render_marched(
+    /// occupancy grid has been applied to `rays` already. With
+    /// [`Termination::off`] it equals the fine level of the deterministic
+    /// dense render; otherwise each output differs from it by what a
+    /// transmittance below the threshold can still add.
+    pub(super) fn march(
         &self,
         rays: &Rays,
         background: Option<[f32; 3]>,
         mode: FeatureMode,
         termination: Termination,
-    ) -> MarchedRays {
+    ) -> RenderedRays {
         let n = rays.len();
-        let feature_dim = match mode {
-            FeatureMode::None => 0,
-            _ => self.head.output.weight.dims()[1],
-        };
-        let mut out = MarchedRays {
-            rgb: vec![0.0; 3 * n],
-            depth: vec![0.0; n],
-            acc: vec![0.0; n],
-            feature: vec![0.0; n * feature_dim],
-            feature_dim,
-            samples_evaluated: 0,
-        };
+        let mut out = RenderedRays::zeros(n, self.feature_dim(mode));
         if n == 0 {
             return out;
         }
@@ -270,7 +293,7 @@ impl OpenNerf {
         background: Option<[f32; 3]>,
         mode: FeatureMode,
         term: Termination,
-        out: &mut MarchedRays,
+        out: &mut RenderedRays,
     ) -> usize {
         let s = self.num_samples;
         let m = alive.ids.len();
@@ -361,14 +384,10 @@ impl OpenNerf {
         state: FineState,
         ids: &[usize],
         background: Option<[f32; 3]>,
-        out: &mut MarchedRays,
+        out: &mut RenderedRays,
     ) {
-        let mut rgb = state.rgb;
-        if let Some(bg) = background {
-            let bg = Tensor::from_data(TensorData::new(bg.to_vec(), [1, 3]), &rgb.device());
-            rgb = rgb.add(state.acc.clone().neg().add_scalar(1.0).mul(bg));
-        }
-        let depth = state.depth.div(state.acc.clone().clamp_min(DEPTH_ACC_EPS));
+        let rgb = over_background(state.rgb, state.acc.clone(), background);
+        let depth = expected_depth(state.depth, state.acc.clone());
         let feature = match state.feature {
             FeatureState::None => None,
             FeatureState::Sum(sum) => Some(sum.div(state.acc.clone().clamp_min(FEATURE_ACC_EPS))),

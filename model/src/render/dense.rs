@@ -1,0 +1,229 @@
+//! The training pass: coarse/fine rendering with the shared MLP, every
+//! sample of a level evaluated at once, outputs as (autodiff) tensors.
+
+use burn::tensor::{Int, Tensor};
+
+use super::grid::{ClipStats, clip_for_training};
+use super::sealed::{Sealed, Token};
+use super::{FeatureMode, RenderPass, RenderRequest};
+use crate::composite::{composite, composite_features_mean};
+use crate::geometry::NormalizedRay;
+use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
+use crate::nerf::{OpenNerf, Rays};
+use crate::sampling::{resample_t_vals, stratified_t_vals};
+
+/// The training pass: both levels of the rendered rays as tensors, with
+/// the autodiff graph when the model is on an autodiff device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Train {
+    /// Jitter the stratified coarse posts and the resampled fine ones (off:
+    /// the deterministic render).
+    pub randomized: bool,
+}
+
+/// Outputs of one level.
+#[derive(Debug, Clone)]
+pub struct LevelOutputs {
+    /// Colour, `[n, 3]`.
+    pub rgb: Tensor<2>,
+    /// Expected metric depth, `[n, 1]`.
+    pub depth: Tensor<2>,
+    /// Accumulated opacity, `[n, 1]`.
+    pub acc: Tensor<2>,
+    /// Open-set feature, `[n, out_dim]`, when computed at this level: the
+    /// weighted mean of the samples' features (`sum w o / sum w`, detached
+    /// weights), i.e. the feature of what the ray hits.
+    pub feature: Option<Tensor<2>>,
+    /// Compositing weights, `[n, samples]`.
+    pub weights: Tensor<2>,
+    /// Fence posts, `[n, samples + 1]`.
+    pub t_vals: Tensor<2>,
+}
+
+/// What the training pass returns: both levels of the rendered rays (`n` of
+/// them: all input rays, or those [`RenderOutputs::kept`] names) and what
+/// the occupancy grid did.
+#[derive(Debug, Clone)]
+pub struct RenderOutputs {
+    /// Coarse level.
+    pub coarse: LevelOutputs,
+    /// Fine level (the one to display and evaluate).
+    pub fine: LevelOutputs,
+    /// Index in the input of each rendered ray, in order, when the grid
+    /// dropped some (`None`: every input ray, in input order). Select the
+    /// targets of these rays for the losses.
+    pub kept: Option<Vec<usize>>,
+    /// What clipping to the grid did (`None`: no grid was used).
+    pub clip: Option<ClipStats>,
+}
+
+impl Sealed for Train {}
+
+impl RenderPass for Train {
+    type Output = RenderOutputs;
+
+    fn run(model: &OpenNerf, request: &RenderRequest<'_, Self>, _: Token) -> RenderOutputs {
+        let clipped = clip_for_training(model.occupancy(), request.grid, request.rays);
+        let rays: &[NormalizedRay] = clipped.rays.as_deref().unwrap_or(request.rays);
+        let rays = Rays::from_normalized(rays, &model.device());
+        let (coarse, fine) = model.render_levels(
+            &rays,
+            request.pass.randomized,
+            request.background,
+            request.features,
+        );
+        RenderOutputs {
+            coarse,
+            fine,
+            kept: clipped.kept,
+            clip: clipped.stats,
+        }
+    }
+}
+
+impl OpenNerf {
+    /// The coarse and the fine level of `rays` with the shared MLP; the
+    /// feature is composited at the fine level (and the coarse one when so
+    /// configured), with detached weights.
+    fn render_levels(
+        &self,
+        rays: &Rays,
+        randomized: bool,
+        background: Option<[f32; 3]>,
+        mode: FeatureMode,
+    ) -> (LevelOutputs, LevelOutputs) {
+        let (dir_norm, view_enc) = self.view_encoding(rays);
+        let t_coarse = stratified_t_vals(
+            rays.near.clone(),
+            rays.far.clone(),
+            self.num_samples,
+            randomized,
+        );
+        let coarse_mode = if self.coarse_features {
+            mode
+        } else {
+            FeatureMode::None
+        };
+        let coarse = self.render_level(
+            rays,
+            t_coarse,
+            view_enc.clone(),
+            dir_norm.clone(),
+            background,
+            coarse_mode,
+        );
+        let t_fine = resample_t_vals(
+            coarse.t_vals.clone(),
+            coarse.weights.clone(),
+            self.resample_padding as f32,
+            randomized,
+        );
+        let fine = self.render_level(rays, t_fine, view_enc, dir_norm, background, mode);
+        (coarse, fine)
+    }
+
+    fn render_level(
+        &self,
+        rays: &Rays,
+        t_vals: Tensor<2>,
+        view_enc: Tensor<2>,
+        dir_norm: Tensor<2>,
+        background: Option<[f32; 3]>,
+        mode: FeatureMode,
+    ) -> LevelOutputs {
+        let [n, posts] = t_vals.dims();
+        let s = posts - 1;
+        let ipe = self.encode_samples(t_vals.clone(), rays);
+        let field = self.mlp.forward(ipe, view_enc, s);
+        let comp = composite(
+            field.density.reshape([n, s]),
+            field.rgb.reshape([n, s, 3]),
+            t_vals.clone(),
+            dir_norm,
+            background,
+        );
+        let feature = match mode {
+            FeatureMode::None => None,
+            FeatureMode::PerSample => {
+                let f = self.head.forward(field.trunk);
+                let [_, c] = f.dims();
+                Some(composite_features_mean(
+                    comp.weights.clone(),
+                    f.reshape([n, s, c]),
+                ))
+            }
+            FeatureMode::Composited => {
+                Some(self.composited_feature(field.trunk, comp.weights.clone(), n, s))
+            }
+        };
+        LevelOutputs {
+            rgb: comp.rgb,
+            depth: comp.depth,
+            acc: comp.acc,
+            feature,
+            weights: comp.weights,
+            t_vals,
+        }
+    }
+
+    /// The length of each ray's direction and the encoding of its unit
+    /// direction (the colour branch's view input).
+    ///
+    /// # Shapes
+    /// - outputs: `[n, 1]`, `[n, view_dim]`.
+    pub(super) fn view_encoding(&self, rays: &Rays) -> (Tensor<2>, Tensor<2>) {
+        let dir_norm = rays.directions.clone().square().sum_dim(1).sqrt();
+        let viewdirs = rays
+            .directions
+            .clone()
+            .div(dir_norm.clone().clamp_min(1e-20));
+        (dir_norm, pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true))
+    }
+
+    /// The integrated positional encoding of the frustums between
+    /// consecutive fence posts, ray-major.
+    ///
+    /// # Shapes
+    /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, ipe_dim]`.
+    pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
+        let [n, posts] = t_vals.dims();
+        let g = cast_rays(
+            t_vals,
+            rays.origins.clone(),
+            rays.directions.clone(),
+            rays.radii.clone(),
+        );
+        let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
+        let [_, _, dim] = ipe.dims();
+        ipe.reshape([n * (posts - 1), dim])
+    }
+
+    /// Feature by averaging the head's hidden activations with the (detached)
+    /// weights, optionally over the top-k samples only, and applying the
+    /// linear output layer once per ray: `A (sum w h / sum w) + b` equals the
+    /// weighted mean of the per-sample features `A h + b`.
+    fn composited_feature(
+        &self,
+        trunk: Tensor<2>,
+        weights: Tensor<2>,
+        n: usize,
+        s: usize,
+    ) -> Tensor<2> {
+        let weights = weights.detach();
+        let trunk = trunk.detach();
+        let [_, width] = trunk.dims();
+        let k = self.head_top_k;
+        let (trunk, weights, s) = if k > 0 && k <= s {
+            let (w, idx) = weights.topk_with_indices(k, 1); // [n, k]
+            let idx: Tensor<3, Int> = idx.unsqueeze_dim::<3>(2).expand([n, k, width]);
+            let t = trunk.reshape([n, s, width]).gather(1, idx);
+            (t.reshape([n * k, width]), w, k)
+        } else {
+            (trunk, weights, s)
+        };
+        let hidden = self.head.hidden(trunk);
+        let [_, hd] = hidden.dims();
+        let hmean = composite_features_mean(weights, hidden.reshape([n, s, hd]));
+        self.head.output.forward(hmean)
+    }
+}
