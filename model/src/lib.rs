@@ -81,6 +81,7 @@ pub mod mip;
 pub mod nerf;
 pub mod occupancy;
 pub mod sampling;
+pub mod unbounded;
 
 pub use composite::Composite;
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
