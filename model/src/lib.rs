@@ -84,6 +84,7 @@ pub mod nerf;
 pub mod occupancy;
 pub mod render;
 pub mod sampling;
+pub mod unbounded;
 
 pub use composite::Composite;
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
