@@ -200,6 +200,10 @@ pub struct WorldFrame {
     pub name: String,
     /// `p_scene = scale * R p_capture + t`.
     pub to_scene: model::geometry::Similarity,
+    /// What the map was fitted to, in words (empty when the capture gave
+    /// it, and in runs written before this was recorded).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub fitted_to: String,
 }
 
 /// What a run directory records about its scene (`scene.json`): enough to

@@ -326,6 +326,52 @@ fn colmap_project(cam: &RigCam, p: Vec3) -> (f64, f64) {
     (fx * (x + du) + cx, fy * (y + dv) + cy)
 }
 
+/// A model without sparse points (COLMAP's known-poses workflow, poses
+/// from another system): the frame is fitted to the cameras, centred on
+/// the point they look at, and says so; the same rig with its points is
+/// fitted to them.
+#[test]
+fn without_sparse_points_the_frame_is_centred_where_the_cameras_look() {
+    let cams = rig();
+    let dir = tempfile::tempdir().expect("tmp");
+    write_model(dir.path(), &rig_text(&cams, &[]));
+    write_images(dir.path(), "images", &cams, 1);
+    let scene = load_colmap(dir.path(), &ColmapOptions::default()).expect("loads");
+    let world = scene.world.as_ref().expect("colmap frame");
+    assert!(
+        world.fitted_to.contains("0 points") && world.fitted_to.contains("optical axes"),
+        "{}",
+        world.fitted_to
+    );
+    let target = world.to_scene.apply_point(TARGET);
+    assert!(norm(target) < 1e-9, "the target maps to {target:?}");
+    let b = &scene.scene_box;
+    let centre: Vec3 = std::array::from_fn(|k| 0.5 * (b.min[k] + b.max[k]));
+    assert!(norm(centre) < 1e-9, "box centre {centre:?}");
+    // What the cameras look at is inside the box, and so is every camera
+    // (to the box's percentile trim and margin).
+    for p in rig_points() {
+        assert!(b.contains(world.to_scene.apply_point(p)), "{p:?}");
+    }
+    let side = (0..3).map(|k| b.max[k] - b.min[k]).fold(0.0, f64::max);
+    for f in &scene.frames {
+        let c = f.camera.pose.center();
+        assert!(
+            (0..3).all(|k| c[k] >= b.min[k] - 0.1 * side && c[k] <= b.max[k] + 0.1 * side),
+            "camera {c:?} far outside {b:?}"
+        );
+    }
+    let with_points = load_colmap(rig_dir(&cams).path(), &ColmapOptions::default())
+        .expect("loads")
+        .world
+        .expect("colmap frame");
+    assert!(
+        with_points.fitted_to.contains("40 sparse points"),
+        "{}",
+        with_points.fitted_to
+    );
+}
+
 #[test]
 fn downscaled_images_scale_the_intrinsics() {
     let cams = rig();

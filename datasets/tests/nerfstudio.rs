@@ -140,6 +140,7 @@ fn scene() -> Scene {
         world: Some(WorldFrame {
             name: "colmap".into(),
             to_scene: applied(),
+            fitted_to: String::new(),
         }),
     }
 }

@@ -131,6 +131,7 @@ mod tests {
         let m = meta(Some(WorldFrame {
             name: "colmap".into(),
             to_scene,
+            fitted_to: String::new(),
         }));
         let args = |f: &str| FrameArgs { frame: f.into() };
         let out = args("colmap").resolve(&m).expect("colmap frame");

@@ -124,6 +124,7 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
         Some(m) => Some(WorldFrame {
             name: "colmap".into(),
             to_scene: checked_similarity(&tpath, "applied_transform", m)?,
+            fitted_to: String::new(),
         }),
         None => None,
     };

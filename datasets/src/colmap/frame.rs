@@ -6,8 +6,14 @@
 //! * Up: the normalised mean of the cameras' up vectors (`-y` of each
 //!   OpenCV camera), rotated onto +z by the minimal rotation.
 //! * Robust box: per axis (after that rotation) the 2nd and 98th
-//!   percentiles of the sparse points, or of the camera centres when there
-//!   are fewer than [`MIN_POINTS`] points.
+//!   percentiles of the sparse points. With fewer than [`MIN_POINTS`]
+//!   points (COLMAP's known-poses workflow, poses exported from another
+//!   system) the cameras give the frame ([`FrameFit`]): centred on their
+//!   focus, the point their optical axes pass closest to, and spanning the
+//!   camera centres mirrored through it, so that an object photographed
+//!   from all around sits in the middle of a box that holds every camera;
+//!   when the axes are too close to parallel for a focus (a forward-facing
+//!   capture), the camera centres' own robust box.
 //! * Seen region: the robust box grown to hold what every camera sees at
 //!   the depth of its own points (its image corners at the median depth of
 //!   the sparse points in front of it). Sparse points lie on textured
@@ -89,13 +95,104 @@ pub fn robust_box(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
     Some((lo, hi))
 }
 
-/// The points the robust box is taken over: the sparse points, or the
-/// camera centres when there are fewer than [`MIN_POINTS`].
+/// The smallest spread of the optical axes, per camera, that gives a
+/// focus: the least eigenvalue of `sum (I - d d^T)` over the cameras'
+/// axes `d` divided by their number (0 for parallel axes; axes on a cone
+/// of half-angle `a` about one direction give `sin^2 a`, so this is about
+/// 8 degrees).
+pub const MIN_AXIS_SPREAD: f64 = 0.02;
+
+/// What the scene frame was fitted to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameFit {
+    /// The sparse points (this many).
+    Points(usize),
+    /// Too few sparse points (this many): the cameras' focus, spanning
+    /// the camera centres mirrored through it.
+    CameraFocus(usize),
+    /// Too few sparse points (this many) and optical axes too close to
+    /// parallel for a focus: the camera centres' robust box.
+    CameraCentres(usize),
+}
+
+impl FrameFit {
+    /// How the frame was fitted, in words for the user.
+    pub fn describe(&self) -> String {
+        match *self {
+            FrameFit::Points(n) => format!("fitted to the {n} sparse points of points3D"),
+            FrameFit::CameraFocus(n) => format!(
+                "points3D has {n} points (fewer than {MIN_POINTS}), so the frame is fitted to the \
+                 cameras: centred where their optical axes pass closest, sized to hold every camera"
+            ),
+            FrameFit::CameraCentres(n) => format!(
+                "points3D has {n} points (fewer than {MIN_POINTS}) and the cameras' optical axes \
+                 are close to parallel, so the frame is the box of the camera centres and may \
+                 miss content far in front of them (a model with sparse points, or the same poses \
+                 as transforms.json with a known box, avoids this)"
+            ),
+        }
+    }
+}
+
+/// The point nearest to every camera's optical axis in the least-squares
+/// sense; `None` for fewer than two cameras, axes spread less than
+/// [`MIN_AXIS_SPREAD`], or a point behind most of the cameras.
+pub fn focus_point(poses: &[Pose]) -> Option<Vec3> {
+    use nalgebra::{Matrix3, Vector3};
+    if poses.len() < 2 {
+        return None;
+    }
+    let axis =
+        |p: &Pose| Vector3::new(p.rotation[0][2], p.rotation[1][2], p.rotation[2][2]).normalize();
+    let mut a = Matrix3::zeros();
+    let mut b = Vector3::zeros();
+    for p in poses {
+        let d = axis(p);
+        let m = Matrix3::identity() - d * d.transpose();
+        a += m;
+        b += m * Vector3::from(p.translation);
+    }
+    let spread = a.symmetric_eigenvalues().min() / poses.len() as f64;
+    // A NaN spread (non-finite poses) has no focus either.
+    if spread.is_nan() || spread < MIN_AXIS_SPREAD {
+        return None;
+    }
+    let f = a.cholesky()?.solve(&b);
+    let in_front = poses
+        .iter()
+        .filter(|p| (f - Vector3::from(p.translation)).dot(&axis(p)) > 0.0)
+        .count();
+    (2 * in_front > poses.len() && f.iter().all(|v| v.is_finite())).then(|| [f.x, f.y, f.z])
+}
+
+/// What the frame of `points` and `poses` is fitted to (see [`box_basis`]).
+pub fn frame_fit(points: &[Vec3], poses: &[Pose]) -> FrameFit {
+    if points.len() >= MIN_POINTS {
+        FrameFit::Points(points.len())
+    } else if focus_point(poses).is_some() {
+        FrameFit::CameraFocus(points.len())
+    } else {
+        FrameFit::CameraCentres(points.len())
+    }
+}
+
+/// The points the robust box is taken over: the sparse points; with fewer
+/// than [`MIN_POINTS`], the camera centres and their mirror images through
+/// the cameras' [`focus_point`] (a set symmetric about the focus, so the
+/// box is centred on it), or the camera centres alone without a focus.
 pub fn box_basis(points: &[Vec3], poses: &[Pose]) -> Vec<Vec3> {
     if points.len() >= MIN_POINTS {
-        points.to_vec()
-    } else {
-        poses.iter().map(Pose::center).collect()
+        return points.to_vec();
+    }
+    let centres: Vec<Vec3> = poses.iter().map(Pose::center).collect();
+    match focus_point(poses) {
+        Some(f) => {
+            let mirrored = centres
+                .iter()
+                .map(|c| std::array::from_fn(|k| 2.0 * f[k] - c[k]));
+            centres.iter().copied().chain(mirrored).collect()
+        }
+        None => centres,
     }
 }
 
@@ -309,5 +406,79 @@ mod tests {
         }
         let (plo, phi) = robust_box(&pts).expect("points");
         assert!(lo[2] <= plo[2] && hi[2] >= phi[2]);
+    }
+
+    /// Poses at `centres` looking at `target` (up +z).
+    fn looking_at(centres: &[Vec3], target: Vec3) -> Vec<Pose> {
+        centres
+            .iter()
+            .map(|&c| model::geometry::look_at(c, target, [0.0, 0.0, 1.0]).expect("pose"))
+            .collect()
+    }
+
+    #[test]
+    fn the_focus_is_where_the_optical_axes_meet() {
+        let target = [2.0, -1.0, 3.0];
+        let centres: Vec<Vec3> = (0..7)
+            .map(|i| {
+                let t = 0.9 * i as f64;
+                [
+                    target[0] + 4.0 * t.cos(),
+                    target[1] + 4.0 * t.sin(),
+                    target[2] + 2.0,
+                ]
+            })
+            .collect();
+        let poses = looking_at(&centres, target);
+        let f = focus_point(&poses).expect("axes spread");
+        assert!((0..3).all(|k| (f[k] - target[k]).abs() < 1e-9), "{f:?}");
+        assert_eq!(frame_fit(&[], &poses), FrameFit::CameraFocus(0));
+        // The box basis is symmetric about the focus: its robust box is
+        // centred there and holds every camera centre.
+        let (lo, hi) = robust_box(&box_basis(&[], &poses)).expect("basis");
+        assert!((0..3).all(|k| (lo[k] + hi[k] - 2.0 * target[k]).abs() < 1e-9));
+        assert!(hi[0] - lo[0] > 6.0 && hi[1] - lo[1] > 6.0, "{lo:?} {hi:?}");
+        assert!(
+            (hi[2] - lo[2] - 4.0).abs() < 1e-9,
+            "cameras 2 above, mirrors 2 below"
+        );
+        // Enough sparse points take precedence over the cameras.
+        let pts = vec![[0.0; 3]; MIN_POINTS];
+        assert_eq!(frame_fit(&pts, &poses), FrameFit::Points(MIN_POINTS));
+        assert_eq!(box_basis(&pts, &poses), pts);
+    }
+
+    #[test]
+    fn parallel_or_diverging_axes_have_no_focus() {
+        // A forward-facing rig: every camera looks along +y (2 degrees
+        // apart at most).
+        let centres: Vec<Vec3> = (0..6)
+            .map(|i| [0.3 * i as f64, 0.0, 0.1 * i as f64])
+            .collect();
+        let parallel: Vec<Pose> = centres
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                let a = (i as f64 - 2.5) * 0.007;
+                model::geometry::look_at(c, [c[0] + a.sin(), c[1] + a.cos(), c[2]], [0.0, 0.0, 1.0])
+                    .expect("pose")
+            })
+            .collect();
+        assert_eq!(focus_point(&parallel), None);
+        assert_eq!(frame_fit(&[], &parallel), FrameFit::CameraCentres(0));
+        assert_eq!(box_basis(&[], &parallel), centres);
+        // Cameras looking outwards from a ring: their axes meet behind them.
+        let ring: Vec<Vec3> = (0..6)
+            .map(|i| [(1.0 * i as f64).cos(), (1.0 * i as f64).sin(), 0.0])
+            .collect();
+        let outwards: Vec<Pose> = ring
+            .iter()
+            .map(|&c| {
+                model::geometry::look_at(c, c.map(|v| 2.0 * v), [0.0, 0.0, 1.0]).expect("pose")
+            })
+            .collect();
+        assert_eq!(focus_point(&outwards), None);
+        assert_eq!(focus_point(&outwards[..1]), None, "one camera");
+        assert!(FrameFit::CameraCentres(3).describe().contains("parallel"));
     }
 }

@@ -18,7 +18,8 @@
 //! pose, point and depth is moved by a similarity into a frame where up
 //! (the cameras' mean up vector) is +z, and the region the capture sees
 //! (the sparse points' robust box, per-axis 2nd to 98th percentiles, grown
-//! to hold every image's footprint at the median depth of its points) is
+//! to hold every image's footprint at the median depth of its points; with
+//! too few points, fitted to the cameras, see [`frame::FrameFit`]) is
 //! centred on the origin with largest side 3 units, like the synthetic
 //! scenes of a few units the sampler is tuned for. The map is recorded as
 //! the scene's [`WorldFrame`] `colmap`. The scene box is that region grown
@@ -236,6 +237,8 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
             pose: v.pose,
         })
         .collect();
+    let poses: Vec<Pose> = cameras.iter().map(|c| c.pose).collect();
+    let fit = frame::frame_fit(&positions, &poses);
     let to_scene = frame::to_scene(&cameras, &positions)
         .map_err(|m| DatasetError::invalid(model.file("points3D"), m))?;
     views.sort_by(|a, b| a.image.name.cmp(&b.image.name));
@@ -294,6 +297,7 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         world: Some(WorldFrame {
             name: "colmap".into(),
             to_scene,
+            fitted_to: fit.describe(),
         }),
     })
 }

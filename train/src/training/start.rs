@@ -114,6 +114,9 @@ pub fn train_new_with_stages(
 fn print_world_frame(w: &datasets::WorldFrame, scene_json: &Path) {
     let m = w.to_scene.to_matrix();
     let row = |r: &[f64; 4]| format!("[{:>9.5} {:>9.5} {:>9.5} {:>9.5}]", r[0], r[1], r[2], r[3]);
+    if !w.fitted_to.is_empty() {
+        eprintln!("scene frame: {}", w.fitted_to);
+    }
     eprintln!(
         "scene frame = {} frame mapped by scale {:.6} (p_scene = s R p_{} + t):\n  {}\n  {}\n  {}\n\
          (stored in {} under \"world\"; eval writes outputs in the {} frame with --frame {})",
