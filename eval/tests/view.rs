@@ -108,6 +108,17 @@ fn start_view(run: &Path, seconds: &str) -> (Child, String, mpsc::Receiver<Strin
     }
 }
 
+/// The lines printed after the address, up to the end of the output: the
+/// reader thread may still hold the last lines when the process has
+/// exited, so wait for it to close the channel (at most 30 s a line).
+fn printed_until_closed(rx: &mpsc::Receiver<String>) -> Vec<String> {
+    let mut lines = Vec::new();
+    while let Ok(line) = rx.recv_timeout(Duration::from_secs(30)) {
+        lines.push(line);
+    }
+    lines
+}
+
 fn get(url: &str, path: &str) -> String {
     let addr = url.trim_start_matches("http://").trim_end_matches('/');
     let mut s = TcpStream::connect(addr).expect("connect");
@@ -133,7 +144,7 @@ fn view_serves_the_run_prints_the_ssh_line_and_stops_after_its_seconds() {
     );
     let status = child.wait().expect("eval view exits");
     assert!(status.success());
-    let printed: Vec<String> = rx.try_iter().collect();
+    let printed = printed_until_closed(&rx);
     assert!(
         printed.iter().any(|l| l.contains("ssh -N -L")),
         "{printed:?}"
@@ -156,7 +167,7 @@ fn ctrl_c_stops_the_viewer_cleanly() {
     assert!(sent.success());
     let status = child.wait().expect("eval view exits");
     assert!(status.success(), "{status:?}");
-    let printed: Vec<String> = rx.try_iter().collect();
+    let printed = printed_until_closed(&rx);
     assert!(
         printed.iter().any(|l| l.contains("viewer stopped")),
         "{printed:?}"

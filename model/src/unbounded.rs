@@ -1,5 +1,5 @@
 //! The math of unbounded scenes (Mip-NeRF 360): the scene contraction and
-//! Gaussians pushed through it ([`contract`]), the normalised-disparity ray
+//! Gaussians pushed through it ([`mod@contract`]), the normalised-disparity ray
 //! parameterisation ([`spacing`]), and the proposal (interlevel) and
 //! distortion losses with the proposal-weight helpers ([`stepfun`]).
 //!

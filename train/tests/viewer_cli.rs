@@ -90,7 +90,10 @@ fn the_viewer_follows_the_training_and_stops_with_it() {
         std::thread::sleep(Duration::from_millis(100));
     }
     let status = child.wait().expect("train exits");
-    printed.extend(rx.try_iter());
+    // The reader thread may still hold the last lines: read to the end.
+    while let Ok(line) = rx.recv_timeout(Duration::from_secs(30)) {
+        printed.push(line);
+    }
     assert!(status.success(), "{printed:?}");
     assert!(training, "the summary says it is a training process");
     assert!(versions.len() >= 3, "the field was refreshed: {versions:?}");

@@ -16,7 +16,7 @@ impl OccupancyGrid {
     /// `seed`, is folded in (see [`OccupancyGrid::update`]). Each point is
     /// encoded as a Gaussian of a quarter cell (the scale the samples
     /// crossing the cell are seen at); the points are queried
-    /// [`QUERY_CHUNK`] at a time.
+    /// 8192 at a time.
     pub fn update_from_field(&mut self, field: &OpenNerf, seed: u64) {
         let points = self.sample_points(seed);
         let radius = 0.25 * self.cell_size() as f32;
