@@ -12,7 +12,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 use common::vec;
 use model::composite::composite;
 use model::geometry::NormalizedRay;
-use model::{FeatureHeadConfig, FeatureMode, MipMlpConfig, OpenNerfConfig, RenderRequest};
+use model::{FeatureMode, RenderRequest};
 use model::{GridDecodeError, OccupancyConfig, OccupancyGrid};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -217,15 +217,7 @@ fn a_complete_grid_leaves_every_ray_and_render_unchanged() {
     assert_close(clipped.span_fraction_sum, 40.0, 1e-9, "span fraction");
     let device = Device::flex();
     device.seed(1);
-    let model = OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1),
-        )
-        .with_num_samples(8)
-        .init(&device);
+    let model = common::tiny_config().with_num_samples(8).init(&device);
     let render = |m: &model::OpenNerf, rays: &[NormalizedRay]| {
         let request = RenderRequest::train(rays)
             .with_randomized(false)
@@ -252,14 +244,7 @@ fn a_complete_grid_leaves_every_ray_and_render_unchanged() {
 fn the_update_from_the_field_folds_in_its_density_at_the_jittered_points() {
     let device = Device::flex();
     device.seed(2);
-    let model = OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1),
-        )
-        .init(&device);
+    let model = common::tiny_config().init(&device);
     let mut by_field = grid(4);
     let mut by_hand = grid(4);
     for seed in [5, 6] {

@@ -12,18 +12,12 @@ use burn::tensor::Device;
 use common::{camera_rays, devices, vec};
 use model::geometry::NormalizedRay;
 use model::{
-    Cancelled, FeatureHeadConfig, FeatureMode, GridUse, MipMlpConfig, OccupancyConfig,
-    OccupancyGrid, OpenNerf, OpenNerfConfig, RenderRequest, Termination,
+    Cancelled, FeatureMode, GridUse, OccupancyConfig, OccupancyGrid, OpenNerf, RenderRequest,
+    Termination,
 };
 
 fn small(top_k: Option<usize>, device: &Device) -> OpenNerf {
-    OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1),
-        )
+    common::tiny_config()
         .with_num_samples(8)
         .with_head_top_k(top_k)
         .init(device)

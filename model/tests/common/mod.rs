@@ -85,3 +85,16 @@ pub fn camera_rays(n: usize, seed: u64) -> Vec<model::geometry::NormalizedRay> {
         })
         .collect()
 }
+
+/// The tests' tiny field: a 4-channel head of width 8 on a 2 x 16 trunk
+/// with its skip after the first layer (samples per level and top-k left
+/// at their defaults for the caller to set).
+#[allow(dead_code)]
+pub fn tiny_config() -> model::OpenNerfConfig {
+    model::OpenNerfConfig::new(model::FeatureHeadConfig::new(4).with_width(8)).with_mlp(
+        model::MipMlpConfig::new()
+            .with_width(16)
+            .with_depth(2)
+            .with_skip_layer(1),
+    )
+}
