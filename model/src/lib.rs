@@ -82,6 +82,7 @@ pub mod loss;
 pub mod mip;
 pub mod nerf;
 pub mod occupancy;
+pub mod proposal;
 pub mod render;
 pub mod sampling;
 pub mod unbounded;
@@ -91,10 +92,12 @@ pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConf
 pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb_mse};
 pub use nerf::{OpenNerf, OpenNerfConfig, Rays};
 pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};
+pub use proposal::{ProposalConfig, ProposalMlp};
 pub use render::{
-    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, RenderOutputs, RenderPass,
-    RenderRequest, RenderedRays, Termination, Train,
+    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, ProposalLevel,
+    RenderOutputs, RenderPass, RenderRequest, RenderedRays, Termination, Train,
 };
+pub use unbounded::UnboundedConfig;
 
 /// The directory this crate was compiled from (its manifest directory).
 /// Every crate of one build names the same checkout; a test checks it, so

@@ -1,6 +1,8 @@
-//! The OpenNeRF field: one shared Mip-NeRF MLP for both levels, the
-//! open-set feature head and the occupancy grid it carries, with point
-//! queries. Rendering is [`OpenNerf::render`] (see [`crate::render`]).
+//! The OpenNeRF field: the Mip-NeRF MLP (shared by the coarse and the fine
+//! level, or fed by the proposal sampler), the open-set feature head, the
+//! scene's extent (a box, or unbounded with Mip-NeRF 360's contraction) and
+//! the occupancy grid it carries, with point queries. Rendering is
+//! [`OpenNerf::render`] (see [`crate::render`]).
 
 use std::sync::Arc;
 
@@ -10,8 +12,10 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
-use crate::mip::integrated_pos_enc;
+use crate::mip::{FrustumGaussians, cast_rays, integrated_pos_enc};
 use crate::occupancy::OccupancyGrid;
+use crate::proposal::{ProposalConfig, ProposalMlp};
+use crate::unbounded::{Spacing, UnboundedConfig};
 
 /// Configuration of [`OpenNerf`].
 #[derive(Config, Debug)]
@@ -35,6 +39,13 @@ pub struct OpenNerfConfig {
     /// Also composite features at the coarse level.
     #[config(default = false)]
     pub coarse_features: bool,
+    /// An unbounded scene (Mip-NeRF 360's contraction, rays to effectively
+    /// infinite distance); `None`: the scene box.
+    pub unbounded: Option<UnboundedConfig>,
+    /// The proposal sampler (small density MLPs decide where the MLP
+    /// samples, `num_samples` per ray); `None`: the coarse and the fine
+    /// level of the MLP.
+    pub proposal: Option<ProposalConfig>,
 }
 
 impl OpenNerfConfig {
@@ -49,6 +60,9 @@ impl OpenNerfConfig {
             resample_padding: self.resample_padding as f64,
             head_top_k: self.head_top_k.unwrap_or(0),
             coarse_features: self.coarse_features,
+            proposal: self.proposal.as_ref().map(|p| p.init(device)),
+            proposal_config: self.proposal.clone(),
+            unbounded: self.unbounded.clone(),
             occupancy: None,
         }
     }
@@ -69,6 +83,14 @@ pub struct OpenNerf {
     pub head_top_k: usize,
     /// Whether coarse features are composited.
     pub coarse_features: bool,
+    /// The proposal MLP, with the proposal sampler.
+    pub proposal: Option<ProposalMlp>,
+    /// The proposal sampler's rounds (`None`: coarse and fine level).
+    #[module(skip)]
+    pub proposal_config: Option<ProposalConfig>,
+    /// The contraction of an unbounded scene (`None`: the scene box).
+    #[module(skip)]
+    pub unbounded: Option<UnboundedConfig>,
     /// Occupancy grid of the field's density, when empty-space skipping is
     /// on: [`OpenNerf::render`] clips its rays with it unless the request
     /// says otherwise (see [`crate::GridUse`]). Not part of the weights.
@@ -136,6 +158,16 @@ impl OpenNerf {
         self.occupancy.as_deref()
     }
 
+    /// The grid rendering samples with: the model's grid in a box field;
+    /// none in an unbounded one (a grid covers the scene box only, not
+    /// contracted space).
+    pub fn sampler_grid(&self) -> Option<&OccupancyGrid> {
+        match self.unbounded {
+            Some(_) => None,
+            None => self.occupancy(),
+        }
+    }
+
     /// The device the field's weights live on (where rendering uploads its
     /// rays and point queries are evaluated).
     pub fn device(&self) -> Device {
@@ -161,8 +193,69 @@ impl OpenNerf {
     }
 
     fn query_trunk(&self, points: Tensor<2>, radius: f32) -> (Tensor<2>, Tensor<2>) {
-        let cov = points.zeros_like().add_scalar(radius * radius);
-        let ipe = integrated_pos_enc(points, cov, self.mlp.min_deg, self.mlp.max_deg);
+        let ipe = match &self.unbounded {
+            Some(u) => {
+                let g = u.points(points, radius);
+                let [n, _, _] = g.mean.dims();
+                let ipe =
+                    integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
+                let [_, _, dim] = ipe.dims();
+                ipe.reshape([n, dim])
+            }
+            None => {
+                let cov = points.zeros_like().add_scalar(radius * radius);
+                integrated_pos_enc(points, cov, self.mlp.min_deg, self.mlp.max_deg)
+            }
+        };
         self.mlp.trunk_density(ipe)
+    }
+
+    /// Samples a ray takes over all levels without early termination: the
+    /// coarse and the fine level's, or the proposal rounds' and the MLP's.
+    pub fn samples_per_ray(&self) -> usize {
+        match &self.proposal_config {
+            Some(p) => p.samples.iter().map(|&k| k.max(1)).sum::<usize>() + self.num_samples,
+            None => 2 * self.num_samples,
+        }
+    }
+
+    /// How `s`, the ray coordinate that samples are placed in, relates to
+    /// `t`: normalised disparity in an unbounded scene, normalised distance
+    /// in the box.
+    pub fn spacing(&self) -> Spacing {
+        match self.unbounded {
+            Some(_) => Spacing::Disparity,
+            None => Spacing::Linear,
+        }
+    }
+
+    /// The rays as this field renders them: an unbounded field replaces
+    /// the bounds each ray carries (made for the scene box) with its own
+    /// ([`UnboundedConfig::bound`]); a box field keeps them.
+    pub fn bound_rays<'r>(
+        &self,
+        rays: &'r [NormalizedRay],
+    ) -> std::borrow::Cow<'r, [NormalizedRay]> {
+        match &self.unbounded {
+            Some(u) => rays.iter().map(|r| u.bound(r)).collect(),
+            None => std::borrow::Cow::Borrowed(rays),
+        }
+    }
+
+    /// The frustums between consecutive fence posts as Gaussians in the
+    /// coordinates the MLPs encode (contracted in an unbounded scene).
+    ///
+    /// # Shapes
+    /// - `t_vals`: `[n, samples + 1]`; outputs: `[n, samples, 3]`.
+    pub fn frustums(&self, t_vals: Tensor<2>, rays: &Rays) -> FrustumGaussians {
+        let (o, d, r) = (
+            rays.origins.clone(),
+            rays.directions.clone(),
+            rays.radii.clone(),
+        );
+        match &self.unbounded {
+            Some(u) => u.frustums(t_vals, o, d, r),
+            None => cast_rays(t_vals, o, d, r),
+        }
     }
 }

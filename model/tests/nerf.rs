@@ -108,8 +108,10 @@ fn open_set_loss_does_not_reach_density_or_colour() {
             burn::tensor::Distribution::Uniform(0.0, 1.0),
             &device,
         );
-        let loss =
-            rgb_mse(out.fine.rgb, target_rgb.clone()).add(rgb_mse(out.coarse.rgb, target_rgb));
+        let loss = rgb_mse(out.fine.rgb, target_rgb.clone()).add(rgb_mse(
+            out.coarse.as_ref().expect("coarse level").rgb.clone(),
+            target_rgb,
+        ));
         let grads = loss.backward();
         let head = grad_max(&model.head, &grads);
         assert!(
@@ -138,7 +140,11 @@ fn composited_head_equals_per_sample_head() {
         let b = dense(&model, &rays, false, FeatureMode::PerSample);
         for (lvl, x, y) in [
             ("fine", &a.fine.feature, &b.fine.feature),
-            ("coarse", &a.coarse.feature, &b.coarse.feature),
+            (
+                "coarse",
+                &a.coarse.as_ref().expect("coarse level").feature,
+                &b.coarse.as_ref().expect("coarse level").feature,
+            ),
         ] {
             let (x, y) = (
                 vec(x.clone().expect("feature")),
@@ -245,8 +251,13 @@ fn overfits_a_fixed_batch() {
     let mut last = 0.0;
     for _ in 0..150 {
         let out = model.render(&RenderRequest::train(&rays_cpu));
-        let loss = rgb_mse(out.fine.rgb, target.clone())
-            .add(rgb_mse(out.coarse.rgb, target.clone()).mul_scalar(0.1));
+        let loss = rgb_mse(out.fine.rgb, target.clone()).add(
+            rgb_mse(
+                out.coarse.as_ref().expect("coarse level").rgb.clone(),
+                target.clone(),
+            )
+            .mul_scalar(0.1),
+        );
         let value = loss.clone().into_scalar::<f32>();
         first.get_or_insert(value);
         last = value;
@@ -316,7 +327,15 @@ fn inference_chunks_and_point_queries() {
         let plain = inference(FeatureMode::None);
         assert!(plain.feature.is_empty() && plain.feature_dim == 0);
         let plain_dense = dense(&model, &rays, false, FeatureMode::None);
-        assert!(plain_dense.fine.feature.is_none() && plain_dense.coarse.feature.is_none());
+        assert!(
+            plain_dense.fine.feature.is_none()
+                && plain_dense
+                    .coarse
+                    .as_ref()
+                    .expect("coarse level")
+                    .feature
+                    .is_none()
+        );
         assert_close(&plain.rgb, &vec(whole.fine.rgb.clone()), 1e-6, 1e-5, name);
         assert_close(
             &plain.depth,
@@ -414,7 +433,10 @@ fn render_extremes_stay_finite() {
                     ("feature", out.fine.feature.clone().expect("f")),
                     ("weights", out.fine.weights.clone()),
                     ("t_vals", out.fine.t_vals.clone()),
-                    ("coarse rgb", out.coarse.rgb.clone()),
+                    (
+                        "coarse rgb",
+                        out.coarse.as_ref().expect("coarse level").rgb.clone(),
+                    ),
                 ] {
                     let v = vec(t);
                     assert!(

@@ -171,7 +171,10 @@ fn render_applies_the_model_grid_as_clipping_by_hand_does() {
     assert_eq!(stats.span_sum, clipped.span_fraction_sum);
     let hand = dense(&bare, &clipped.rays, GridUse::Model);
     assert_eq!(vec(train.fine.rgb), vec(hand.fine.rgb));
-    assert_eq!(vec(train.coarse.t_vals), vec(hand.coarse.t_vals));
+    assert_eq!(
+        vec(train.coarse.as_ref().expect("coarse level").t_vals.clone()),
+        vec(hand.coarse.as_ref().expect("coarse level").t_vals.clone())
+    );
     let off = dense(&model, &rays, GridUse::Off);
     assert!(off.kept.is_none() && off.clip.is_none());
     assert_eq!(
@@ -208,7 +211,10 @@ fn a_batch_that_misses_every_cell_is_rendered_whole() {
     assert_eq!(stats.span_sum, 3.0);
     let whole = dense(&bare, GridUse::Model);
     assert_eq!(vec(out.fine.rgb), vec(whole.fine.rgb));
-    assert_eq!(vec(out.coarse.t_vals), vec(whole.coarse.t_vals));
+    assert_eq!(
+        vec(out.coarse.as_ref().expect("coarse level").t_vals.clone()),
+        vec(whole.coarse.as_ref().expect("coarse level").t_vals.clone())
+    );
 }
 
 /// Training's warm-up rule: during the grid's first `keep_dropped_updates`
@@ -248,7 +254,7 @@ fn rays_over_free_space_are_rendered_whole_during_the_warm_up_only() {
             // whole span.
             assert_eq!(stats.kept, 9, "update {update}");
             assert_eq!(out.kept, None);
-            let posts = vec(out.coarse.t_vals.clone());
+            let posts = vec(out.coarse.as_ref().expect("coarse level").t_vals.clone());
             for (i, r) in rays.iter().enumerate() {
                 if r.origin[1] < 0.0 {
                     let row = &posts[i * 9..(i + 1) * 9];

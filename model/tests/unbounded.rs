@@ -15,7 +15,7 @@ use model::mip::cast_rays;
 use model::unbounded::{
     anneal_exponent, anneal_weights, cast_rays_contracted, contract, contract_gaussian,
     contract_jacobian, cov_diagonal, distortion_loss, frustum_covariance, interlevel_loss,
-    max_dilate_weights, s_to_t, t_to_s,
+    max_dilate_weights, max_dilate_weights_host, s_to_t, t_to_s,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

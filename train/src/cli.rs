@@ -67,6 +67,10 @@ pub enum SceneSizeArg {
     Paper,
     /// As `paper`, with the feature maps at the full 640x360.
     PaperFull,
+    /// Not a room: a table, a chair and a plant seen from a ring of 24
+    /// cameras at 80x60, pillars 4.5 to 7 m around them and a backdrop 12 m
+    /// away (an unbounded capture; `--field auto` contracts it).
+    Outdoor,
 }
 
 /// An image size `WxH`.
@@ -313,6 +317,22 @@ pub struct Cli {
     /// the checkpoints and as `occupancy.bin`, and `eval` renders with it.
     #[arg(long)]
     pub occupancy_grid: bool,
+    /// The field's extent: `box` (the scene box mapped to [-pi, pi]^3),
+    /// `unbounded` (Mip-NeRF 360's contraction: the ball around the scene
+    /// box kept, everything beyond contracted, rays to effectively
+    /// infinite distance; no occupancy grid) or `auto` (unbounded for the
+    /// synthetic outdoor scene, box otherwise: on the real captures measured
+    /// the box generalises better, docs/unbounded.md). `train` prints its
+    /// choice and why.
+    #[arg(long, value_enum, default_value_t = crate::field_choice::FieldArg::Auto)]
+    pub field: crate::field_choice::FieldArg,
+    /// Where the MLP samples: `coarse-fine` (Mip-NeRF's two levels of the
+    /// one MLP, `--samples` each), `proposal` (Mip-NeRF 360: two rounds of
+    /// 64 samples of a small density MLP, trained by the interlevel loss,
+    /// then `--samples` of the MLP) or `auto` (coarse-fine, measured more
+    /// accurate and faster at the default sizes: docs/unbounded.md).
+    #[arg(long, value_enum, default_value_t = crate::field_choice::SamplerArg::Auto)]
+    pub sampler: crate::field_choice::SamplerArg,
     /// Cells per axis of the occupancy grid, in 2..=256; a refresh costs one
     /// density query per cell [default: 32].
     #[arg(long)]

@@ -24,6 +24,12 @@ pub struct LossConfig {
     pub coarse_weight: f32,
     /// Huber threshold in metres.
     pub huber_delta: f32,
+    /// Weight of the interlevel loss that trains the proposal sampler
+    /// (Mip-NeRF 360: 1).
+    pub interlevel_weight: f32,
+    /// Weight of the distortion loss on the fine level, in `s`
+    /// (Mip-NeRF 360: 0.01).
+    pub distortion_weight: f32,
 }
 
 impl Default for LossConfig {
@@ -33,6 +39,8 @@ impl Default for LossConfig {
             lambda_depth: 0.1,
             coarse_weight: 0.1,
             huber_delta: 0.2,
+            interlevel_weight: 1.0,
+            distortion_weight: 0.01,
         }
     }
 }
@@ -248,6 +256,7 @@ impl TrainConfig {
     /// `base` with the keys of `patch` laid over it (recursively).
     pub fn merged(base: &TrainConfig, patch: serde_json::Value) -> Result<Self, String> {
         let mut value = serde_json::to_value(base).map_err(|e| e.to_string())?;
+        optional_defaults(&mut value, &patch).map_err(|e| e.to_string())?;
         merge_json(&mut value, patch);
         serde_json::from_value(value).map_err(|e| e.to_string())
     }
@@ -315,6 +324,7 @@ impl TrainConfig {
             return bad("model.num_samples must be at least 1".into());
         }
         crate::occupancy::validate(&self.occupancy).map_err(TrainError::Config)?;
+        crate::field_choice::validate(&self.model).map_err(TrainError::Config)?;
         if self.model.mlp.width == 0 || self.model.mlp.depth == 0 {
             return bad("model.mlp.width and model.mlp.depth must be at least 1".into());
         }
@@ -322,6 +332,8 @@ impl TrainConfig {
             ("losses.lambda_open", self.losses.lambda_open),
             ("losses.lambda_depth", self.losses.lambda_depth),
             ("losses.coarse_weight", self.losses.coarse_weight),
+            ("losses.interlevel_weight", self.losses.interlevel_weight),
+            ("losses.distortion_weight", self.losses.distortion_weight),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{k} must be finite and non-negative, got {v}"));
@@ -336,6 +348,32 @@ impl TrainConfig {
         self.novel.validate().map_err(TrainError::Config)?;
         self.schedule.validate().map_err(TrainError::Config)
     }
+}
+
+/// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
+/// `model.proposal`) that `base` leaves out, `base` first gets their
+/// defaults, so that a file may give only the keys it changes (an unbounded
+/// field's `radius` defaults to 0: the ball around the scene box).
+fn optional_defaults(
+    base: &mut serde_json::Value,
+    patch: &serde_json::Value,
+) -> Result<(), serde_json::Error> {
+    let parts = [
+        (
+            "unbounded",
+            serde_json::to_value(model::UnboundedConfig::new(0.0))?,
+        ),
+        (
+            "proposal",
+            serde_json::to_value(model::ProposalConfig::new())?,
+        ),
+    ];
+    for (key, defaults) in parts {
+        if patch["model"][key].is_object() && base["model"][key].is_null() {
+            base["model"][key] = defaults;
+        }
+    }
+    Ok(())
 }
 
 /// Lays `patch` over `base`: objects merge key by key, anything else replaces.

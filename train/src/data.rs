@@ -26,6 +26,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
                 SceneSizeArg::Bench => "bench".into(),
                 SceneSizeArg::Paper => "paper".into(),
                 SceneSizeArg::PaperFull => "paper-full".into(),
+                SceneSizeArg::Outdoor => "outdoor".into(),
             },
             pca: cli.pca,
         });

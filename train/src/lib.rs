@@ -21,6 +21,7 @@ pub mod curve;
 pub mod data;
 pub mod error;
 pub mod evaluate;
+pub mod field_choice;
 pub mod metrics_log;
 pub mod occupancy;
 pub mod preset;
@@ -107,22 +108,10 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
     }
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
+    let choice = field_choice::choose(cli.field, cli.sampler, &scene);
+    eprintln!("{}", choice.message());
     if let Some(p) = cli.preset {
-        let centres = scene.frames.iter().map(|f| f.camera.pose.center());
-        let count = preset::CameraCount::of(&scene.scene_box, centres);
-        let kind = count.kind();
-        let s = p.apply(&mut base, kind);
-        eprintln!(
-            "preset {} with the {} settings ({} of {} cameras inside the scene box): \
-             {} samples per ray and level, {} rays a batch, {} iterations",
-            p.name(),
-            kind.name(),
-            count.inside,
-            count.all,
-            s.samples,
-            s.rays,
-            s.iterations,
-        );
+        apply_preset(p, &mut base, &scene, !choice.unbounded);
     }
     let mut config = match &cli.config {
         Some(path) => TrainConfig::from_file(path, &base)?,
@@ -140,6 +129,8 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         seed: cli.seed,
     });
     apply_novel_and_grid_flags(cli, &mut config);
+    let grid = config.occupancy.enabled;
+    field_choice::apply(&choice, &mut config.model, grid, &scene)?;
     eprintln!(
         "scene {}: {} frames, features: {}; training {} iterations on {} into {}",
         scene.name,
@@ -160,6 +151,31 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
         &session,
         stages,
     )
+}
+
+/// Lays preset `p` over `base` with the settings for `scene`'s kind (and
+/// its occupancy grid when `grid`), and says what it set.
+fn apply_preset(p: preset::Preset, base: &mut TrainConfig, scene: &datasets::Scene, grid: bool) {
+    let centres = scene.frames.iter().map(|f| f.camera.pose.center());
+    let count = preset::CameraCount::of(&scene.scene_box, centres);
+    let kind = count.kind();
+    let s = p.apply(base, kind, grid);
+    eprintln!(
+        "preset {} with the {} settings ({} of {} cameras inside the scene box): \
+         {} samples per ray and level, {} rays a batch, {} iterations{}",
+        p.name(),
+        kind.name(),
+        count.inside,
+        count.all,
+        s.samples,
+        s.rays,
+        s.iterations,
+        if grid {
+            ""
+        } else {
+            ", no occupancy grid (the field is unbounded)"
+        },
+    );
 }
 
 /// Lays the novel-view, occupancy-grid and head top-k flags over the configuration.

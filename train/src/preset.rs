@@ -124,12 +124,13 @@ impl Preset {
     }
 
     /// Sets this preset's knobs and schedule length for a scene of `kind`
-    /// on `config`, and returns them.
-    pub fn apply(self, config: &mut TrainConfig, kind: SceneKind) -> PresetSettings {
+    /// on `config`, with the occupancy grid when `grid` (a field that can
+    /// use one), and returns them.
+    pub fn apply(self, config: &mut TrainConfig, kind: SceneKind, grid: bool) -> PresetSettings {
         let s = self.settings(kind);
         config.model.num_samples = s.samples;
         config.sampler.rays_per_batch = s.rays;
-        config.occupancy.enabled = true;
+        config.occupancy.enabled = grid;
         config.schedule.iterations = s.iterations;
         s
     }
@@ -144,7 +145,7 @@ mod tests {
         for kind in [SceneKind::Object, SceneKind::Room] {
             let cost = |p: Preset| {
                 let mut c = TrainConfig::default_run(0);
-                p.apply(&mut c, kind);
+                p.apply(&mut c, kind, true);
                 assert!(c.occupancy.enabled);
                 assert!(c.validate().is_ok());
                 c.model.num_samples * c.sampler.rays_per_batch * c.schedule.iterations

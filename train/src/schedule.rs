@@ -57,6 +57,15 @@ impl ScheduleConfig {
         Ok(())
     }
 
+    /// The fraction of the schedule done before `iteration` (0-based), in
+    /// `[0, 1]` (1 for an empty schedule).
+    pub fn progress(&self, iteration: usize) -> f32 {
+        if self.iterations == 0 {
+            return 1.0;
+        }
+        (iteration as f64 / self.iterations as f64).clamp(0.0, 1.0) as f32
+    }
+
     /// The learning rate at `iteration` (0-based). Pure: a resumed run gets
     /// exactly the rate the uninterrupted run would have used.
     pub fn lr(&self, iteration: usize) -> f64 {

@@ -5,6 +5,7 @@ use burn::module::{Module, ModuleVisitor, Param, ParamGroup};
 use burn::optim::lr_scheduler::module_lr_scheduler::ModuleLrScheduler;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
+use model::unbounded::{distortion_loss, interlevel_loss};
 use model::{ClipStats, FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
 
 use crate::batch::BatchTensors;
@@ -17,12 +18,17 @@ pub struct LossTerms {
     pub total: Tensor<1>,
     /// Fine colour MSE.
     pub rgb: Tensor<1>,
-    /// Coarse colour MSE.
+    /// Coarse colour MSE (zero with the proposal sampler).
     pub coarse_rgb: Tensor<1>,
     /// Fine depth Huber (zero without depth targets).
     pub depth: Tensor<1>,
     /// Fine open-set cosine loss (zero without features).
     pub open: Tensor<1>,
+    /// Interlevel loss summed over the proposal rounds (zero without them).
+    pub interlevel: Tensor<1>,
+    /// Distortion loss of the fine level in `s` (zero for the box field
+    /// with coarse and fine level).
+    pub distortion: Tensor<1>,
 }
 
 /// `L = L_rgb + lambda_open L_open + lambda_depth L_depth + c (L_rgb^c +
@@ -30,8 +36,11 @@ pub struct LossTerms {
 /// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
 /// fine level) with the coarse level's colour and depth terms weighted by
 /// `c`. Depth only where the target is valid (> 0); features only where the
-/// target is non-zero. Row `i` of `batch` is the target of rendered ray `i`
-/// (see [`BatchTensors::select`]).
+/// target is non-zero. With the proposal sampler (no coarse level) the
+/// interlevel loss of every proposal round is added (averaged over the fine
+/// intervals and rays, as Mip-NeRF 360), and wherever the fine level has
+/// posts in `s` the distortion loss. Row `i` of `batch` is the target of
+/// rendered ray `i` (see [`BatchTensors::select`]).
 pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
     let device = batch.rgb.device();
     let zero = || Tensor::<1>::zeros([1], &device);
@@ -40,7 +49,10 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
         None => model::rgb_mse(pred, batch.rgb.clone()),
     };
     let rgb = colour(out.fine.rgb.clone());
-    let coarse_rgb = colour(out.coarse.rgb.clone());
+    let coarse_rgb = match &out.coarse {
+        Some(coarse) => colour(coarse.rgb.clone()),
+        None => zero(),
+    };
     let mut total = rgb.clone() + coarse_rgb.clone().mul_scalar(cfg.coarse_weight);
     let mut depth = zero();
     if let Some((target, weight)) = batch.depth.as_ref()
@@ -50,10 +62,32 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
             model::depth_huber(pred, target.clone(), weight.clone(), cfg.huber_delta)
         };
         depth = d(out.fine.depth.clone());
-        let coarse = d(out.coarse.depth.clone());
-        total = total
-            + depth.clone().mul_scalar(cfg.lambda_depth)
-            + coarse.mul_scalar(cfg.lambda_depth * cfg.coarse_weight);
+        total = total + depth.clone().mul_scalar(cfg.lambda_depth);
+        if let Some(coarse) = &out.coarse {
+            let coarse = d(coarse.depth.clone());
+            total = total + coarse.mul_scalar(cfg.lambda_depth * cfg.coarse_weight);
+        }
+    }
+    let mut interlevel = zero();
+    let mut distortion = zero();
+    if let Some(s) = out.fine_s.as_ref() {
+        let intervals = (s.dims()[1] - 1).max(1) as f32;
+        for p in &out.proposals {
+            let l = interlevel_loss(
+                s.clone(),
+                out.fine.weights.clone(),
+                p.s_vals.clone(),
+                p.weights.clone(),
+            );
+            interlevel = interlevel + l.div_scalar(intervals);
+        }
+        if !out.proposals.is_empty() {
+            total = total + interlevel.clone().mul_scalar(cfg.interlevel_weight);
+        }
+        if cfg.distortion_weight > 0.0 {
+            distortion = distortion_loss(s.clone(), out.fine.weights.clone());
+            total = total + distortion.clone().mul_scalar(cfg.distortion_weight);
+        }
     }
     let mut open = zero();
     if let (Some(pred), Some(target)) = (out.fine.feature.as_ref(), batch.feature.as_ref())
@@ -73,6 +107,8 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
         coarse_rgb,
         depth,
         open,
+        interlevel,
+        distortion,
     }
 }
 
@@ -135,8 +171,19 @@ pub fn head_group(model: &OpenNerf) -> ParamGroup {
     ParamGroup::ids_from_module(model.head.clone())
 }
 
-/// One step: render the batch (stratified jitter on) over `background`
-/// with the model's occupancy grid used as `grid` says, compute the losses
+/// How a step renders its batch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepRender {
+    /// Colour behind the unoccluded part of each ray (black without one).
+    pub background: Option<[f32; 3]>,
+    /// How the model's occupancy grid is used.
+    pub grid: GridUse,
+    /// The fraction of training done, for the proposal sampler's annealing.
+    pub progress: f32,
+}
+
+/// One step: render the batch (stratified jitter on) as `render` says
+/// (background, grid use, training progress), compute the losses
 /// on the rays rendered, backpropagate, and — only when the loss and every
 /// gradient are finite — apply Adam with the head at its own rate. Returns
 /// the (possibly unchanged) model and what was measured. One device read
@@ -145,8 +192,7 @@ pub fn train_step(
     model: OpenNerf,
     optim: &mut ModuleOptimizer,
     batch: &BatchTensors,
-    background: Option<[f32; 3]>,
-    grid: GridUse,
+    render: StepRender,
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
@@ -157,8 +203,9 @@ pub fn train_step(
     };
     let request = RenderRequest::train(&batch.rays)
         .with_features(mode)
-        .with_background(background)
-        .with_grid(grid);
+        .with_background(render.background)
+        .with_grid(render.grid)
+        .with_progress(render.progress);
     let out = model.render(&request);
     train_step_from(model, optim, out, batch, cfg, rates)
 }
@@ -235,6 +282,12 @@ mod tests {
     use burn::tensor::{Device, TensorData};
     use model::geometry::NormalizedRay;
     use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+
+    const PLAIN: StepRender = StepRender {
+        background: None,
+        grid: GridUse::Model,
+        progress: 1.0,
+    };
 
     fn tiny_model(device: &Device) -> OpenNerf {
         device.seed(3);
@@ -314,8 +367,7 @@ mod tests {
             model,
             &mut optim,
             &batch(&device, f32::NAN),
-            None,
-            GridUse::Model,
+            PLAIN,
             &cfg,
             rates,
         );
@@ -327,15 +379,8 @@ mod tests {
             record.contains("num_tensors: 0"),
             "no optimiser state may be created: {record}"
         );
-        let (model, report) = train_step(
-            model,
-            &mut optim,
-            &batch(&device, 0.5),
-            None,
-            GridUse::Model,
-            &cfg,
-            rates,
-        );
+        let (model, report) =
+            train_step(model, &mut optim, &batch(&device, 0.5), PLAIN, &cfg, rates);
         assert!(report.applied && report.loss.is_finite() && report.grad_l1 > 0.0);
         assert_ne!(values(&model), before);
     }
@@ -356,8 +401,7 @@ mod tests {
             model,
             &mut optim,
             &batch(&device, 0.5),
-            None,
-            GridUse::Model,
+            PLAIN,
             &LossConfig::default(),
             rates,
         );
@@ -379,11 +423,12 @@ mod tests {
             lambda_depth: 0.2,
             coarse_weight: 0.1,
             huber_delta: 0.2,
+            ..LossConfig::default()
         };
         let t = losses(&out, &b, &cfg);
         let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
         let coarse_depth = s(model::depth_huber(
-            out.coarse.depth.clone(),
+            out.coarse.as_ref().unwrap().depth.clone(),
             b.depth.clone().unwrap().0,
             b.depth.clone().unwrap().1,
             0.2,

@@ -446,6 +446,135 @@ fn occupancy_grid_flags_and_settings_are_checked_and_a_grid_run_saves_its_grid()
 }
 
 #[test]
+fn field_and_sampler_flags_are_checked_and_the_choice_is_printed() {
+    assert_refused(&["--field", "sphere"], &["sphere", "box", "unbounded"]);
+    assert_refused(&["--sampler", "fine"], &["fine", "coarse-fine", "proposal"]);
+    // The grid covers the box: refused with an unbounded field, chosen or asked for.
+    for args in [
+        &["--scene-size", "outdoor", "--occupancy-grid"][..],
+        &["--field", "unbounded", "--occupancy-grid"],
+    ] {
+        assert_refused(args, &["occupancy grid", "unbounded", "--field box"]);
+    }
+    let tmp = tempfile::tempdir().expect("tmp");
+    for (patch, words) in [
+        (
+            r#"{"model": {"unbounded": {"radius": -1.0}}}"#,
+            &["model.unbounded.radius", "-1"][..],
+        ),
+        (
+            r#"{"model": {"unbounded": {"radius": 3.0, "near": 2.0, "far": 1.0}}}"#,
+            &["model.unbounded.far", "near"],
+        ),
+        (
+            r#"{"model": {"proposal": {"samples": [64, 0]}}}"#,
+            &["model.proposal.samples", "[64, 0]"],
+        ),
+        (
+            r#"{"model": {"proposal": {"anneal_slope": -2.0}}}"#,
+            &["model.proposal.anneal_slope", "-2"],
+        ),
+    ] {
+        let p = tmp.path().join("bad.json");
+        std::fs::write(&p, patch).expect("write");
+        let args = [
+            "--config",
+            s(&p),
+            "--field",
+            "unbounded",
+            "--sampler",
+            "proposal",
+        ];
+        assert_refused(&[&args[..], &["--iters", "2", "--quiet"]].concat(), words);
+    }
+    // A file may give only the keys it changes: the radius is then the scene's.
+    let p = tmp.path().join("near.json");
+    std::fs::write(&p, r#"{"model": {"unbounded": {"near": 0.3}}}"#).expect("write");
+    let near_run = tmp.path().join("near-run");
+    let r = train(&[
+        "--config",
+        s(&p),
+        "--field",
+        "unbounded",
+        "--iters",
+        "1",
+        "--out",
+        s(&near_run),
+        "--quiet",
+        "--scene-size",
+        "outdoor",
+        "--no-final-render",
+    ]);
+    let (_, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    let saved: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(near_run.join("config.json")).expect("config"),
+    )
+    .expect("json");
+    assert!((saved["model"]["unbounded"]["near"].as_f64().unwrap_or(0.0) - 0.3).abs() < 1e-6);
+    assert!(
+        saved["model"]["unbounded"]["radius"]
+            .as_f64()
+            .unwrap_or(0.0)
+            > 3.0
+    );
+    // Auto on the outdoor scene: contracted, said so; a preset leaves its
+    // grid off there.
+    let config = tiny_config(tmp.path());
+    let run = tmp.path().join("outdoor");
+    let r = train(&[
+        "--scene-size",
+        "outdoor",
+        "--config",
+        s(&config),
+        "--preset",
+        "fast",
+        "--iters",
+        "3",
+        "--out",
+        s(&run),
+        "--quiet",
+    ]);
+    let (_, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("field: unbounded (auto: the synthetic outdoor scene"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("no occupancy grid (the field is unbounded)"),
+        "{stderr}"
+    );
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).expect("config"))
+            .expect("json");
+    assert!(
+        saved["model"]["unbounded"]["radius"]
+            .as_f64()
+            .unwrap_or(0.0)
+            > 3.0
+    );
+    assert_eq!(saved["occupancy"]["enabled"], false);
+    // The room stays a box.
+    let room = tmp.path().join("room");
+    let r = train(&[
+        "--config",
+        s(&config),
+        "--iters",
+        "1",
+        "--out",
+        s(&room),
+        "--quiet",
+    ]);
+    let (_, stderr) = text(&r);
+    assert!(r.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("field: box (auto: the synthetic room"),
+        "{stderr}"
+    );
+}
+
+#[test]
 fn novel_view_flags_are_checked_by_flag() {
     for (args, words) in [
         (

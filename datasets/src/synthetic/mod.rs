@@ -1,12 +1,15 @@
 //! The built-in benchmark scene: a seeded procedural room (floor, ceiling,
 //! walls, furniture and tiny objects labelled with Replica class names),
-//! ray-traced colour, z-depth and labels along a camera loop, a labelled
+//! ray-traced colour, z-depth and labels along a camera loop (or, at
+//! [`SceneSize::Outdoor`], a few objects under a distant backdrop seen from
+//! a ring of cameras), a labelled
 //! surface point cloud, and feature maps from the simulated VLM
 //! ([`crate::extractor::SimulatedExtractor`]). Everything is a function of
 //! `(seed, size)`.
 
 pub mod classes;
 pub mod lift;
+pub mod outdoor;
 pub mod raytrace;
 pub mod room;
 
@@ -14,11 +17,12 @@ use std::f64::consts::PI;
 use std::fmt;
 use std::str::FromStr;
 
-use model::geometry::{Camera, Intrinsics, SceneBox, look_at};
+use model::geometry::{Camera, Intrinsics, SceneBox, Vec3, look_at};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 pub use classes::{CLASSES, SizeGroup, class_embeddings, try_class_embeddings};
+pub use outdoor::build_outdoor;
 pub use room::{Room, build_room};
 
 use crate::error::DatasetError;
@@ -40,6 +44,11 @@ pub enum SceneSize {
     Paper,
     /// [`SceneSize::Paper`] with the feature maps at the full 640x360.
     PaperFull,
+    /// Not a room: objects on a ground plane seen by a ring of 24 cameras
+    /// at 80x60, with pillars around them and a backdrop 12 m away
+    /// ([`outdoor::build_outdoor`]), an unbounded capture at the size of
+    /// [`SceneSize::Ci`].
+    Outdoor,
 }
 
 impl SceneSize {
@@ -47,6 +56,7 @@ impl SceneSize {
     pub fn views(self) -> (usize, u32, u32) {
         match self {
             SceneSize::Ci => (20, 96, 54),
+            SceneSize::Outdoor => (24, 80, 60),
             SceneSize::Bench => (200, 320, 180),
             SceneSize::Paper | SceneSize::PaperFull => (200, 640, 360),
         }
@@ -56,6 +66,8 @@ impl SceneSize {
     fn point_density(self) -> (f64, usize) {
         match self {
             SceneSize::Ci => (30.0, 3),
+            // The backdrop's faces are large: a sparse cloud on them.
+            SceneSize::Outdoor => (1.0, 6),
             SceneSize::Bench | SceneSize::Paper | SceneSize::PaperFull => (250.0, 8),
         }
     }
@@ -64,7 +76,7 @@ impl SceneSize {
     /// the small preset).
     pub fn default_pca(self) -> PcaSetting {
         match self {
-            SceneSize::Ci => PcaSetting::Off,
+            SceneSize::Ci | SceneSize::Outdoor => PcaSetting::Off,
             SceneSize::Bench | SceneSize::Paper | SceneSize::PaperFull => PcaSetting::Auto,
         }
     }
@@ -74,7 +86,7 @@ impl SceneSize {
     /// [`lift::lift_embeddings`]).
     pub fn feature_dim(self) -> Option<usize> {
         match self {
-            SceneSize::Ci | SceneSize::Bench => None,
+            SceneSize::Ci | SceneSize::Bench | SceneSize::Outdoor => None,
             SceneSize::Paper | SceneSize::PaperFull => Some(PAPER_FEATURE_DIM),
         }
     }
@@ -82,7 +94,7 @@ impl SceneSize {
     /// Image pixels per feature-map pixel along each axis.
     pub fn feature_downsample(self) -> u32 {
         match self {
-            SceneSize::Ci | SceneSize::Bench | SceneSize::Paper => 4,
+            SceneSize::Ci | SceneSize::Bench | SceneSize::Paper | SceneSize::Outdoor => 4,
             SceneSize::PaperFull => 1,
         }
     }
@@ -99,6 +111,7 @@ impl fmt::Display for SceneSize {
             SceneSize::Bench => "bench",
             SceneSize::Paper => "paper",
             SceneSize::PaperFull => "paper-full",
+            SceneSize::Outdoor => "outdoor",
         })
     }
 }
@@ -112,10 +125,11 @@ impl FromStr for SceneSize {
             "bench" => Ok(SceneSize::Bench),
             "paper" => Ok(SceneSize::Paper),
             "paper-full" => Ok(SceneSize::PaperFull),
+            "outdoor" => Ok(SceneSize::Outdoor),
             other => Err(DatasetError::invalid(
                 "<synthetic scene>",
                 format!(
-                    "unknown size {other:?} (expected \"ci\", \"bench\", \"paper\" or \"paper-full\")"
+                    "unknown size {other:?} (expected \"ci\", \"bench\", \"paper\", \"paper-full\" or \"outdoor\")"
                 ),
             )),
         }
@@ -158,6 +172,52 @@ pub fn trajectory(room: &Room, size: SceneSize, seed: u64) -> Result<Vec<Camera>
     Ok(cameras)
 }
 
+/// The outdoor scene's cameras: a ring of radius 2.2 m around the objects
+/// at a height of about 1.2 m, each looking at a point near the table.
+pub fn ring_trajectory(size: SceneSize, seed: u64) -> Result<Vec<Camera>, DatasetError> {
+    let (n, w, h) = size.views();
+    let intrinsics = Intrinsics::from_fov_x(w, h, FOV_X);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0ce1_1a55);
+    let phase = rng.random_range(0.0..2.0 * PI);
+    (0..n)
+        .map(|i| {
+            let theta = phase + 2.0 * PI * i as f64 / n as f64 + rng.random_range(-0.05..0.05);
+            let radius = 2.2 + rng.random_range(-0.1..0.1);
+            let pos = [
+                radius * theta.cos(),
+                radius * theta.sin(),
+                1.2 + 0.3 * (2.0 * theta).sin(),
+            ];
+            let target = [
+                rng.random_range(-0.15..0.15),
+                rng.random_range(-0.15..0.15),
+                0.45 + rng.random_range(-0.1..0.1),
+            ];
+            let pose = look_at(pos, target, [0.0, 0.0, 1.0]).map_err(|e| {
+                DatasetError::invalid("<synthetic scene>", format!("camera {i}: {e}"))
+            })?;
+            Ok(Camera { intrinsics, pose })
+        })
+        .collect()
+}
+
+/// The bounding box of the outdoor scene's centre piece (the objects within
+/// [`outdoor::OUTDOOR_CENTRE`] of the middle).
+fn objects_bounds(room: &Room) -> (Vec3, Vec3) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let central = |p: &&room::Primitive| {
+        (0..2).all(|k| p.min[k] > -outdoor::OUTDOOR_CENTRE && p.max[k] < outdoor::OUTDOOR_CENTRE)
+    };
+    for p in room.primitives.iter().filter(central) {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p.min[k]);
+            hi[k] = hi[k].max(p.max[k]);
+        }
+    }
+    (lo, hi)
+}
+
 /// Expected image colour of each class: its albedo under the average shading
 /// (between the 0.8 of surfaces facing away from the light and 1).
 pub fn class_prototypes(seed: u64) -> Vec<[f32; 3]> {
@@ -192,6 +252,7 @@ fn base_extractor(seed: u64, size: SceneSize) -> SimulatedExtractor {
         SceneSize::Bench => 1,
         SceneSize::Paper => 2,
         SceneSize::PaperFull => 3,
+        SceneSize::Outdoor => 4,
     };
     let base = class_embeddings();
     let embeddings = match size.feature_dim() {
@@ -245,9 +306,18 @@ pub fn generate_with(
     pca: PcaSetting,
     basis: Option<&PcaBasis>,
 ) -> Result<Scene, DatasetError> {
-    let room = build_room(seed);
+    let outdoor = size == SceneSize::Outdoor;
+    let room = if outdoor {
+        build_outdoor(seed)
+    } else {
+        build_room(seed)
+    };
     let palette = classes::palette(seed);
-    let cameras = trajectory(&room, size, seed)?;
+    let cameras = if outdoor {
+        ring_trajectory(size, seed)?
+    } else {
+        trajectory(&room, size, seed)?
+    };
     let rendered = raytrace::render_views(&room, &palette, &cameras);
     let extractor = extractor_for(seed, size);
     let frames: Vec<Frame> = rendered
@@ -267,17 +337,19 @@ pub fn generate_with(
         .collect();
     let features = extract_all(&extractor, &frames, pca, basis, seed)?;
     let points = surface_points(&room, seed, size);
-    let corners = (0..8).map(|c| {
-        [0, 1, 2].map(|k| {
-            if (c >> k) & 1 == 1 {
-                room.max[k]
-            } else {
-                room.min[k]
-            }
-        })
-    });
-    let centres = cameras.iter().map(|c| c.pose.center());
-    let scene_box = SceneBox::from_points(corners.chain(centres), 0.02)
+    // The room's box is its shell with the cameras; the outdoor scene's
+    // holds its centre piece only, as a capture's box holds the object its
+    // cameras look at, not the ground, the pillars or the backdrop.
+    let (lo, hi, centres) = if outdoor {
+        let (lo, hi) = objects_bounds(&room);
+        (lo, hi, Vec::new())
+    } else {
+        let centres = cameras.iter().map(|c| c.pose.center()).collect();
+        (room.min, room.max, centres)
+    };
+    let corners = (0..8).map(|c| [0, 1, 2].map(|k| if (c >> k) & 1 == 1 { hi[k] } else { lo[k] }));
+    let margin = if outdoor { 0.05 } else { 0.02 };
+    let scene_box = SceneBox::from_points(corners.chain(centres), margin)
         .ok_or_else(|| DatasetError::invalid("<synthetic scene>", "empty scene box"))?;
     Ok(Scene {
         name: format!("synthetic-{size}-{seed}"),

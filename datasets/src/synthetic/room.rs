@@ -111,6 +111,16 @@ fn box_surface_distance(p: Vec3, min: Vec3, max: Vec3) -> f64 {
 }
 
 impl Room {
+    /// The room `[min, max]` holding what `b` built.
+    pub(super) fn from_parts(min: Vec3, max: Vec3, b: Builder) -> Room {
+        Room {
+            min,
+            max,
+            primitives: b.primitives,
+            groups: b.groups,
+        }
+    }
+
     /// The nearest surface along `origin + t * dir` with `t > t_min`: an
     /// object box or the room's inner shell. `None` only for rays starting
     /// outside the room that never enter it.
@@ -238,14 +248,28 @@ impl Room {
 }
 
 /// Builds objects one by one, recording each object's primitive range.
-struct Builder {
-    primitives: Vec<Primitive>,
-    groups: Vec<(Vec3, Vec3, std::ops::Range<usize>)>,
+pub(super) struct Builder {
+    pub(super) primitives: Vec<Primitive>,
+    pub(super) groups: Vec<(Vec3, Vec3, std::ops::Range<usize>)>,
 }
 
 impl Builder {
+    /// Adds a potted plant at `(x, y)`: a pot of half-width and height
+    /// `pot`, foliage of half-width `foliage.0` from the pot up to `foliage.1`.
+    pub(super) fn plant(&mut self, (x, y): (f64, f64), pot: (f64, f64), foliage: (f64, f64)) {
+        let (p, f) = (pot.0, foliage.0);
+        self.object(&[
+            ("indoor-plant", [x - p, y - p, 0.0], [x + p, y + p, pot.1]),
+            (
+                "indoor-plant",
+                [x - f, y - f, pot.1],
+                [x + f, y + f, foliage.1],
+            ),
+        ]);
+    }
+
     /// Adds one object made of `(class, min, max)` boxes.
-    fn object(&mut self, parts: &[(&str, Vec3, Vec3)]) {
+    pub(super) fn object(&mut self, parts: &[(&str, Vec3, Vec3)]) {
         let start = self.primitives.len();
         let mut gmin = [f64::INFINITY; 3];
         let mut gmax = [f64::NEG_INFINITY; 3];
@@ -280,25 +304,8 @@ pub fn build_room(seed: u64) -> Room {
     north_wall(&mut b, &mut j, hy, h);
     west_wall(&mut b, &mut j, hx, hy, by0);
     // A potted plant in the south-east corner.
-    let (px, py) = (hx - 0.35, -hy + 0.35);
-    b.object(&[
-        (
-            "indoor-plant",
-            [px - 0.17, py - 0.17, 0.0],
-            [px + 0.17, py + 0.17, 0.35],
-        ),
-        (
-            "indoor-plant",
-            [px - 0.28, py - 0.28, 0.35],
-            [px + 0.28, py + 0.28, 1.2],
-        ),
-    ]);
-    Room {
-        min: [-hx, -hy, 0.0],
-        max: [hx, hy, h],
-        primitives: b.primitives,
-        groups: b.groups,
-    }
+    b.plant((hx - 0.35, -hy + 0.35), (0.17, 0.35), (0.28, 1.2));
+    Room::from_parts([-hx, -hy, 0.0], [hx, hy, h], b)
 }
 
 /// Rug and table near the middle, chairs at its ends, bowl / bottle / book on it.

@@ -166,7 +166,7 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
         cams.len(),
         rays as f64 / secs.max(1e-9),
         samples as f64 / rays.max(1) as f64,
-        2 * ctx.run.model.num_samples
+        ctx.run.model.samples_per_ray()
     );
     if !errors.is_empty() {
         let mean = errors.iter().sum::<f64>() / errors.len() as f64;

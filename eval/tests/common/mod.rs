@@ -26,10 +26,39 @@ pub fn tiny_config(dim: usize) -> OpenNerfConfig {
 
 /// Writes `model.bpk`, `config.json`, `scene.json` and `split.json` (frame 0
 /// held out) of the tiny run into `dir`.
+// Not every test binary that shares this module uses the room's run.
+#[allow(dead_code)]
 pub fn write_tiny_run(dir: &Path) {
-    let scene = generate(0, SceneSize::Ci).expect("CI scene");
+    write_run(dir, SceneSize::Ci, |config| config);
+}
+
+/// The tiny run of the synthetic outdoor scene with an unbounded field (its
+/// ball around the scene box, as `train` makes it) and the proposal sampler (rounds of 8 and 8
+/// samples of a 1 x 8 proposal MLP).
+// Not every test binary that shares this module renders unbounded runs.
+#[allow(dead_code)]
+pub fn write_tiny_unbounded_run(dir: &Path) {
+    let scene = generate(0, SceneSize::Outdoor).expect("outdoor scene");
+    let corner = scene.scene_box.normalize_point(scene.scene_box.max);
+    let radius = corner.iter().map(|v| v * v).sum::<f64>().sqrt();
+    write_run(dir, SceneSize::Outdoor, |config| {
+        config
+            .with_unbounded(Some(model::UnboundedConfig::new(radius as f32)))
+            .with_proposal(Some(
+                model::ProposalConfig::new()
+                    .with_samples(vec![8, 8])
+                    .with_depth(1)
+                    .with_width(8),
+            ))
+    });
+}
+
+/// The tiny run of the synthetic scene of `size` (seed 0), its field
+/// configured by `configure`, written into `dir`.
+fn write_run(dir: &Path, size: SceneSize, configure: impl Fn(OpenNerfConfig) -> OpenNerfConfig) {
+    let scene = generate(0, size).expect("synthetic scene");
     let features = scene.features.as_ref().expect("features");
-    let config = tiny_config(features.dim());
+    let config = configure(tiny_config(features.dim()));
     let bytes = config
         .init(&Device::flex())
         .into_record()

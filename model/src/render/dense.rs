@@ -1,24 +1,27 @@
-//! The training pass: coarse/fine rendering with the shared MLP, every
-//! sample of a level evaluated at once, outputs as (autodiff) tensors.
+//! The training pass: coarse/fine rendering with the shared MLP, or the
+//! proposal rounds and the NeRF level, every sample of a level evaluated
+//! at once, outputs as (autodiff) tensors.
 
 use burn::tensor::{Int, Tensor};
 
 use super::grid::{ClipStats, clip_for_training};
+use super::posts::ProposalLevel;
 use super::sealed::{Sealed, Token};
 use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::composite::{composite, composite_features_mean};
-use crate::geometry::NormalizedRay;
-use crate::mip::{cast_rays, integrated_pos_enc, pos_enc};
+use crate::mip::{integrated_pos_enc, pos_enc};
 use crate::nerf::{OpenNerf, Rays};
-use crate::sampling::{resample_t_vals, stratified_t_vals};
 
 /// The training pass: both levels of the rendered rays as tensors, with
 /// the autodiff graph when the model is on an autodiff device.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Train {
     /// Jitter the stratified coarse posts and the resampled fine ones (off:
     /// the deterministic render).
     pub randomized: bool,
+    /// The fraction of training done, in `[0, 1]`: the proposal sampler
+    /// anneals its resampling weights with it (1: no annealing).
+    pub progress: f32,
 }
 
 /// Outputs of one level.
@@ -40,15 +43,22 @@ pub struct LevelOutputs {
     pub t_vals: Tensor<2>,
 }
 
-/// What the training pass returns: both levels of the rendered rays (`n` of
+/// What the training pass returns: the levels of the rendered rays (`n` of
 /// them: all input rays, or those [`RenderOutputs::kept`] names) and what
 /// the occupancy grid did.
 #[derive(Debug, Clone)]
 pub struct RenderOutputs {
-    /// Coarse level.
-    pub coarse: LevelOutputs,
-    /// Fine level (the one to display and evaluate).
+    /// Coarse level (`None` with the proposal sampler).
+    pub coarse: Option<LevelOutputs>,
+    /// Fine level, the NeRF level with the proposal sampler (the one to
+    /// display and evaluate).
     pub fine: LevelOutputs,
+    /// The proposal rounds, in order (empty without the proposal sampler).
+    pub proposals: Vec<ProposalLevel>,
+    /// The fine level's posts in `s` (see [`OpenNerf::spacing`]), for the
+    /// interlevel and distortion losses; `None` for the box field with
+    /// coarse and fine level.
+    pub fine_s: Option<Tensor<2>>,
     /// Index in the input of each rendered ray, in order, when the grid
     /// dropped some (`None`: every input ray, in input order). Select the
     /// targets of these rays for the losses.
@@ -63,21 +73,22 @@ impl RenderPass for Train {
     type Output = RenderOutputs;
 
     fn run(model: &OpenNerf, request: &RenderRequest<'_, Self>, _: Token) -> RenderOutputs {
-        let clipped = clip_for_training(model.occupancy(), request.grid, request.rays);
-        let rays: &[NormalizedRay] = clipped.rays.as_deref().unwrap_or(request.rays);
+        let bounded = model.bound_rays(request.rays);
+        let clipped = clip_for_training(model.sampler_grid(), request.grid, &bounded);
+        let rays = clipped.rays.as_deref().unwrap_or(&bounded);
         let rays = Rays::from_normalized(rays, &model.device());
-        let (coarse, fine) = model.render_levels(
-            &rays,
-            request.pass.randomized,
-            request.background,
-            request.features,
-        );
-        RenderOutputs {
-            coarse,
-            fine,
-            kept: clipped.kept,
-            clip: clipped.stats,
-        }
+        let mut out = match model.proposal_config {
+            Some(_) => model.render_proposed(&rays, request),
+            None => model.render_levels(
+                &rays,
+                request.pass.randomized,
+                request.background,
+                request.features,
+            ),
+        };
+        out.kept = clipped.kept;
+        out.clip = clipped.stats;
+        out
     }
 }
 
@@ -91,14 +102,9 @@ impl OpenNerf {
         randomized: bool,
         background: Option<[f32; 3]>,
         mode: FeatureMode,
-    ) -> (LevelOutputs, LevelOutputs) {
+    ) -> RenderOutputs {
         let (dir_norm, view_enc) = self.view_encoding(rays);
-        let t_coarse = stratified_t_vals(
-            rays.near.clone(),
-            rays.far.clone(),
-            self.num_samples,
-            randomized,
-        );
+        let t_coarse = self.coarse_posts(rays, randomized);
         let coarse_mode = if self.coarse_features {
             mode
         } else {
@@ -112,14 +118,51 @@ impl OpenNerf {
             background,
             coarse_mode,
         );
-        let t_fine = resample_t_vals(
+        let t_fine = self.fine_posts(
+            rays,
             coarse.t_vals.clone(),
             coarse.weights.clone(),
-            self.resample_padding as f32,
             randomized,
         );
         let fine = self.render_level(rays, t_fine, view_enc, dir_norm, background, mode);
-        (coarse, fine)
+        let fine_s = self.unbounded.as_ref().map(|_| {
+            self.spacing()
+                .t_to_s(fine.t_vals.clone(), rays.near.clone(), rays.far.clone())
+        });
+        RenderOutputs {
+            coarse: Some(coarse),
+            fine,
+            proposals: Vec::new(),
+            fine_s,
+            kept: None,
+            clip: None,
+        }
+    }
+
+    /// The proposal rounds and the NeRF level of `rays`.
+    fn render_proposed(&self, rays: &Rays, request: &RenderRequest<'_, Train>) -> RenderOutputs {
+        let (dir_norm, view_enc) = self.view_encoding(rays);
+        let pass = request.pass;
+        let (proposals, s) = self.propose(rays, &dir_norm, pass.randomized, pass.progress);
+        let t = self
+            .spacing()
+            .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());
+        let fine = self.render_level(
+            rays,
+            t,
+            view_enc,
+            dir_norm,
+            request.background,
+            request.features,
+        );
+        RenderOutputs {
+            coarse: None,
+            fine,
+            proposals,
+            fine_s: Some(s),
+            kept: None,
+            clip: None,
+        }
     }
 
     fn render_level(
@@ -187,12 +230,7 @@ impl OpenNerf {
     /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, ipe_dim]`.
     pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
-        let g = cast_rays(
-            t_vals,
-            rays.origins.clone(),
-            rays.directions.clone(),
-            rays.radii.clone(),
-        );
+        let g = self.frustums(t_vals, rays);
         let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
         let [_, _, dim] = ipe.dims();
         ipe.reshape([n * (posts - 1), dim])

@@ -67,8 +67,9 @@ impl RenderPass for Inference<'_> {
         request: &RenderRequest<'_, Self>,
         _: Token,
     ) -> Result<RenderedRays, Cancelled> {
-        let clipped = clip_for_inference(model.occupancy(), request.grid, request.rays);
-        let to_render: &[NormalizedRay] = clipped.rays.as_deref().unwrap_or(request.rays);
+        let bounded = model.bound_rays(request.rays);
+        let clipped = clip_for_inference(model.sampler_grid(), request.grid, &bounded);
+        let to_render: &[NormalizedRay] = clipped.rays.as_deref().unwrap_or(&bounded);
         let out = model.render_chunks(to_render, request)?;
         Ok(match clipped.kept {
             None => out,

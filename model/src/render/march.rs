@@ -13,7 +13,6 @@ use crate::composite::{
     segment_weights, t_mids,
 };
 use crate::nerf::{OpenNerf, Rays};
-use crate::sampling::{resample_t_vals, stratified_t_vals};
 
 /// When a ray stops being evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,7 +59,8 @@ pub struct RenderedRays {
     pub feature: Vec<f32>,
     /// Channels per ray of `feature`.
     pub feature_dim: usize,
-    /// Samples evaluated over both levels (of `2 n samples` in all).
+    /// Samples evaluated over all levels (of `2 n samples` in all with the
+    /// coarse and the fine level; the proposal rounds count too).
     pub samples_evaluated: usize,
 }
 
@@ -217,7 +217,6 @@ impl OpenNerf {
         let device = rays.origins.device();
         let (dir_norm, view_enc) = self.view_encoding(rays);
         let s = self.num_samples;
-        let t_coarse = stratified_t_vals(rays.near.clone(), rays.far.clone(), s, false);
         let start = |t_vals: Tensor<2>| Alive {
             ids: (0..n).collect(),
             rays: rays.clone(),
@@ -226,10 +225,22 @@ impl OpenNerf {
             t_vals,
             tau: Tensor::zeros([n, 1], &device),
         };
-        let (weights, evaluated) = self.march_coarse(start(t_coarse.clone()), termination);
-        out.samples_evaluated += evaluated;
-        let weights = Tensor::from_data(TensorData::new(weights, [n, s]), &device);
-        let t_fine = resample_t_vals(t_coarse, weights, self.resample_padding as f32, false);
+        let t_fine = match &self.proposal_config {
+            Some(cfg) => {
+                // The proposal rounds are small: evaluated whole.
+                let (_, s_fine) = self.propose(rays, &dir_norm, false, 1.0);
+                out.samples_evaluated += n * cfg.samples.iter().map(|&k| k.max(1)).sum::<usize>();
+                self.spacing()
+                    .s_to_t(s_fine, rays.near.clone(), rays.far.clone())
+            }
+            None => {
+                let t_coarse = self.coarse_posts(rays, false);
+                let (weights, evaluated) = self.march_coarse(start(t_coarse.clone()), termination);
+                out.samples_evaluated += evaluated;
+                let weights = Tensor::from_data(TensorData::new(weights, [n, s]), &device);
+                self.fine_posts(rays, t_coarse, weights, false)
+            }
+        };
         out.samples_evaluated +=
             self.march_fine(start(t_fine), background, mode, termination, &mut out);
         out

@@ -6,13 +6,19 @@
 //! occupancy grid is used:
 //!
 //! - [`Train`]: the coarse and the fine level as tensors (autodiff ones on
-//!   an autodiff model), every sample of a level evaluated at once, for the
-//!   losses. With [`Train::randomized`] off it is the deterministic dense
-//!   render that checks compare against.
+//!   an autodiff model), or with the proposal sampler its rounds'
+//!   histograms and the one NeRF level, every sample of a level evaluated
+//!   at once, for the losses. With [`Train::randomized`] off it is the
+//!   deterministic dense render that checks compare against.
 //! - [`Inference`]: the fine level on the host for every input ray, in
 //!   chunks, each ray marched front to back and ended once its
 //!   transmittance is below [`Termination::transmittance`]; progress and
 //!   cancellation through an observer.
+//!
+//! Where the samples go is the model's (see [`ProposalLevel`] and
+//! [`OpenNerf::spacing`]): stratified and resampled posts in the box, in
+//! normalised disparity in an unbounded field, whose rays run over its own
+//! bounds ([`OpenNerf::bound_rays`]); or the proposal rounds.
 //!
 //! The grid is a sampler (see [`GridUse`]): before the stratified coarse
 //! samples are placed, each ray's `near`/`far` is narrowed to the span from
@@ -36,6 +42,7 @@ mod dense;
 mod grid;
 mod inference;
 mod march;
+mod posts;
 
 use crate::geometry::NormalizedRay;
 use crate::nerf::OpenNerf;
@@ -45,6 +52,7 @@ pub use dense::{LevelOutputs, RenderOutputs, Train};
 pub use grid::ClipStats;
 pub use inference::{Cancelled, Inference};
 pub use march::{RenderedRays, Termination};
+pub use posts::ProposalLevel;
 
 /// How the open-set feature is computed at a level.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -116,13 +124,26 @@ impl<'a> RenderRequest<'a, Train> {
     /// Training: stratified jitter on, composited features, no background,
     /// the model's grid ([`GridUse::Model`]).
     pub fn train(rays: &'a [NormalizedRay]) -> Self {
-        Self::new(rays, Train { randomized: true })
+        Self::new(
+            rays,
+            Train {
+                randomized: true,
+                progress: 1.0,
+            },
+        )
     }
 
     /// Whether the sample positions are jittered (off: the deterministic
     /// dense render).
     pub fn with_randomized(mut self, randomized: bool) -> Self {
         self.pass.randomized = randomized;
+        self
+    }
+
+    /// The fraction of training done, in `[0, 1]`, for the proposal
+    /// sampler's annealing (1, the default: none).
+    pub fn with_progress(mut self, progress: f32) -> Self {
+        self.pass.progress = progress;
         self
     }
 }

@@ -5,7 +5,7 @@
 
 use super::{
     anneal_exponent, anneal_weights, assert_close, devices, distortion_loss, interlevel_loss,
-    max_dilate_weights, tensor, vec,
+    max_dilate_weights, max_dilate_weights_host, tensor, vec,
 };
 use burn::tensor::{Device, Tensor};
 use rand::{Rng, SeedableRng};
@@ -366,6 +366,32 @@ fn max_dilation_matches_its_definition_and_bounds_the_histogram() {
                 (total - 1.0).abs() < 1e-5,
                 "{name}: renormalised sum {total}"
             );
+        }
+    }
+}
+
+/// The host dilation (linear-time, what the proposal sampler runs) gives
+/// the tensor form's ends and weights, with and without renormalisation,
+/// for small and large dilations and step functions with empty intervals.
+#[test]
+fn host_dilation_equals_the_tensor_form() {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let device = Device::flex();
+    for (n, d) in [(1, 0.2f32), (8, 0.0), (8, 0.03), (16, 0.6), (64, 0.0105)] {
+        let mut steps = Steps::random(&mut rng, 5, n, (0.0, 1.0));
+        if n > 2 {
+            // An empty interval and a zero weight.
+            steps.t[2] = steps.t[1];
+            steps.w[3] = 0.0;
+        }
+        for renormalize in [false, true] {
+            let (t, w) = steps.tensors(&device);
+            let (e, wd) = max_dilate_weights(t, w, d, (0.0, 1.0), renormalize);
+            let (he, hw) =
+                max_dilate_weights_host(&steps.t, &steps.w, 5, d, (0.0, 1.0), renormalize);
+            let what = format!("n {n}, dilation {d}, renormalised {renormalize}");
+            assert_eq!(he, vec(e), "{what}: ends");
+            assert_close(&hw, &vec(wd), 1e-9, 1e-5, &format!("{what}: weights"));
         }
     }
 }

@@ -29,7 +29,7 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
 use crate::progress::say;
-use crate::step::{StepRates, StepReport, train_step};
+use crate::step::{StepRates, StepRender, StepReport, train_step};
 use field_ops::json::write_json;
 use field_ops::novel::record::RecordedViews;
 
@@ -315,8 +315,11 @@ impl<'a> TrainLoop<'a> {
             model,
             &mut self.optim,
             &batch,
-            self.scene.background,
-            grid,
+            StepRender {
+                background: self.scene.background,
+                grid,
+                progress: self.config.schedule.progress(it),
+            },
             &self.config.losses,
             rates,
         );

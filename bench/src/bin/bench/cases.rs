@@ -9,7 +9,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 use model::geometry::NormalizedRay;
 use model::{
     FeatureHeadConfig, FeatureMode, MipMlp, MipMlpConfig, OccupancyConfig, OccupancyGrid,
-    OpenNerfConfig, RenderRequest, Termination,
+    OpenNerfConfig, ProposalConfig, RenderRequest, Termination,
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
@@ -26,6 +26,9 @@ pub enum CaseName {
     Plain,
     /// Composited + top-k behind the occupancy grid.
     Grid,
+    /// Composited + top-k with the proposal sampler (two rounds of 64
+    /// samples of the proposal MLP, then the MLP's samples).
+    Proposal,
 }
 
 /// Rays of the bench: `n` rays through the box from a plane in front of it.
@@ -79,6 +82,8 @@ pub struct Case {
     pub path: FeatureMode,
     pub top_k: usize,
     pub with_grid: bool,
+    /// The proposal sampler instead of the coarse and the fine level.
+    pub proposal: bool,
 }
 
 /// What one case measured.
@@ -135,7 +140,8 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
         OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
             .with_mlp(mlp.clone())
             .with_num_samples(size.samples)
-            .with_head_top_k((case.top_k > 0).then_some(case.top_k));
+            .with_head_top_k((case.top_k > 0).then_some(case.top_k))
+            .with_proposal(case.proposal.then(ProposalConfig::new));
     let mut model = config.init(ad);
     model.mlp = fitted.clone();
     if case.with_grid {
@@ -237,7 +243,7 @@ fn inference(
 }
 
 /// The Burn cases, in the order printed, with their names.
-pub fn cases(top_k: usize) -> [(CaseName, Case); 3] {
+pub fn cases(top_k: usize) -> [(CaseName, Case); 4] {
     [
         (
             CaseName::Composited,
@@ -246,6 +252,7 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 3] {
                 path: FeatureMode::Composited,
                 top_k,
                 with_grid: false,
+                proposal: false,
             },
         ),
         (
@@ -255,6 +262,7 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 3] {
                 path: FeatureMode::PerSample,
                 top_k: 0,
                 with_grid: false,
+                proposal: false,
             },
         ),
         (
@@ -264,6 +272,17 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 3] {
                 path: FeatureMode::Composited,
                 top_k,
                 with_grid: true,
+                proposal: false,
+            },
+        ),
+        (
+            CaseName::Proposal,
+            Case {
+                label: "composited + proposal",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: false,
+                proposal: true,
             },
         ),
     ]

@@ -67,7 +67,7 @@ struct Args {
     #[arg(long, default_value_t = 60)]
     fit_steps: usize,
     /// Cases to run (all by default), e.g. `--cases plain` to profile one.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [CaseName::Composited, CaseName::Plain, CaseName::Grid])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [CaseName::Composited, CaseName::Plain, CaseName::Grid, CaseName::Proposal])]
     cases: Vec<CaseName>,
     /// Samples evaluated between two checks of the early ray termination.
     #[arg(long, default_value_t = Termination::default().segment)]
@@ -87,8 +87,15 @@ struct Size {
 
 impl Size {
     /// Multiply-add FLOPs (x2) of one forward pass of the MLP and head over
-    /// both levels; the backward pass costs twice that, hence x3 per step.
-    fn step_flops(&self, mlp: &MipMlpConfig, path: FeatureMode, top_k: usize) -> f64 {
+    /// both levels (with `proposal`: the MLP's one level and the proposal
+    /// MLP's rounds); the backward pass costs twice that, hence x3 per step.
+    fn step_flops(
+        &self,
+        mlp: &MipMlpConfig,
+        path: FeatureMode,
+        top_k: usize,
+        proposal: Option<&model::ProposalConfig>,
+    ) -> f64 {
         let (w, s, n) = (self.width as f64, self.samples as f64, self.rays as f64);
         let input = mlp.input_dim() as f64;
         let view = mlp.view_dim() as f64;
@@ -108,7 +115,17 @@ impl Size {
                 k * n * hidden + n * hw * self.feature_dim as f64
             }
         };
-        3.0 * 2.0 * (2.0 * (n * s * per_sample + n * per_ray_view) + head)
+        let (levels, proposal_flops) = match proposal {
+            None => (2.0, 0.0),
+            Some(p) => {
+                let pw = p.width as f64;
+                let pin = model::mip::ipe_dim(p.min_deg, p.max_deg) as f64;
+                let per = pin * pw + (p.depth.max(1) as f64 - 1.0) * pw * pw + pw;
+                let samples: usize = p.samples.iter().sum();
+                (1.0, n * samples as f64 * per)
+            }
+        };
+        3.0 * 2.0 * (levels * (n * s * per_sample + n * per_ray_view) + head + proposal_flops)
     }
 }
 
@@ -212,7 +229,12 @@ fn run_backend(
             rays: rendered,
             ..size
         }
-        .step_flops(mlp, case.path, case.top_k);
+        .step_flops(
+            mlp,
+            case.path,
+            case.top_k,
+            case.proposal.then(model::ProposalConfig::new).as_ref(),
+        );
         let row = Row {
             backend: backend.name().to_string(),
             path: if case.top_k > 0 {
@@ -257,7 +279,7 @@ fn main() -> anyhow::Result<()> {
     };
     report::print_header(peer.as_ref());
     if let Some(p) = &peer {
-        let ours = size.step_flops(&mlp, FeatureMode::PerSample, 0);
+        let ours = size.step_flops(&mlp, FeatureMode::PerSample, 0, None);
         if (p.flops - ours).abs() > 1e-6 * ours {
             eprintln!(
                 "warning: the JAX peer counts {:.3} GFLOP per step, bench {:.3}",

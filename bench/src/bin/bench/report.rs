@@ -27,7 +27,7 @@ pub fn print_header(peer: Option<&peer::Peer>) {
         );
     }
     print!(
-        "{:<8} {:<26} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
+        "{:<8} {:<28} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
         "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
     );
     print!(
@@ -40,7 +40,7 @@ pub fn print_header(peer: Option<&peer::Peer>) {
 /// Prints `row`, with its step time over the peer's when there is one.
 pub fn print_row(row: &Row, peer: Option<&peer::Peer>) {
     print!(
-        "{:<8} {:<26} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
+        "{:<8} {:<28} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
         row.backend,
         row.path,
         row.secs,

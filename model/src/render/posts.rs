@@ -1,0 +1,178 @@
+//! Where the MLP samples: the fence posts of the coarse and the fine level,
+//! or of the NeRF level after the proposal rounds (Mip-NeRF 360, section
+//! 3). Shared by the training and the inference pass.
+
+use burn::tensor::{Tensor, TensorData};
+
+use crate::composite::compute_weights;
+use crate::mip::integrated_pos_enc;
+use crate::nerf::{OpenNerf, Rays};
+use crate::proposal::ProposalConfig;
+use crate::sampling::{resample_t_vals, sample_pdf, stratified_t_vals};
+use crate::unbounded::{Spacing, anneal_exponent, anneal_weights, max_dilate_weights_host};
+
+/// One proposal round's histogram along the rays, what the interlevel loss
+/// makes an upper envelope of the NeRF weights.
+#[derive(Debug, Clone)]
+pub struct ProposalLevel {
+    /// Fence posts in `s` (the ray coordinate, see [`OpenNerf::spacing`]),
+    /// `[n, samples + 1]`.
+    pub s_vals: Tensor<2>,
+    /// The proposal MLP's compositing weights, `[n, samples]` (with the
+    /// autodiff graph on an autodiff model).
+    pub weights: Tensor<2>,
+}
+
+impl OpenNerf {
+    /// The coarse level's posts: stratified in `t` in the box, in `s`
+    /// (normalised disparity) in an unbounded scene.
+    ///
+    /// # Shapes
+    /// - output: `[n, num_samples + 1]`.
+    pub(super) fn coarse_posts(&self, rays: &Rays, randomized: bool) -> Tensor<2> {
+        let (near, far) = (rays.near.clone(), rays.far.clone());
+        match self.spacing() {
+            Spacing::Linear => stratified_t_vals(near, far, self.num_samples, randomized),
+            spacing @ Spacing::Disparity => {
+                let s = stratified_t_vals(
+                    near.zeros_like(),
+                    far.ones_like(),
+                    self.num_samples,
+                    randomized,
+                );
+                spacing.s_to_t(s, near, far)
+            }
+        }
+    }
+
+    /// The fine level's posts, resampled from the coarse `weights` on the
+    /// coarse posts (in `t` in the box, in `s` in an unbounded scene).
+    ///
+    /// # Shapes
+    /// - `t_coarse`: `[n, samples + 1]`; `weights`: `[n, samples]`; output:
+    ///   like `t_coarse`.
+    pub(super) fn fine_posts(
+        &self,
+        rays: &Rays,
+        t_coarse: Tensor<2>,
+        weights: Tensor<2>,
+        randomized: bool,
+    ) -> Tensor<2> {
+        let pad = self.resample_padding as f32;
+        match self.spacing() {
+            Spacing::Linear => resample_t_vals(t_coarse, weights, pad, randomized),
+            spacing @ Spacing::Disparity => {
+                let (near, far) = (rays.near.clone(), rays.far.clone());
+                let s = spacing.t_to_s(t_coarse, near.clone(), far.clone());
+                let s = resample_t_vals(s, weights, pad, randomized);
+                spacing.s_to_t(s, near, far)
+            }
+        }
+    }
+
+    /// The proposal rounds along `rays`: each round resamples the last
+    /// histogram (dilated, and annealed at `progress`, the fraction of
+    /// training done; 1 at inference) and evaluates the proposal MLP.
+    /// Returns the rounds and the NeRF level's posts in `s`. Without a
+    /// proposal sampler: no rounds, posts uniform in `s`.
+    ///
+    /// # Shapes
+    /// - `dir_norm`: `[n, 1]`; posts: `[n, num_samples + 1]`.
+    pub(super) fn propose(
+        &self,
+        rays: &Rays,
+        dir_norm: &Tensor<2>,
+        randomized: bool,
+        progress: f32,
+    ) -> (Vec<ProposalLevel>, Tensor<2>) {
+        let n = rays.len();
+        let device = rays.near.device();
+        let mut s: Tensor<2> = Tensor::cat(
+            vec![
+                Tensor::zeros([n, 1], &device),
+                Tensor::ones([n, 1], &device),
+            ],
+            1,
+        );
+        let mut w: Tensor<2> = Tensor::ones([n, 1], &device);
+        let (Some(cfg), Some(mlp)) = (&self.proposal_config, &self.proposal) else {
+            return (
+                Vec::new(),
+                sample_pdf(s, w, self.num_samples + 1, randomized),
+            );
+        };
+        let exponent = anneal_exponent(progress, cfg.anneal_slope);
+        let rounds = cfg.samples.iter().copied().map(|k| k.max(1));
+        let mut levels = Vec::with_capacity(cfg.samples.len());
+        for (round, count) in rounds.chain([self.num_samples]).enumerate() {
+            s = resample_round(cfg, round, s, w, exponent, count, randomized);
+            if round == cfg.samples.len() {
+                break;
+            }
+            let t = self
+                .spacing()
+                .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());
+            let g = self.frustums(t.clone(), rays);
+            let ipe = integrated_pos_enc(g.mean, g.cov_diag, mlp.min_deg, mlp.max_deg);
+            let [_, _, dim] = ipe.dims();
+            let density = mlp.density(ipe.reshape([n * count, dim]));
+            w = compute_weights(density.reshape([n, count]), t, dir_norm.clone());
+            levels.push(ProposalLevel {
+                s_vals: s.clone(),
+                weights: w.clone(),
+            });
+        }
+        (levels, s)
+    }
+}
+
+/// One resampling: round `round` (after the first) dilates the previous
+/// histogram `(s, w)` (on the host, [`max_dilate_weights_host`]), the
+/// weights are annealed, and `count + 1` new posts are drawn from them
+/// (detached), the first and the last pinned to 0 and 1 so that every
+/// round covers the whole ray, jittered or not.
+fn resample_round(
+    cfg: &ProposalConfig,
+    round: usize,
+    s: Tensor<2>,
+    w: Tensor<2>,
+    exponent: f32,
+    count: usize,
+    randomized: bool,
+) -> Tensor<2> {
+    let device = s.device();
+    let (s, w) = if round > 0 {
+        let [n, posts] = s.dims();
+        let (ends, weights) =
+            max_dilate_weights_host(&host(s), &host(w), n, cfg.dilation(round), (0.0, 1.0), true);
+        let m = 3 * (posts - 1);
+        // The outermost dilated intervals are clamped to zero width.
+        let ends: Vec<f32> = ends.chunks(m + 1).flat_map(|r| r[1..m].to_vec()).collect();
+        let weights: Vec<f32> = weights
+            .chunks(m)
+            .flat_map(|r| r[1..m - 1].to_vec())
+            .collect();
+        (
+            Tensor::from_data(TensorData::new(ends, [n, m - 1]), &device),
+            Tensor::from_data(TensorData::new(weights, [n, m - 2]), &device),
+        )
+    } else {
+        (s.detach(), w.detach())
+    };
+    let w = anneal_weights(s.clone(), w, exponent, cfg.resample_padding);
+    let posts = sample_pdf(s, w, count + 1, randomized);
+    let [n, _] = posts.dims();
+    let mut parts = vec![Tensor::zeros([n, 1], &device)];
+    if count > 1 {
+        parts.push(posts.slice_dim(1, 1..count));
+    }
+    parts.push(Tensor::ones([n, 1], &device));
+    Tensor::cat(parts, 1)
+}
+
+fn host(t: Tensor<2>) -> Vec<f32> {
+    t.detach()
+        .into_data()
+        .try_into_vec_as::<f32>()
+        .expect("a float tensor converts to f32")
+}

@@ -1,0 +1,140 @@
+//! An unbounded scene in the field's normalised frame: the ball that the
+//! contraction keeps as it is, where rays start and end, and the frustum
+//! Gaussians (and point queries) pushed through the contraction.
+//!
+//! The contraction maps the ball of radius `radius` to itself and all of
+//! space to the ball of radius `2 radius`; the field then sees contracted
+//! coordinates scaled by [`CONTRACTED_SCALE`] / `radius`, so that they fill
+//! `[-pi, pi]^3` as a box field's coordinates do and the same encoding
+//! degrees apply.
+
+use burn::config::Config;
+use burn::tensor::Tensor;
+
+use super::contract::{cast_rays_contracted, contract_gaussian, cov_diagonal};
+use crate::geometry::NormalizedRay;
+use crate::mip::FrustumGaussians;
+
+/// Contracted coordinates (in the ball of radius 2) are scaled by this
+/// (`pi / 2`) before the encoding.
+pub const CONTRACTED_SCALE: f32 = std::f32::consts::FRAC_PI_2;
+
+/// Configuration of an unbounded field (Mip-NeRF 360's contraction).
+#[derive(Config, Debug)]
+pub struct UnboundedConfig {
+    /// Radius of the ball, in normalised units around the origin, that the
+    /// contraction leaves unchanged: the region the cameras see in detail
+    /// (`train` takes the ball around the scene box). Space beyond it is
+    /// contracted.
+    pub radius: f32,
+    /// Near bound, as a distance from the ray's origin in multiples of
+    /// `radius` (Mip-NeRF 360: 0.2). Samples are spaced in disparity from
+    /// here, so half of them fall within twice this distance: a smaller
+    /// value spends them on space next to the camera.
+    #[config(default = 0.2)]
+    pub near: f32,
+    /// Far bound, as a distance from the ray's origin in multiples of
+    /// `radius` (effectively infinite: at `1e4` a point contracts to within
+    /// `1e-4` of the outer sphere).
+    #[config(default = 1e4)]
+    pub far: f32,
+}
+
+impl UnboundedConfig {
+    /// `ray` with the bounds an unbounded field renders it over: from
+    /// `near * radius` to `far * radius` normalised units from its origin.
+    /// The bounds a ray carries were made for the scene box and are not
+    /// used.
+    pub fn bound(&self, ray: &NormalizedRay) -> NormalizedRay {
+        let d = ray.direction;
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-20);
+        let near = (self.near * self.radius / len).max(1e-6);
+        let far = (self.far * self.radius / len).max(near);
+        NormalizedRay { near, far, ..*ray }
+    }
+
+    /// The frustums between consecutive fence posts as Gaussians, pushed
+    /// through the contraction and scaled into the encoding's range.
+    ///
+    /// # Shapes
+    /// - `t_vals`: `[rays, samples + 1]`; `origins`, `directions`:
+    ///   `[rays, 3]`; `radii`: `[rays, 1]`; outputs: `[rays, samples, 3]`.
+    pub fn frustums(
+        &self,
+        t_vals: Tensor<2>,
+        origins: Tensor<2>,
+        directions: Tensor<2>,
+        radii: Tensor<2>,
+    ) -> FrustumGaussians {
+        let inv = 1.0 / self.radius;
+        let g = cast_rays_contracted(
+            t_vals,
+            origins.mul_scalar(inv),
+            directions.mul_scalar(inv),
+            radii.mul_scalar(inv),
+        );
+        FrustumGaussians {
+            mean: g.mean.mul_scalar(CONTRACTED_SCALE),
+            cov_diag: g.cov_diag.mul_scalar(CONTRACTED_SCALE * CONTRACTED_SCALE),
+        }
+    }
+
+    /// Points as isotropic Gaussians of standard deviation `std` (normalised
+    /// units), pushed through the contraction and scaled like
+    /// [`UnboundedConfig::frustums`].
+    ///
+    /// # Shapes
+    /// - `points`: `[n, 3]`; outputs: `[n, 1, 3]`.
+    pub fn points(&self, points: Tensor<2>, std: f32) -> FrustumGaussians {
+        let [n, _] = points.dims();
+        let device = points.device();
+        let var = (std / self.radius).powi(2);
+        let eye: Tensor<2> = Tensor::eye(3, &device);
+        let cov = eye
+            .mul_scalar(var)
+            .reshape([1, 1, 3, 3])
+            .expand([n, 1, 3, 3]);
+        let mean = points.mul_scalar(1.0 / self.radius).unsqueeze_dim::<3>(1);
+        let (mean, cov) = contract_gaussian(mean, cov);
+        FrustumGaussians {
+            mean: mean.mul_scalar(CONTRACTED_SCALE),
+            cov_diag: cov_diagonal(cov).mul_scalar(CONTRACTED_SCALE * CONTRACTED_SCALE),
+        }
+    }
+}
+
+/// `s`, a ray's normalised coordinate, of metric `t` under `spacing`, and
+/// back: normalised disparity for an unbounded field (so that samples
+/// spread over near and far content as a pixel resolves them), normalised
+/// distance otherwise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Spacing {
+    /// `s = (t - near) / (far - near)`.
+    Linear,
+    /// `s = (1/t - 1/near) / (1/far - 1/near)` (see [`super::t_to_s`]).
+    Disparity,
+}
+
+impl Spacing {
+    /// Metric `t` to `s`.
+    ///
+    /// # Shapes
+    /// - `t`: `[rays, k]`; `near`, `far`: `[rays, 1]`; output: like `t`.
+    pub fn t_to_s(self, t: Tensor<2>, near: Tensor<2>, far: Tensor<2>) -> Tensor<2> {
+        match self {
+            Spacing::Linear => t.sub(near.clone()).div(far.sub(near).clamp_min(1e-20)),
+            Spacing::Disparity => super::t_to_s(t, near, far),
+        }
+    }
+
+    /// `s` back to metric `t`.
+    ///
+    /// # Shapes
+    /// - `s`: `[rays, k]`; `near`, `far`: `[rays, 1]`; output: like `s`.
+    pub fn s_to_t(self, s: Tensor<2>, near: Tensor<2>, far: Tensor<2>) -> Tensor<2> {
+        match self {
+            Spacing::Linear => near.clone().add(far.sub(near).mul(s)),
+            Spacing::Disparity => super::s_to_t(s, near, far),
+        }
+    }
+}
