@@ -5,11 +5,8 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-use std::time::Duration;
+use std::process::{Command, Output};
 
 fn eval(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_eval"))
@@ -67,41 +64,16 @@ fn every_eval_command_runs_on_an_unbounded_run() {
     succeeds(&["uncertainty", "--run", &r, "--out", &unc]);
     assert!(std::fs::read_dir(&unc).expect("uncertainty output").count() > 0);
 
-    // The viewer serves the run's summary and points, then stops.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_eval"))
-        .args(["view", "--run", &r, "--port", "0", "--seconds", "6"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("eval view starts");
-    let stdout = child.stdout.take().expect("stdout");
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    let url = loop {
-        let line = rx
-            .recv_timeout(Duration::from_secs(180))
-            .expect("eval view prints its address");
-        if let Some(url) = line.strip_prefix("viewer at ") {
-            break url.trim().to_string();
-        }
-    };
+    // The viewer serves the run's summary, points and cameras, then stops.
+    let (mut child, url, rx) = common::start_view(&run, "6");
     for api in ["/api/summary", "/api/points", "/api/cameras"] {
-        let addr = url.trim_start_matches("http://").trim_end_matches('/');
-        let mut s = TcpStream::connect(addr).expect("connect");
-        write!(
-            s,
-            "GET {api} HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n"
-        )
-        .expect("send");
-        let mut reply = Vec::new();
-        s.read_to_end(&mut reply).expect("read");
-        let head = String::from_utf8_lossy(&reply[..reply.len().min(200)]).into_owned();
-        assert!(head.starts_with("HTTP/1.1 200"), "{api}: {head}");
+        let reply = common::get(&url, api);
+        assert!(
+            reply.starts_with("HTTP/1.1 200"),
+            "{api}: {}",
+            &reply[..reply.len().min(200)]
+        );
     }
     assert!(child.wait().expect("eval view exits").success());
-    // Everything it printed after the address, to its end.
-    while rx.recv_timeout(Duration::from_secs(30)).is_ok() {}
+    common::printed_until_closed(&rx);
 }

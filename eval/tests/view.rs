@@ -7,12 +7,10 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
+use common::{get, printed_until_closed, start_view};
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
-use std::time::Duration;
+use std::process::Command;
 
 fn eval_bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_eval"))
@@ -77,59 +75,6 @@ fn view_refuses_bad_flags_and_runs_that_do_not_exist() {
         !out.status.success() && err.contains("cannot serve on"),
         "{err}"
     );
-}
-
-/// `eval view` on `run` with a free port; returns the child and the page's
-/// address once it is printed.
-fn start_view(run: &Path, seconds: &str) -> (Child, String, mpsc::Receiver<String>) {
-    let mut child = eval_bin()
-        .args(["view", "--run", run.to_str().expect("utf-8"), "--port", "0"])
-        .args(["--seconds", seconds])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("eval view starts");
-    let stdout = child.stdout.take().expect("stdout");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            let _ = tx.send(line);
-        }
-    });
-    loop {
-        let Ok(line) = rx.recv_timeout(Duration::from_secs(180)) else {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("eval view did not print its address");
-        };
-        if let Some(url) = line.strip_prefix("viewer at ") {
-            return (child, url.trim().to_string(), rx);
-        }
-    }
-}
-
-/// The lines printed after the address, up to the end of the output: the
-/// reader thread may still hold the last lines when the process has
-/// exited, so wait for it to close the channel (at most 30 s a line).
-fn printed_until_closed(rx: &mpsc::Receiver<String>) -> Vec<String> {
-    let mut lines = Vec::new();
-    while let Ok(line) = rx.recv_timeout(Duration::from_secs(30)) {
-        lines.push(line);
-    }
-    lines
-}
-
-fn get(url: &str, path: &str) -> String {
-    let addr = url.trim_start_matches("http://").trim_end_matches('/');
-    let mut s = TcpStream::connect(addr).expect("connect");
-    write!(
-        s,
-        "GET {path} HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n"
-    )
-    .expect("send");
-    let mut out = String::new();
-    s.read_to_string(&mut out).expect("read");
-    out
 }
 
 #[test]

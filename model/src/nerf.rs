@@ -210,11 +210,16 @@ impl OpenNerf {
         self.mlp.trunk_density(ipe)
     }
 
+    /// The proposal sampler's configuration and MLP, when the field has one.
+    pub fn proposal_sampler(&self) -> Option<(&ProposalConfig, &ProposalMlp)> {
+        self.proposal_config.as_ref().zip(self.proposal.as_ref())
+    }
+
     /// Samples a ray takes over all levels without early termination: the
     /// coarse and the fine level's, or the proposal rounds' and the MLP's.
     pub fn samples_per_ray(&self) -> usize {
-        match &self.proposal_config {
-            Some(p) => p.samples.iter().map(|&k| k.max(1)).sum::<usize>() + self.num_samples,
+        match self.proposal_sampler() {
+            Some((p, _)) => p.round_samples() + self.num_samples,
             None => 2 * self.num_samples,
         }
     }

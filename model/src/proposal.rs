@@ -70,6 +70,11 @@ impl ProposalConfig {
         }
     }
 
+    /// Samples a ray takes over all rounds (a round of 0 takes 1).
+    pub fn round_samples(&self) -> usize {
+        self.samples.iter().map(|&k| k.max(1)).sum()
+    }
+
     /// The dilation of the histogram resampled in round `round` (0-based;
     /// round 0 starts from one interval and is not dilated).
     pub fn dilation(&self, round: usize) -> f32 {

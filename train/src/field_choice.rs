@@ -74,8 +74,8 @@ impl FieldChoice {
 
 /// The capture a scene was made from, in words, and whether its content
 /// reaches past the region its cameras see in detail.
-fn capture(source: &SceneSource, scene: &Scene) -> (String, bool) {
-    match source.base() {
+fn capture(scene: &Scene) -> (String, bool) {
+    match scene.source.base() {
         SceneSource::Synthetic { size, .. } if size == "outdoor" => (
             "the synthetic outdoor scene, whose backdrop is far outside its box".into(),
             true,
@@ -103,7 +103,7 @@ fn capture(source: &SceneSource, scene: &Scene) -> (String, bool) {
 
 /// Chooses the field and the sampler for `scene` from the flags.
 pub fn choose(field: FieldArg, sampler: SamplerArg, scene: &Scene) -> FieldChoice {
-    let (what, reaches_past) = capture(&scene.source, scene);
+    let (what, reaches_past) = capture(scene);
     let (unbounded, field_reason) = match field {
         FieldArg::Auto => (reaches_past, format!("auto: {what}")),
         FieldArg::Box => (false, "--field box".into()),

@@ -2,7 +2,12 @@
 //! field on the synthetic CI scene (seed 0), which loads, renders and
 //! segments like a trained one.
 
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
 use std::path::Path;
+use std::process::{Child, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
 
 use burn::module::Module;
 use burn::tensor::Device;
@@ -103,4 +108,61 @@ pub fn make_field_empty(dir: &Path) {
         .init(&device);
     let bytes = model.into_record().into_bytes().expect("serialise");
     std::fs::write(dir.join("model.bpk"), bytes.to_vec()).expect("weights");
+}
+
+/// `eval view` on `run` with a free port; returns the child and the page's
+/// address once it is printed.
+#[allow(dead_code)]
+pub fn start_view(run: &Path, seconds: &str) -> (Child, String, mpsc::Receiver<String>) {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_eval"))
+        .args(["view", "--run", run.to_str().expect("utf-8"), "--port", "0"])
+        .args(["--seconds", seconds])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("eval view starts");
+    let stdout = child.stdout.take().expect("stdout");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    loop {
+        let Ok(line) = rx.recv_timeout(Duration::from_secs(180)) else {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("eval view did not print its address");
+        };
+        if let Some(url) = line.strip_prefix("viewer at ") {
+            return (child, url.trim().to_string(), rx);
+        }
+    }
+}
+
+/// The lines printed after the address, up to the end of the output: the
+/// reader thread may still hold the last lines when the process has
+/// exited, so wait for it to close the channel (at most 30 s a line).
+#[allow(dead_code)]
+pub fn printed_until_closed(rx: &mpsc::Receiver<String>) -> Vec<String> {
+    let mut lines = Vec::new();
+    while let Ok(line) = rx.recv_timeout(Duration::from_secs(30)) {
+        lines.push(line);
+    }
+    lines
+}
+
+#[allow(dead_code)]
+pub fn get(url: &str, path: &str) -> String {
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = TcpStream::connect(addr).expect("connect");
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: t\r\nConnection: close\r\n\r\n"
+    )
+    .expect("send");
+    // The reply's body may be binary (the points): read bytes.
+    let mut out = Vec::new();
+    s.read_to_end(&mut out).expect("read");
+    String::from_utf8_lossy(&out).into_owned()
 }

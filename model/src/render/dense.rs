@@ -11,6 +11,7 @@ use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::composite::{composite, composite_features_mean};
 use crate::mip::{integrated_pos_enc, pos_enc};
 use crate::nerf::{OpenNerf, Rays};
+use crate::proposal::{ProposalConfig, ProposalMlp};
 
 /// The training pass: both levels of the rendered rays as tensors, with
 /// the autodiff graph when the model is on an autodiff device.
@@ -77,8 +78,8 @@ impl RenderPass for Train {
         let clipped = clip_for_training(model.sampler_grid(), request.grid, &bounded);
         let rays = clipped.rays.as_deref().unwrap_or(&bounded);
         let rays = Rays::from_normalized(rays, &model.device());
-        let mut out = match model.proposal_config {
-            Some(_) => model.render_proposed(&rays, request),
+        let mut out = match model.proposal_sampler() {
+            Some(sampler) => model.render_proposed(sampler, &rays, request),
             None => model.render_levels(
                 &rays,
                 request.pass.randomized,
@@ -140,10 +141,15 @@ impl OpenNerf {
     }
 
     /// The proposal rounds and the NeRF level of `rays`.
-    fn render_proposed(&self, rays: &Rays, request: &RenderRequest<'_, Train>) -> RenderOutputs {
+    fn render_proposed(
+        &self,
+        sampler: (&ProposalConfig, &ProposalMlp),
+        rays: &Rays,
+        request: &RenderRequest<'_, Train>,
+    ) -> RenderOutputs {
         let (dir_norm, view_enc) = self.view_encoding(rays);
         let pass = request.pass;
-        let (proposals, s) = self.propose(rays, &dir_norm, pass.randomized, pass.progress);
+        let (proposals, s) = self.propose(sampler, rays, &dir_norm, pass.randomized, pass.progress);
         let t = self
             .spacing()
             .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());

@@ -225,11 +225,11 @@ impl OpenNerf {
             t_vals,
             tau: Tensor::zeros([n, 1], &device),
         };
-        let t_fine = match &self.proposal_config {
-            Some(cfg) => {
+        let t_fine = match self.proposal_sampler() {
+            Some(sampler) => {
                 // The proposal rounds are small: evaluated whole.
-                let (_, s_fine) = self.propose(rays, &dir_norm, false, 1.0);
-                out.samples_evaluated += n * cfg.samples.iter().map(|&k| k.max(1)).sum::<usize>();
+                let (_, s_fine) = self.propose(sampler, rays, &dir_norm, false, 1.0);
+                out.samples_evaluated += n * sampler.0.round_samples();
                 self.spacing()
                     .s_to_t(s_fine, rays.near.clone(), rays.far.clone())
             }

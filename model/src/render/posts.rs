@@ -7,7 +7,7 @@ use burn::tensor::{Tensor, TensorData};
 use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
 use crate::nerf::{OpenNerf, Rays};
-use crate::proposal::ProposalConfig;
+use crate::proposal::{ProposalConfig, ProposalMlp};
 use crate::sampling::{resample_t_vals, sample_pdf, stratified_t_vals};
 use crate::unbounded::{Spacing, anneal_exponent, anneal_weights, max_dilate_weights_host};
 
@@ -73,13 +73,13 @@ impl OpenNerf {
     /// The proposal rounds along `rays`: each round resamples the last
     /// histogram (dilated, and annealed at `progress`, the fraction of
     /// training done; 1 at inference) and evaluates the proposal MLP.
-    /// Returns the rounds and the NeRF level's posts in `s`. Without a
-    /// proposal sampler: no rounds, posts uniform in `s`.
+    /// Returns the rounds and the NeRF level's posts in `s`.
     ///
     /// # Shapes
     /// - `dir_norm`: `[n, 1]`; posts: `[n, num_samples + 1]`.
     pub(super) fn propose(
         &self,
+        (cfg, mlp): (&ProposalConfig, &ProposalMlp),
         rays: &Rays,
         dir_norm: &Tensor<2>,
         randomized: bool,
@@ -95,12 +95,6 @@ impl OpenNerf {
             1,
         );
         let mut w: Tensor<2> = Tensor::ones([n, 1], &device);
-        let (Some(cfg), Some(mlp)) = (&self.proposal_config, &self.proposal) else {
-            return (
-                Vec::new(),
-                sample_pdf(s, w, self.num_samples + 1, randomized),
-            );
-        };
         let exponent = anneal_exponent(progress, cfg.anneal_slope);
         let rounds = cfg.samples.iter().copied().map(|k| k.max(1));
         let mut levels = Vec::with_capacity(cfg.samples.len());
