@@ -14,7 +14,7 @@ import re
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CRATES = ["model", "datasets", "clip", "field-ops", "train", "eval", "fuzz-harness", "viewer", "bench"]
+CRATES = ["model", "datasets", "clip", "field-ops", "train", "eval", "fuzz-harness", "viewer", "bench", "batch"]
 MAX_FILE, MAX_FN = 500, 120
 
 

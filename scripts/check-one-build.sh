@@ -15,6 +15,7 @@ members="$(cargo metadata --no-deps --format-version 1 |
 forms=(
   "-p train --bin train"
   "-p eval --bin eval"
+  "-p batch --bin batch"
   "-p train -p eval"
   "-p bench --bins"
   "--workspace --bins"

@@ -8,6 +8,7 @@
 
 pub mod cameras;
 pub mod checks;
+pub mod cli;
 // Flag help is written for `--help`: `[D]` is a shape and `<scene>` a
 // placeholder there, not a link or an HTML tag.
 #[allow(rustdoc::broken_intra_doc_links, rustdoc::invalid_html_tags)]

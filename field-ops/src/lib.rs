@@ -69,6 +69,7 @@
 
 pub mod allocator;
 pub mod backend;
+pub mod batch_dir;
 pub mod colormap;
 pub mod error;
 pub mod files;

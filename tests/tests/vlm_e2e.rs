@@ -67,7 +67,7 @@ fn train(args: &[&str]) -> Result<train::RunOutcome, String> {
     let mut all = vec!["train", "--quiet", "--no-final-render"];
     all.extend_from_slice(args);
     let cli = Cli::try_parse_from(&all).map_err(|e| e.to_string())?;
-    train::run_cli(&cli).map_err(|e| e.to_string())
+    train::run_cli(&cli, &train::interrupt::StopFlag::new()).map_err(|e| e.to_string())
 }
 
 #[derive(Parser)]

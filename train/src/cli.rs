@@ -107,8 +107,10 @@ impl std::str::FromStr for Resolution {
 ///
 /// Without arguments it trains a small model on the synthetic CI scene for a
 /// few minutes on the CPU and prints where the results are.
+// A flag given twice takes its last value, so that a scene list's entry
+// (`batch`) can override the flags its defaults give.
 #[derive(Debug, Clone, Parser)]
-#[command(name = "train", version)]
+#[command(name = "train", version, args_override_self = true)]
 pub struct Cli {
     /// Compute backend and device.
     #[command(flatten)]

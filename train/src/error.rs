@@ -37,6 +37,22 @@ pub enum TrainError {
         /// The last checkpoint written, if any.
         last_checkpoint: Option<PathBuf>,
     },
+    /// A signal asked the run to stop; its checkpoint at `iteration` is
+    /// written and `--resume` continues it.
+    #[error(
+        "interrupted by a signal at iteration {iteration}: checkpoint {} written; \
+         continue with `train --resume {}`",
+        checkpoint.display(),
+        dir.display()
+    )]
+    Interrupted {
+        /// Iterations completed.
+        iteration: usize,
+        /// The checkpoint written.
+        checkpoint: PathBuf,
+        /// The run directory.
+        dir: PathBuf,
+    },
     /// A dataset could not be loaded.
     #[error(transparent)]
     Dataset(#[from] datasets::DatasetError),

@@ -22,6 +22,7 @@ pub mod data;
 pub mod error;
 pub mod evaluate;
 pub mod field_choice;
+pub mod interrupt;
 pub mod metrics_log;
 pub mod occupancy;
 pub mod preset;
@@ -42,8 +43,10 @@ pub use training::{RunOutcome, SessionOptions, resume, train_new, train_new_with
 use std::path::PathBuf;
 
 /// Runs the command line: a new run, or `--resume`. Returns the outcome
-/// (the binary prints where the results are).
-pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
+/// (the binary prints where the results are). Raising `stop` ends the
+/// training before its next step with a checkpoint
+/// ([`TrainError::Interrupted`]).
+pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome, TrainError> {
     validate::cli(cli)?;
     let session = SessionOptions {
         backend: cli.compute.backend,
@@ -58,6 +61,7 @@ pub fn run_cli(cli: &cli::Cli) -> Result<RunOutcome, TrainError> {
             port: cli.viewer_port,
             every: cli.viewer_every,
         }),
+        stop: stop.clone(),
     };
     if let Some(dir) = &cli.resume {
         return resume(dir, cli.iters, &session);

@@ -8,7 +8,11 @@ static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemallo
 
 fn main() -> std::process::ExitCode {
     let cli = train::cli::Cli::parse();
-    match train::run_cli(&cli) {
+    let stop = train::interrupt::StopFlag::on_signals().unwrap_or_else(|e| {
+        eprintln!("warning: signals will stop the run without a checkpoint: {e}");
+        train::interrupt::StopFlag::new()
+    });
+    match train::run_cli(&cli, &stop) {
         Ok(outcome) => {
             let s = &outcome.summary;
             let h = &s.heldout_interior;
@@ -41,6 +45,10 @@ fn main() -> std::process::ExitCode {
                 println!("  {command}");
             }
             std::process::ExitCode::SUCCESS
+        }
+        Err(e @ train::TrainError::Interrupted { .. }) => {
+            eprintln!("{e}");
+            std::process::ExitCode::from(train::interrupt::EXIT_INTERRUPTED)
         }
         Err(e) => {
             eprintln!("error: {e}");

@@ -105,7 +105,7 @@ fn train(args: &Args, dir: &Path, config: &Path, grid: bool) -> Result<()> {
     }
     eprintln!("training: {}", argv.join(" "));
     let cli = train::cli::Cli::try_parse_from(&argv)?;
-    train::run_cli(&cli).map_err(|e| anyhow::anyhow!("{e}"))?;
+    train::run_cli(&cli, &train::interrupt::StopFlag::new()).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
 }
 

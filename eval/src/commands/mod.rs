@@ -3,6 +3,7 @@
 
 pub mod common;
 pub mod extract;
+pub mod gather;
 pub mod proposals;
 pub mod query;
 pub mod render;

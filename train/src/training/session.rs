@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use crate::backend::BackendKind;
+use crate::interrupt::StopFlag;
 use crate::summary::Summary;
 
 /// How a session runs (as opposed to what is trained, which is the config).
@@ -28,6 +29,9 @@ pub struct SessionOptions {
     pub fit_schedule_to_budget: bool,
     /// Serve the run's web viewer while training.
     pub viewer: Option<super::ViewerSettings>,
+    /// Raised (by a signal handler) to stop before the next step with a
+    /// checkpoint: the session then returns `TrainError::Interrupted`.
+    pub stop: StopFlag,
 }
 
 impl Default for SessionOptions {
@@ -41,6 +45,7 @@ impl Default for SessionOptions {
             final_render: true,
             fit_schedule_to_budget: false,
             viewer: None,
+            stop: StopFlag::new(),
         }
     }
 }

@@ -114,6 +114,9 @@ impl<'a> TrainLoop<'a> {
     pub(super) fn train(start: SessionStart<'a>) -> Result<RunOutcome, TrainError> {
         let (mut session, mut model) = Self::new(start)?;
         while session.state.iteration < session.end {
+            if session.session.stop.requested() {
+                return Err(session.interrupt(&model));
+            }
             if session.budget_spent() {
                 break;
             }
@@ -428,6 +431,34 @@ impl<'a> TrainLoop<'a> {
             )?);
         }
         Ok(())
+    }
+
+    /// Stops the session on a signal: a checkpoint at the iteration reached
+    /// (the error says where, or why it could not be written).
+    fn interrupt(mut self, model: &OpenNerf) -> TrainError {
+        self.bar.abandon();
+        if let Some(v) = self.viewer.take() {
+            v.stop();
+        }
+        self.state.wall_seconds = self.clock.wall();
+        let saved = save_checkpoint(
+            self.run,
+            model,
+            &self.optim,
+            &self.state,
+            self.config.logging.keep_checkpoints,
+        );
+        if let Err(e) = self.stages.end() {
+            eprintln!("warning: {e}");
+        }
+        match saved {
+            Ok(checkpoint) => TrainError::Interrupted {
+                iteration: self.state.iteration,
+                checkpoint,
+                dir: self.run.dir.clone(),
+            },
+            Err(e) => e,
+        }
     }
 
     /// Ends the session: the bar, then [`finish`].
