@@ -192,3 +192,50 @@ fn emit_writes_one_array_per_request_and_keeps_its_list() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("no task 3: the batch has 3"));
 }
+
+#[test]
+fn bad_flags_and_directories_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = write(dir.path(), "scenes.toml", &scene(""));
+    let s = scenes.to_str().unwrap();
+    let file = write(dir.path(), "a-file", "");
+    let f = file.to_str().unwrap();
+    let o = batch(&["--scenes", s, "--out", f]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("a-file"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let out = dir.path().join("out");
+    let o = batch(&[
+        "--scenes",
+        s,
+        "--out",
+        out.to_str().unwrap(),
+        "--max-parallel",
+        "0",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--max-parallel"));
+    let o = batch(&[
+        "--scenes",
+        s,
+        "--out",
+        out.to_str().unwrap(),
+        "--emit",
+        "pbs",
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("possible values: slurm"));
+    let o = batch(&["--scenes", s, "--out", out.to_str().unwrap(), "--task", "0"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"));
+    let o = batch(&["--out", out.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--scenes"));
+    assert!(!out.exists());
+    // A task of a directory no batch was written to names the missing list.
+    let o = batch(&["--out", dir.path().to_str().unwrap(), "--task", "0"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("batch.json: missing"), "{err}");
+}

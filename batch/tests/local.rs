@@ -9,7 +9,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{TINY, batch, eval_exe, non_timing_summary, text, write};
+use common::{TINY, batch, gather, logged_iteration, non_timing_summary, text, write};
 use field_ops::batch_dir::{TaskRecord, TaskState};
 
 fn list(dir: &Path) -> std::path::PathBuf {
@@ -33,18 +33,6 @@ train = ["--iters", "30"]
 "#
         ),
     )
-}
-
-/// The newest logged training iteration of `run` (0 before the first).
-fn logged_iteration(run: &Path) -> usize {
-    std::fs::read_to_string(run.join("metrics.jsonl"))
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|v| v["event"] == "train")
-        .filter_map(|v| v["iteration"].as_u64())
-        .max()
-        .unwrap_or(0) as usize
 }
 
 fn record(run: &Path) -> TaskRecord {
@@ -135,12 +123,7 @@ fn a_signalled_batch_resumes_bit_identically_and_gathers() {
     assert!(err.contains("long: done before, skipped"), "{err}");
     assert_eq!(record(&long).attempts, 2);
 
-    let o = Command::new(eval_exe())
-        .args(["gather", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    let md = std::fs::read_to_string(out.join("benchmark.md")).unwrap();
+    let md = gather(&out);
     assert!(md.contains("2 of 2 runs finished."), "{md}");
     assert!(md.contains("| long | 1/1 |"), "{md}");
     assert!(md.contains("| **mean** | 2/2 |"), "{md}");
@@ -194,12 +177,7 @@ synthetic = 1
         "{r:?}"
     );
 
-    let o = Command::new(eval_exe())
-        .args(["gather", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    let md = std::fs::read_to_string(out.join("benchmark.md")).unwrap();
+    let md = gather(&out);
     assert!(md.contains("0 of 2 runs finished."), "{md}");
     assert!(
         md.contains("- broken (broken): failed: eval render"),

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use common::{TINY, batch_exe, eval_exe, non_timing_summary, text, write};
+use common::{TINY, batch_exe, gather, logged_iteration, non_timing_summary, text, write};
 use field_ops::batch_dir::{TaskRecord, TaskState};
 
 /// The cluster, stopped when dropped.
@@ -73,17 +73,6 @@ impl Drop for Cluster {
             .args(["stop", self.dir.to_str().unwrap()])
             .status();
     }
-}
-
-fn logged_iteration(run: &Path) -> usize {
-    std::fs::read_to_string(run.join("metrics.jsonl"))
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|v| v["event"] == "train")
-        .filter_map(|v| v["iteration"].as_u64())
-        .max()
-        .unwrap_or(0) as usize
 }
 
 fn wait_for(what: &str, limit: Duration, mut done: impl FnMut() -> bool) {
@@ -209,12 +198,7 @@ seeds = [0, 1]
         non_timing_summary(&reference.join("requeued"))
     );
 
-    let o = Command::new(eval_exe())
-        .args(["gather", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", text(&o));
-    let md = std::fs::read_to_string(out.join("benchmark.md")).unwrap();
+    let md = gather(&out);
     println!("== eval gather\n{md}");
     assert!(md.contains("3 of 3 runs finished."), "{md}");
     assert!(md.contains("| room | 2/2 |"), "{md}");

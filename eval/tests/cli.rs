@@ -352,3 +352,30 @@ fn relevancy_images_share_one_scale_and_carry_a_colour_bar() {
         assert!(img.width() > 96, "{}: {}", p.display(), img.width());
     }
 }
+
+#[test]
+fn gather_refuses_what_holds_no_runs_and_names_unreadable_files() {
+    assert_refused(&["gather", MISSING], &[MISSING, "not a directory"]);
+    let empty = tempfile::tempdir().unwrap();
+    let dir = empty.path().to_str().unwrap();
+    assert_refused(&["gather", dir], &[dir, "no runs here"]);
+    // A run whose summary.json is garbage is listed as unreadable, not
+    // dropped.
+    let run = empty.path().join("broken");
+    std::fs::create_dir(&run).unwrap();
+    std::fs::write(run.join("config.json"), "{}").unwrap();
+    std::fs::write(run.join("summary.json"), "not json").unwrap();
+    let out = eval(&["gather", dir]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let md = std::fs::read_to_string(empty.path().join("benchmark.md")).unwrap();
+    assert!(md.contains("0 of 1 runs finished."), "{md}");
+    assert!(md.contains("- broken (broken): unreadable: "), "{md}");
+    assert!(md.contains("summary.json: invalid JSON"), "{md}");
+    // A damaged batch.json is an error naming it.
+    std::fs::write(empty.path().join("batch.json"), "[").unwrap();
+    assert_refused(&["gather", dir], &["batch.json", "invalid JSON"]);
+}

@@ -65,3 +65,25 @@ pub fn text(o: &Output) -> String {
         String::from_utf8_lossy(&o.stderr)
     )
 }
+
+/// The newest logged training iteration of `run` (0 before the first).
+pub fn logged_iteration(run: &Path) -> usize {
+    std::fs::read_to_string(run.join("metrics.jsonl"))
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v["event"] == "train")
+        .filter_map(|v| v["iteration"].as_u64())
+        .max()
+        .unwrap_or(0) as usize
+}
+
+/// Runs `eval gather dir` and returns the `benchmark.md` it wrote.
+pub fn gather(dir: &Path) -> String {
+    let o = Command::new(eval_exe())
+        .args(["gather", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    std::fs::read_to_string(dir.join("benchmark.md")).unwrap()
+}

@@ -169,6 +169,9 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
     };
     let mut times = Vec::new();
     for step in 0..=steps {
+        if step == 1 {
+            crate::profile::enable();
+        }
         let start = Instant::now();
         // The grid case's model clips the host rays every step, as
         // training does.
@@ -190,6 +193,7 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
             times.push(secs);
         }
     }
+    crate::profile::disable();
     Timing {
         secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
         rendered,

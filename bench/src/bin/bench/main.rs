@@ -16,6 +16,7 @@
 mod ball;
 mod cases;
 mod peer;
+mod profile;
 mod report;
 
 use cases::{CaseName, Setup, Timing, object_grid, time_case};
@@ -24,6 +25,7 @@ use report::Row;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use anyhow::Context;
 use burn::tensor::{Device, Distribution, Tensor};
 use clap::Parser;
 use field_ops::backend::{BackendKind, BackendListArgs};
@@ -72,6 +74,12 @@ struct Args {
     /// Samples evaluated between two checks of the early ray termination.
     #[arg(long, default_value_t = Termination::default().segment)]
     segment: usize,
+    /// perf's control FIFO: `enable` is written to it before each case's
+    /// timed steps and `disable` after them, so that `perf record -D -1
+    /// --control fifo:FIFO` profiles the training steps alone
+    /// (`scripts/profile-step.sh`).
+    #[arg(long, value_name = "FIFO")]
+    perf_control: Option<PathBuf>,
 }
 
 /// Sizes of one case.
@@ -256,6 +264,10 @@ fn run_backend(
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     args.compute.check().map_err(anyhow::Error::msg)?;
+    if let Some(fifo) = &args.perf_control {
+        profile::open(fifo)
+            .with_context(|| format!("--perf-control {}: cannot open it", fifo.display()))?;
+    }
     let size = size_of(&args);
     let skip = if size.depth > 4 { 4 } else { size.depth / 2 };
     let mlp = MipMlpConfig::new()

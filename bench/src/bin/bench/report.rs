@@ -17,8 +17,27 @@ pub struct Row {
     pub infer: Option<Inference>,
 }
 
-/// Prints the header (and the ratio's convention when there is a peer).
+/// The CPU's model name (`/proc/cpuinfo`), else the architecture.
+pub fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|text| {
+            text.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, name)| name.trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+}
+
+/// Prints the machine, then the header (and the ratio's convention when
+/// there is a peer).
 pub fn print_header(peer: Option<&peer::Peer>) {
+    println!(
+        "cpu: {} ({} threads available)",
+        cpu_model(),
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
     if let Some(p) = peer {
         println!(
             "vs JAX: this row's step time / the JAX step time (jax {}, {} threads): \
@@ -27,8 +46,16 @@ pub fn print_header(peer: Option<&peer::Peer>) {
         );
     }
     print!(
-        "{:<8} {:<28} {:>9} {:>10} {:>9} {:>10} {:>10} {:>7}",
-        "backend", "feature path", "step s", "rays/s", "GFLOP", "GFLOP/s", "matmul", "peak MB"
+        "{:<8} {:<28} {:>9} {:>10} {:>9} {:>10} {:>10} {:>9} {:>7}",
+        "backend",
+        "feature path",
+        "step s",
+        "rays/s",
+        "GFLOP",
+        "GFLOP/s",
+        "matmul",
+        "of matmul",
+        "peak MB"
     );
     print!(
         " {:>12} {:>8} {:>10} {:>9}",
@@ -40,7 +67,7 @@ pub fn print_header(peer: Option<&peer::Peer>) {
 /// Prints `row`, with its step time over the peer's when there is one.
 pub fn print_row(row: &Row, peer: Option<&peer::Peer>) {
     print!(
-        "{:<8} {:<28} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>7.0}",
+        "{:<8} {:<28} {:>9.3} {:>10.0} {:>9.1} {:>10.1} {:>10.1} {:>8.0}% {:>7.0}",
         row.backend,
         row.path,
         row.secs,
@@ -48,6 +75,7 @@ pub fn print_row(row: &Row, peer: Option<&peer::Peer>) {
         row.flops / 1e9,
         row.flops / row.secs / 1e9,
         row.matmul,
+        100.0 * row.flops / row.secs / 1e9 / row.matmul,
         row.peak_mb
     );
     match row.infer {
@@ -69,7 +97,9 @@ pub fn print_row(row: &Row, peer: Option<&peer::Peer>) {
 /// The notes under the table: what the columns and the grid case are.
 pub fn print_notes(size: Size, fit_steps: usize, with_peer: bool) {
     println!(
-        "matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device",
+        "matmul: GFLOP/s of a [4096,{w}] x [{w},{w}] product loop on the same device; \
+         of matmul: the step's GFLOP/s as a share of it (100% = every FLOP at the product \
+         loop's rate, nothing else costing time)",
         w = size.width
     );
     let grid = object_grid();

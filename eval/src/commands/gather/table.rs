@@ -63,7 +63,7 @@ pub const COLUMNS: [&str; 9] = [
     "tail_macc",
 ];
 
-/// A run's value in column `c` of [`COLUMNS`] (segmentation scores in
+/// A run's value in column `c` of `COLUMNS` (segmentation scores in
 /// percent).
 fn value(r: &RunResult, c: usize) -> Option<f64> {
     if c == 0 {
@@ -84,7 +84,7 @@ fn value(r: &RunResult, c: usize) -> Option<f64> {
 /// A runs' table row: a statistic per column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Row {
-    /// One entry per [`COLUMNS`] entry.
+    /// One per column of the table: PSNR, then mIoU and mAcc of all, head, common and tail classes.
     pub stats: [Option<Stat>; 9],
 }
 
@@ -267,7 +267,8 @@ mod tests {
     #[test]
     fn csv_quotes_what_needs_quoting() {
         assert_eq!(csv_field("a,b"), "\"a,b\"");
-        assert_eq!(csv_field("say \"x\""), "say \"x\"");
+        assert_eq!(csv_field("plain"), "plain");
+        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
         assert_eq!(csv_field("say \"x\", y"), "\"say \"\"x\"\", y\"");
     }
 }
