@@ -15,7 +15,7 @@ import sys
 # First match wins; patterns are searched in "dso symbol".
 CATEGORIES = [
     ("matrix products", r"gemm|nano_gemm|matmul"),
-    ("kernel: page faults and zeroing", r"\[kernel|clear_page|page_fault|do_anonymous|handle_mm|__handle|exc_page"),
+    ("kernel: page faults, scheduling, system calls", r"\[kernel"),
     ("memory management (allocator)", r"_rjem|jemalloc|je_|malloc|free|mallocx|sdallocx|rallocx|realloc|arena|tcache|extent"),
     ("element-wise math (exp, sin, ...)", r"expf|sinf|cosf|logf|powf|__exp|__sin|__cos|__log|libm|sincos|erf|tanh"),
     ("reductions and scans", r"reduce|sum_dim|sum\b|cumsum|cumulative|cumprod|argmax|argmin|max_dim|min_dim|mean"),
@@ -49,7 +49,7 @@ def category(dso, kind, sym):
 
 def main():
     symbols, bench, freq = sys.argv[1], sys.argv[2], float(sys.argv[3])
-    rows = parse(symbols)
+    rows = sorted(parse(symbols), key=lambda r: -r[1])
     total = sum(r[1] for r in rows) or 1
     cats = {}
     for pct, samples, dso, kind, sym in rows:

@@ -17,17 +17,33 @@ pub struct Row {
     pub infer: Option<Inference>,
 }
 
-/// The CPU's model name (`/proc/cpuinfo`), else the architecture.
+/// The CPU as `/proc/cpuinfo` names it, with its family and model numbers
+/// and vector extensions (a VM's model name alone may say only "AMD
+/// EPYC"); else the architecture.
 pub fn cpu_model() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|text| {
-            text.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split_once(':'))
-                .map(|(_, name)| name.trim().to_string())
-        })
-        .unwrap_or_else(|| std::env::consts::ARCH.to_string())
+    let Ok(text) = std::fs::read_to_string("/proc/cpuinfo") else {
+        return std::env::consts::ARCH.to_string();
+    };
+    let field = |key: &str| {
+        text.lines()
+            .find(|l| l.split(':').next().is_some_and(|k| k.trim() == key))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| v.trim().to_string())
+    };
+    let Some(name) = field("model name") else {
+        return std::env::consts::ARCH.to_string();
+    };
+    let flags = field("flags").unwrap_or_default();
+    let has = |f: &str| flags.split_whitespace().any(|x| x == f);
+    let vector = match (has("avx512f"), has("avx2")) {
+        (true, _) => "AVX-512",
+        (false, true) => "AVX2, no AVX-512",
+        _ => "no AVX2",
+    };
+    match (field("cpu family"), field("model")) {
+        (Some(family), Some(model)) => format!("{name} (family {family}, model {model}; {vector})"),
+        _ => format!("{name} ({vector})"),
+    }
 }
 
 /// Prints the machine, then the header (and the ratio's convention when
