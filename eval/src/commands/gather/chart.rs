@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::table::SceneRow;
 
@@ -43,14 +44,19 @@ pub fn draw(rows: &[SceneRow], path: &Path) -> Result<bool, String> {
         chart
             .configure_mesh()
             .disable_x_mesh()
-            .x_labels(rows.len().max(1))
-            .x_label_formatter(&|x| {
-                let i = x.floor() as usize;
-                rows.get(i).map(|r| r.scene.clone()).unwrap_or_default()
-            })
+            .x_labels(0)
             .y_desc("mIoU (%)")
             .draw()
             .map_err(|x| e(&x))?;
+        // One name under each group of bars (the axis' own ticks fall
+        // where its scale puts them, not one per scene).
+        let style =
+            TextStyle::from(("sans-serif", 14).into_font()).pos(Pos::new(HPos::Center, VPos::Top));
+        for (i, r) in rows.iter().enumerate() {
+            let (x, y) = chart.backend_coord(&(i as f64 + 0.5, 0.0));
+            root.draw(&Text::new(r.scene.clone(), (x, y + 8), style.clone()))
+                .map_err(|x| e(&x))?;
+        }
         let bar = 0.8 / GROUPS.len() as f64;
         for (g, (name, column, colour)) in GROUPS.iter().enumerate() {
             let bars: Vec<(f64, f64, f64)> = rows
