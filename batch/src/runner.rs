@@ -118,40 +118,45 @@ fn train_command(run: &Path, task: &BatchTask) -> Result<train::cli::Cli, String
     let dir = RunDir::new(run);
     let checkpoints =
         train::checkpoint::list_checkpoints(&dir.checkpoints()).map_err(|e| e.to_string())?;
-    if checkpoints.is_empty() {
-        for partial in [dir.config(), dir.metrics()] {
-            if partial.exists() {
-                eprintln!(
-                    "{}: stopped before its first checkpoint: starting it over",
-                    task.run
-                );
-                std::fs::remove_file(&partial)
-                    .map_err(|e| format!("{}: {e}", partial.display()))?;
-            }
+    let Some(&(iteration, _)) = checkpoints.last() else {
+        let partial: Vec<_> = [dir.config(), dir.metrics()]
+            .into_iter()
+            .filter(|p| p.exists())
+            .collect();
+        if !partial.is_empty() {
+            eprintln!(
+                "{}: stopped before its first checkpoint: starting it over",
+                task.run
+            );
+        }
+        for p in partial {
+            std::fs::remove_file(&p).map_err(|e| format!("{}: {e}", p.display()))?;
         }
         return Ok(cli);
-    }
-    let (ckpt, _, _) =
-        train::checkpoint::newest_intact(&dir.checkpoints()).map_err(|e| e.to_string())?;
+    };
     eprintln!(
-        "{}: resuming from its checkpoint at iteration {}",
-        task.run, ckpt.state.iteration
+        "{}: resuming from its checkpoint at iteration {iteration}",
+        task.run
     );
     // A resumed run keeps its scene and configuration; only the session's
-    // options apply, and a time budget is what the run has not spent (a
-    // spent one, a millisecond: `train` then saves and evaluates at once).
-    Ok(train::cli::Cli {
-        resume: Some(run.to_path_buf()),
-        time_budget: cli
-            .time_budget
-            .map(|b| (b - ckpt.state.wall_seconds).max(1e-3)),
-        ..train_cli(&[], run).map(|fresh| train::cli::Cli {
-            compute: cli.compute,
-            stop_at: cli.stop_at,
-            quiet: cli.quiet,
-            no_final_render: cli.no_final_render,
-            out: None,
-            ..fresh
-        })?
-    })
+    // options apply. A time budget is what the run has not spent (a spent
+    // one, a millisecond: `train` then saves and evaluates at once), read
+    // from the checkpoint `train` resumes from.
+    let time_budget = match cli.time_budget {
+        None => None,
+        Some(budget) => {
+            let (ckpt, _, _) =
+                train::checkpoint::newest_intact(&dir.checkpoints()).map_err(|e| e.to_string())?;
+            Some((budget - ckpt.state.wall_seconds).max(1e-3))
+        }
+    };
+    let mut resumed = train_cli(&[], run)?;
+    resumed.out = None;
+    resumed.resume = Some(run.to_path_buf());
+    resumed.compute = cli.compute;
+    resumed.stop_at = cli.stop_at;
+    resumed.quiet = cli.quiet;
+    resumed.no_final_render = cli.no_final_render;
+    resumed.time_budget = time_budget;
+    Ok(resumed)
 }

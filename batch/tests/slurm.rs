@@ -5,7 +5,7 @@
 //! with the summary of an uninterrupted run; `eval gather` gives the table.
 //!
 //! Ignored in a plain `cargo test` (it needs the packages and takes a few
-//! minutes, two of them Slurm's hold on a requeued job); `.ci/run` installs
+//! minutes, about three of them Slurm's hold on a requeued job); `.ci/run` installs
 //! the packages and runs it.
 
 mod common;
