@@ -8,4 +8,5 @@
 //! experiments behind the README's findings.
 #![warn(missing_docs)]
 
+pub mod phone_export;
 pub mod sweep;

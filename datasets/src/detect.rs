@@ -19,16 +19,25 @@ pub enum Format {
     Colmap,
     /// A ScanNet scene export.
     Scannet,
+    /// A 3D Scanner App "All Data" export.
+    ScannerApp,
+    /// A Record3D export (EXR + JPG, or R3D).
+    Record3d,
+    /// A Polycam raw-data export.
+    Polycam,
 }
 
 impl Format {
     /// Every format, in the order their requirements are listed.
-    pub const ALL: [Format; 5] = [
+    pub const ALL: [Format; 8] = [
         Format::Colmap,
         Format::Blender,
         Format::Scannet,
         Format::Replica,
         Format::Llff,
+        Format::ScannerApp,
+        Format::Record3d,
+        Format::Polycam,
     ];
 
     /// The name used on the command line and in `scene.json`.
@@ -39,7 +48,30 @@ impl Format {
             Self::Llff => "llff",
             Self::Colmap => "colmap",
             Self::Scannet => "scannet",
+            Self::ScannerApp => "scanner-app",
+            Self::Record3d => "record3d",
+            Self::Polycam => "polycam",
         }
+    }
+
+    /// This format's loader with its default options.
+    pub fn default_loader(self) -> crate::LoaderOptions {
+        use crate::LoaderOptions as L;
+        match self {
+            Self::Replica => L::Replica(Default::default()),
+            Self::Blender => L::Blender(Default::default()),
+            Self::Llff => L::Llff(Default::default()),
+            Self::Colmap => L::Colmap(Default::default()),
+            Self::Scannet => L::Scannet(Default::default()),
+            Self::ScannerApp => L::ScannerApp(Default::default()),
+            Self::Record3d => L::Record3d(Default::default()),
+            Self::Polycam => L::Polycam(Default::default()),
+        }
+    }
+
+    /// Whether this is a phone capture (ARKit poses, LiDAR depth).
+    pub fn is_phone(self) -> bool {
+        matches!(self, Self::ScannerApp | Self::Record3d | Self::Polycam)
     }
 
     /// What a directory of this format holds, for messages.
@@ -52,6 +84,14 @@ impl Format {
                 "sparse/0/ or sparse/ with cameras, images and points3D (.bin or .txt), and images/"
             }
             Self::Scannet => "color/, depth/, pose/ and intrinsic/intrinsic_color.txt",
+            Self::ScannerApp => "frame_NNNNN.jpg with frame_NNNNN.json (3D Scanner App, All Data)",
+            Self::Record3d => {
+                "metadata.json with rgb/ (EXR + JPG), or metadata with rgbd/ (an unzipped .r3d), \
+                 or a .r3d file"
+            }
+            Self::Polycam => {
+                "keyframes/ with images/ and cameras/ (or corrected_*), or is keyframes/"
+            }
         }
     }
 
@@ -77,6 +117,29 @@ impl Format {
                 (is_dir("color") && is_dir("pose") && is_file("intrinsic/intrinsic_color.txt"))
                     .then(|| "color/, pose/ and intrinsic/intrinsic_color.txt".to_string())
             }
+            Self::ScannerApp => first_named(dir, "frame_", "json").and_then(|json| {
+                let stem = json.trim_end_matches(".json");
+                ["jpg", "jpeg", "png"]
+                    .into_iter()
+                    .find(|e| is_file(&format!("{stem}.{e}")))
+                    .map(|e| format!("{json} with {stem}.{e}"))
+            }),
+            Self::Record3d => {
+                if is_file("metadata.json") && is_dir("rgb") {
+                    Some("metadata.json and rgb/".into())
+                } else if is_file("metadata") && is_dir("rgbd") {
+                    Some("metadata and rgbd/".into())
+                } else {
+                    None
+                }
+            }
+            Self::Polycam => ["keyframes/", ""].into_iter().find_map(|k| {
+                ["images", "corrected_images"].into_iter().find_map(|i| {
+                    let cams = i.replace("images", "cameras");
+                    (is_dir(&format!("{k}{i}")) && is_dir(&format!("{k}{cams}")))
+                        .then(|| format!("{k}{i}/ and {k}{cams}/"))
+                })
+            }),
         }
     }
 }
@@ -96,10 +159,37 @@ pub struct Detected {
     pub evidence: String,
 }
 
+/// The name of the first file of `dir` (in name order) called
+/// `<prefix><digits>.<ext>`.
+fn first_named(dir: &Path, prefix: &str, ext: &str) -> Option<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| {
+            n.strip_prefix(prefix)
+                .and_then(|r| r.strip_suffix(&format!(".{ext}")))
+                .is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()))
+        })
+        .collect();
+    names.sort();
+    names.into_iter().next()
+}
+
 /// Detects the format of the scene directory `dir`: exactly one format's
 /// files must be there. An unknown or empty directory, or one that holds
 /// the files of several formats, is an error listing what each format needs.
+/// A `.r3d` file (Record3D's archive) is the one scene that is a file.
 pub fn detect(dir: &Path) -> Result<Detected, DatasetError> {
+    if dir.is_file()
+        && dir
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("r3d"))
+    {
+        return Ok(Detected {
+            format: Format::Record3d,
+            evidence: "a .r3d archive".into(),
+        });
+    }
     if !dir.is_dir() {
         return Err(DatasetError::invalid(
             dir,
@@ -144,7 +234,7 @@ pub fn detect(dir: &Path) -> Result<Detected, DatasetError> {
 fn requirements() -> String {
     Format::ALL
         .iter()
-        .map(|f| format!("  {:<8} {}", f.name(), f.needs()))
+        .map(|f| format!("  {:<11} {}", f.name(), f.needs()))
         .collect::<Vec<_>>()
         .join("\n")
 }
@@ -161,7 +251,21 @@ mod tests {
 
     #[test]
     fn each_layout_is_recognised_and_mixtures_are_refused() {
-        let cases: [(&[&str], Format); 6] = [
+        let cases: [(&[&str], Format); 11] = [
+            (&["frame_00003.json", "frame_00003.jpg"], Format::ScannerApp),
+            (
+                &["metadata.json", "rgb/0.jpg", "depth/0.exr"],
+                Format::Record3d,
+            ),
+            (&["metadata", "rgbd/0.jpg"], Format::Record3d),
+            (
+                &["keyframes/images/1.jpg", "keyframes/cameras/1.json"],
+                Format::Polycam,
+            ),
+            (
+                &["corrected_images/1.jpg", "corrected_cameras/1.json"],
+                Format::Polycam,
+            ),
             (&["traj.txt", "results/frame000000.jpg"], Format::Replica),
             (&["transforms.json"], Format::Blender),
             (&["poses_bounds.npy", "images_8/a.png"], Format::Llff),
@@ -191,6 +295,13 @@ mod tests {
         touch(dir.path(), "sparse/0/cameras.bin");
         let e = detect(dir.path()).expect_err("two formats").to_string();
         assert!(e.contains("--dataset colmap|blender"), "{e}");
+        // A pose without its image is not yet a 3D Scanner App export.
+        let lone = tempfile::tempdir().expect("temp dir");
+        touch(lone.path(), "frame_00000.json");
+        assert!(detect(lone.path()).is_err());
+        let r3d = dir.path().join("scan.r3d");
+        std::fs::write(&r3d, b"").expect("write");
+        assert_eq!(detect(&r3d).expect("r3d").format, Format::Record3d);
         let e = detect(&dir.path().join("transforms.json"))
             .expect_err("a file")
             .to_string();

@@ -11,6 +11,12 @@ use crate::scene::{DepthImage, RgbImage};
 /// Decodes any supported image file.
 pub fn open(path: &Path) -> Result<DynamicImage, DatasetError> {
     let bytes = std::fs::read(path).map_err(|e| DatasetError::io(path, e))?;
+    decode(bytes, path)
+}
+
+/// Decodes an image file's bytes (read from `path`, or from an entry of an
+/// archive that `path` names in errors).
+pub fn decode(bytes: Vec<u8>, path: &Path) -> Result<DynamicImage, DatasetError> {
     if let Some(problem) = jpeg_truncation(&bytes) {
         return Err(DatasetError::invalid(path, problem));
     }
@@ -55,7 +61,16 @@ pub fn load_rgb(
     background: Option<[f32; 3]>,
     size: Option<(u32, u32)>,
 ) -> Result<RgbImage, DatasetError> {
-    let img = open(path)?;
+    to_rgb(open(path)?, path, background, size)
+}
+
+/// [`load_rgb`] of an image already decoded (from `path`, named in errors).
+pub fn to_rgb(
+    img: DynamicImage,
+    path: &Path,
+    background: Option<[f32; 3]>,
+    size: Option<(u32, u32)>,
+) -> Result<RgbImage, DatasetError> {
     let (w, h) = (img.width(), img.height());
     let rgba = img.into_rgba32f();
     let mut rgb: ImageBuffer<Rgb<f32>, Vec<f32>> = ImageBuffer::new(w, h);

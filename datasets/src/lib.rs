@@ -16,10 +16,12 @@ pub mod features;
 pub mod grid;
 pub mod imageio;
 pub mod llff;
+pub mod mesh;
 pub mod novel_record;
 pub mod npy;
 mod numeric;
 pub mod options;
+pub mod phone;
 pub mod points;
 pub mod poses;
 pub mod replica;
@@ -32,7 +34,7 @@ pub mod writer;
 
 pub use error::DatasetError;
 pub use features::FeatureMap;
-pub use options::LoaderOptions;
+pub use options::{LoaderOptions, PhoneOptions};
 pub use scene::{
     DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource, VlmSource, WorldFrame,
 };
@@ -88,6 +90,27 @@ pub fn load_scene_with_basis(
                 },
             ),
             LoaderOptions::Scannet(o) => scannet::load_scannet(path, o),
+            LoaderOptions::ScannerApp(o) => phone::load_phone(
+                path,
+                &LoaderOptions::ScannerApp(PhoneOptions {
+                    basis: basis.cloned(),
+                    ..o.clone()
+                }),
+            ),
+            LoaderOptions::Record3d(o) => phone::load_phone(
+                path,
+                &LoaderOptions::Record3d(PhoneOptions {
+                    basis: basis.cloned(),
+                    ..o.clone()
+                }),
+            ),
+            LoaderOptions::Polycam(o) => phone::load_phone(
+                path,
+                &LoaderOptions::Polycam(PhoneOptions {
+                    basis: basis.cloned(),
+                    ..o.clone()
+                }),
+            ),
         },
     }
 }

@@ -25,11 +25,17 @@ pub enum LoaderOptions {
     Colmap(#[serde(deserialize_with = "null_as_default")] ColmapOptions),
     /// A ScanNet scene export ([`crate::scannet`]).
     Scannet(#[serde(deserialize_with = "null_as_default")] ScannetOptions),
+    /// A 3D Scanner App "All Data" export ([`crate::phone::scanner`]).
+    ScannerApp(#[serde(deserialize_with = "null_as_default")] PhoneOptions),
+    /// A Record3D export, EXR + JPG or R3D ([`crate::phone::record3d`]).
+    Record3d(#[serde(deserialize_with = "null_as_default")] PhoneOptions),
+    /// A Polycam raw-data export ([`crate::phone::polycam`]).
+    Polycam(#[serde(deserialize_with = "null_as_default")] PhoneOptions),
 }
 
 impl LoaderOptions {
-    /// The format's name (`replica`, `blender`, `llff`, `colmap` or
-    /// `scannet`), as serialised.
+    /// The format's name (`replica`, `blender`, `llff`, `colmap`,
+    /// `scannet`, `scanner_app`, `record3d` or `polycam`), as serialised.
     pub fn format(&self) -> &'static str {
         match self {
             Self::Replica(_) => "replica",
@@ -37,6 +43,9 @@ impl LoaderOptions {
             Self::Llff(_) => "llff",
             Self::Colmap(_) => "colmap",
             Self::Scannet(_) => "scannet",
+            Self::ScannerApp(_) => "scanner_app",
+            Self::Record3d(_) => "record3d",
+            Self::Polycam(_) => "polycam",
         }
     }
 }
@@ -220,6 +229,91 @@ impl Default for ScannetOptions {
             resolution: None,
             box_margin: 0.05,
             box_pixel_step: 8,
+        }
+    }
+}
+
+/// How sure ARKit is of a LiDAR depth pixel (its confidence map's levels).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DepthConfidence {
+    /// Level 0.
+    Low,
+    /// Level 1.
+    Medium,
+    /// Level 2, the default threshold: only what ARKit is sure of.
+    #[default]
+    High,
+}
+
+impl DepthConfidence {
+    /// The level in ARKit's confidence maps (0, 1 or 2).
+    pub fn level(self) -> u8 {
+        self as u8
+    }
+
+    /// The name on the command line (`low`, `medium`, `high`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Low => "low",
+            Self::Medium => "medium",
+            Self::High => "high",
+        }
+    }
+}
+
+/// Options of the phone-capture loaders ([`crate::phone`]): 3D Scanner
+/// App, Record3D and Polycam.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct PhoneOptions {
+    /// Keep every `stride`-th frame (in capture order).
+    pub stride: usize,
+    /// Keep at most this many frames (after the stride).
+    pub max_frames: Option<usize>,
+    /// Resample the colour images to `(width, height)` [default: their own
+    /// size].
+    pub resolution: Option<(u32, u32)>,
+    /// Depth pixels less sure than this are no depth target.
+    pub min_depth_confidence: DepthConfidence,
+    /// Depth beyond this many metres (the LiDAR's range) is no target.
+    pub max_depth: f64,
+    /// Scene-box margin, as a fraction of the largest extent.
+    pub box_margin: f64,
+    /// Depth pixels used for the box and the point cloud of a capture
+    /// without a mesh: every `box_pixel_step`-th in each axis.
+    pub box_pixel_step: u32,
+    /// Feature maps: a stacked `.npy` or a directory of `<frame name>.npy`
+    /// (indexed over the frames kept).
+    pub features: Option<PathBuf>,
+    /// Compression of the feature maps.
+    #[serde(deserialize_with = "null_as_default")]
+    pub pca: PcaSetting,
+    /// A basis to compress with instead of fitting one (a run's stored
+    /// basis when its scene is rebuilt); not part of the saved options.
+    #[serde(skip)]
+    pub basis: Option<PcaBasis>,
+    /// Seed of the PCA pixel sample.
+    pub seed: u64,
+}
+
+/// The LiDAR's range on current iPhones and iPads, metres.
+pub const PHONE_MAX_DEPTH: f64 = 5.0;
+
+impl Default for PhoneOptions {
+    fn default() -> Self {
+        Self {
+            stride: 1,
+            max_frames: None,
+            resolution: None,
+            min_depth_confidence: DepthConfidence::High,
+            max_depth: PHONE_MAX_DEPTH,
+            box_margin: 0.05,
+            box_pixel_step: 8,
+            features: None,
+            pca: PcaSetting::Off,
+            basis: None,
+            seed: 0,
         }
     }
 }

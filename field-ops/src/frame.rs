@@ -11,8 +11,9 @@ use crate::OpsError;
 #[derive(Debug, Clone, clap::Args)]
 pub struct FrameArgs {
     /// Frame of the written point clouds and camera poses: `scene` (the
-    /// frame the field was trained in) or the capture's own world frame by
-    /// its name (e.g. `colmap` for a COLMAP or nerfstudio capture; the
+    /// frame the field was trained in), `capture` (the capture's own world
+    /// frame, whichever it is) or that frame by its name (`colmap` for a
+    /// COLMAP or nerfstudio capture, `arkit` for a phone capture; the
     /// transform between them is in the run's `scene.json` under `world`).
     #[arg(long, default_value = "scene")]
     pub frame: String,
@@ -43,12 +44,13 @@ impl FrameArgs {
             return Ok(OutputFrame::SCENE);
         }
         match &meta.world {
-            Some(w) if w.name == self.frame => Ok(OutputFrame {
+            Some(w) if w.name == self.frame || self.frame == "capture" => Ok(OutputFrame {
                 from_scene: w.to_scene.inverse(),
                 to_scene: w.to_scene,
             }),
             Some(w) => Err(OpsError::Invalid(format!(
-                "--frame {}: this run's capture frame is `{}` (use --frame {} or --frame scene)",
+                "--frame {}: this run's capture frame is `{}` (use --frame {}, --frame capture \
+                 or --frame scene)",
                 self.frame, w.name, w.name
             ))),
             None => Err(OpsError::Invalid(format!(
@@ -141,10 +143,15 @@ mod tests {
         let there = out.scene_points(&[p])[0];
         assert_eq!(there, to_scene.apply_point(p));
         assert!(!out.is_scene());
+        assert_eq!(args("capture").resolve(&m).expect("capture frame"), out);
         assert!(args("scene").resolve(&m).expect("scene").is_scene());
         let e = args("nerfstudio").resolve(&m).expect_err("other name");
         assert!(e.to_string().contains("`colmap`"), "{e}");
         let e = args("colmap")
+            .resolve(&meta(None))
+            .expect_err("no capture frame");
+        assert!(e.to_string().contains("--frame scene"), "{e}");
+        let e = args("capture")
             .resolve(&meta(None))
             .expect_err("no capture frame");
         assert!(e.to_string().contains("--frame scene"), "{e}");

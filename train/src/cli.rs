@@ -23,6 +23,15 @@ pub enum DatasetKind {
     Colmap,
     /// A ScanNet scene export (`color/`, `depth/`, `pose/`, `intrinsic/`).
     Scannet,
+    /// A 3D Scanner App "All Data" export (`frame_NNNNN.jpg` + `.json`,
+    /// `depth_NNNNN.png`, `conf_NNNNN.png`, `textured_output.obj`).
+    ScannerApp,
+    /// A Record3D export: EXR + JPG (`metadata.json`, `rgb/`, `depth/`) or
+    /// R3D (the `.r3d` file, or its unzipped `metadata` and `rgbd/`).
+    Record3d,
+    /// A Polycam raw-data export (`keyframes/` with `images/`, `cameras/`,
+    /// `depth/`, `confidence/`; `corrected_*` where present).
+    Polycam,
     /// Detect the format from the files in `--data` (and print which).
     Auto,
 }
@@ -49,7 +58,31 @@ impl DatasetKind {
             Self::Llff => "llff",
             Self::Colmap => "colmap",
             Self::Scannet => "scannet",
+            Self::ScannerApp => "scanner-app",
+            Self::Record3d => "record3d",
+            Self::Polycam => "polycam",
             Self::Auto => "auto",
+        }
+    }
+}
+
+/// ARKit's depth confidence levels (`--min-depth-confidence`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ConfidenceArg {
+    /// Every measured pixel.
+    Low,
+    /// Medium and high.
+    Medium,
+    /// Only what ARKit is sure of.
+    High,
+}
+
+impl From<ConfidenceArg> for datasets::options::DepthConfidence {
+    fn from(c: ConfidenceArg) -> Self {
+        match c {
+            ConfidenceArg::Low => Self::Low,
+            ConfidenceArg::Medium => Self::Medium,
+            ConfidenceArg::High => Self::High,
         }
     }
 }
@@ -119,7 +152,7 @@ pub struct Cli {
     /// Scene source [default: auto when --data is given, else synthetic].
     #[arg(long, value_enum)]
     pub dataset: Option<DatasetKind>,
-    /// Scene directory (any format but synthetic).
+    /// Scene directory (any format but synthetic), or a Record3D `.r3d` file.
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Synthetic scene: generator seed.
@@ -128,9 +161,10 @@ pub struct Cli {
     /// Synthetic scene: size preset.
     #[arg(long, value_enum, default_value_t = SceneSizeArg::Ci)]
     pub scene_size: SceneSizeArg,
-    /// Feature maps (`.npy` directory or stacked file) for a Replica or COLMAP
-    /// scene: one `H x W x D` map per frame kept, named after the frame
-    /// (Replica `frameNNNNNN.npy`, COLMAP the image stem) [default: none].
+    /// Feature maps (`.npy` directory or stacked file) for a Replica, COLMAP
+    /// or phone scene: one `H x W x D` map per frame kept, named after the
+    /// frame (Replica `frameNNNNNN.npy`, COLMAP the image stem, phone
+    /// captures `frame_NNNNN.npy`) [default: none].
     #[arg(long)]
     pub features: Option<PathBuf>,
     /// Make the feature maps in process with this CLIP model directory
@@ -182,6 +216,14 @@ pub struct Cli {
     /// COLMAP this picks the downscaled copies `images_N/`.
     #[arg(long)]
     pub downscale: Option<u32>,
+    /// Phone captures: LiDAR depth pixels less sure than this are no depth
+    /// target (ARKit's confidence levels) [default: high].
+    #[arg(long, value_enum)]
+    pub min_depth_confidence: Option<ConfidenceArg>,
+    /// Phone captures: depth beyond this many metres is no target (the
+    /// LiDAR's range) [default: 5].
+    #[arg(long, value_name = "METRES")]
+    pub max_depth: Option<f64>,
     /// COLMAP: use the dense depth maps (`stereo/depth_maps/*.geometric.bin`)
     /// as depth targets; zero and NaN depths are no target.
     #[arg(long)]

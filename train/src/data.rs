@@ -10,7 +10,7 @@ use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
 use datasets::replica::ReplicaOptions;
 use datasets::scannet::ScannetOptions;
-use datasets::{LoaderOptions, Scene, SceneMeta, SceneSource};
+use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
 use crate::error::TrainError;
@@ -59,6 +59,9 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
         DatasetKind::Llff => Format::Llff,
         DatasetKind::Colmap => Format::Colmap,
         DatasetKind::Scannet => Format::Scannet,
+        DatasetKind::ScannerApp => Format::ScannerApp,
+        DatasetKind::Record3d => Format::Record3d,
+        DatasetKind::Polycam => Format::Polycam,
         DatasetKind::Synthetic => unreachable!("handled above"),
     };
     let loader = loader_options(cli, format)?;
@@ -77,8 +80,19 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
     if format != Format::Colmap && cli.colmap_depth {
         return unsupported("colmap-depth");
     }
-    // Replica and COLMAP read feature maps from disk.
-    if !matches!(format, Format::Replica | Format::Colmap)
+    if !format.is_phone()
+        && let Some(flag) = first_given(&[
+            (
+                "min-depth-confidence (phone captures only)",
+                cli.min_depth_confidence.is_some(),
+            ),
+            ("max-depth (phone captures only)", cli.max_depth.is_some()),
+        ])
+    {
+        return unsupported(flag);
+    }
+    // Replica, COLMAP and phone captures read feature maps from disk.
+    if !(matches!(format, Format::Replica | Format::Colmap) || format.is_phone())
         && let Some(flag) = first_given(&[
             ("features", cli.features.is_some()),
             ("pca (the scene has no feature maps)", cli.pca.is_some()),
@@ -172,6 +186,42 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
                 ..defaults
             })
         }
+        Format::ScannerApp | Format::Record3d | Format::Polycam => phone_options(cli, format)?,
+    })
+}
+
+/// The loader options of a phone `format` from the command line.
+fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError> {
+    if cli.downscale.is_some() {
+        return Err(TrainError::Config(format!(
+            "--downscale (use --resolution WxH) is not supported for --dataset {}",
+            format.name()
+        )));
+    }
+    if cli.features.is_none() && cli.pca.is_some() {
+        return Err(TrainError::Config(
+            "--pca needs --features (there are no feature maps to compress)".into(),
+        ));
+    }
+    let defaults = PhoneOptions::default();
+    let o = PhoneOptions {
+        stride: cli.stride.unwrap_or(defaults.stride),
+        resolution: cli.resolution.map(|r| (r.width, r.height)),
+        min_depth_confidence: cli
+            .min_depth_confidence
+            .map_or(defaults.min_depth_confidence, Into::into),
+        max_depth: cli.max_depth.unwrap_or(defaults.max_depth),
+        features: cli.features.clone(),
+        pca: match &cli.features {
+            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
+            None => defaults.pca,
+        },
+        ..defaults
+    };
+    Ok(match format {
+        Format::ScannerApp => LoaderOptions::ScannerApp(o),
+        Format::Record3d => LoaderOptions::Record3d(o),
+        _ => LoaderOptions::Polycam(o),
     })
 }
 

@@ -95,6 +95,14 @@ fn capture(scene: &Scene) -> (String, bool) {
                 false,
             ),
             "blender" => ("a Blender object with its known box".into(), false),
+            "scanner_app" | "record3d" | "polycam" => (
+                format!(
+                    "a phone capture ({}): on the real captures measured the box generalises \
+                     better",
+                    loader.format()
+                ),
+                false,
+            ),
             other => (format!("a {other} room, the cameras inside it"), false),
         },
         SceneSource::WithFeatures { .. } => ("a scene with its box".into(), false),

@@ -51,10 +51,7 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
             "{eval} query --run {run} --text \"something to sit on\""
         ));
         let points = match meta.as_ref().map(|m| m.source.base()) {
-            Some(SceneSource::Disk {
-                loader: LoaderOptions::Colmap(_),
-                ..
-            }) => "",
+            Some(SceneSource::Disk { loader, .. }) if has_own_points(loader) => "",
             _ => " --points CLOUD.ply",
         };
         out.push(format!(
@@ -64,12 +61,10 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
         out.push(format!(
             "{eval} query --run {run} --query NAME --embeddings EMBEDDINGS.npy --names NAMES.txt"
         ));
-        // COLMAP's sparse points are the scene's cloud; others need one.
+        // COLMAP's sparse points and a phone scan's mesh are the scene's
+        // cloud; others need one.
         let points = match meta.as_ref().map(|m| &m.source) {
-            Some(SceneSource::Disk {
-                loader: LoaderOptions::Colmap(_),
-                ..
-            }) => "",
+            Some(SceneSource::Disk { loader, .. }) if has_own_points(loader) => "",
             _ => " --points CLOUD.ply",
         };
         out.push(format!(
@@ -81,6 +76,17 @@ pub fn next_commands(dir: &Path) -> Vec<String> {
         out.push(format!("{eval} view --run {run}"));
     }
     out
+}
+
+/// Whether scenes of `loader`'s format carry their own point cloud.
+fn has_own_points(loader: &LoaderOptions) -> bool {
+    matches!(
+        loader,
+        LoaderOptions::Colmap(_)
+            | LoaderOptions::ScannerApp(_)
+            | LoaderOptions::Record3d(_)
+            | LoaderOptions::Polycam(_)
+    )
 }
 
 /// The run's result files that exist in `dir`, in the order a reader wants

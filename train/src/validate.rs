@@ -88,6 +88,13 @@ fn value_flags(cli: &Cli) -> Result<(), TrainError> {
             "--time-budget {b}: must be a positive number of seconds"
         )));
     }
+    if let Some(m) = cli.max_depth
+        && !(m.is_finite() && m > 0.0)
+    {
+        return Err(flag_error(format!(
+            "--max-depth {m}: must be a positive number of metres"
+        )));
+    }
     if let Some(lr) = cli.lr
         && !(lr.is_finite() && lr > 0.0)
     {
@@ -219,6 +226,8 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
             ("resolution", cli.resolution.is_some()),
             ("downscale", cli.downscale.is_some()),
             ("colmap-depth", cli.colmap_depth),
+            ("min-depth-confidence", cli.min_depth_confidence.is_some()),
+            ("max-depth", cli.max_depth.is_some()),
         ] {
             if given {
                 return Err(flag_error(format!(
@@ -238,6 +247,8 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
     let ignored = [
         ("dataset", cli.dataset.is_some()),
         ("colmap-depth", cli.colmap_depth),
+        ("min-depth-confidence", cli.min_depth_confidence.is_some()),
+        ("max-depth", cli.max_depth.is_some()),
         ("features", cli.features.is_some()),
         ("vlm", cli.vlm.is_some()),
         ("stride", cli.stride.is_some()),

@@ -11,7 +11,7 @@ use clip::vision::{DenseOptions, Vlm};
 use datasets::detect::Format;
 use datasets::imageio::save_rgb8;
 use datasets::npy::NpyInfo;
-use datasets::{LoaderOptions, Scene, SceneSource};
+use datasets::{Scene, SceneSource};
 use field_ops::OpsError;
 use field_ops::backend::BackendArgs;
 use field_ops::colormap::{to_u8, turbo};
@@ -33,6 +33,12 @@ pub enum ExtractFormat {
     Colmap,
     /// ScanNet.
     Scannet,
+    /// A 3D Scanner App "All Data" export.
+    ScannerApp,
+    /// A Record3D export (EXR + JPG, or R3D).
+    Record3d,
+    /// A Polycam raw-data export.
+    Polycam,
     /// The built-in synthetic scene (`--data` not used).
     Synthetic,
 }
@@ -72,16 +78,6 @@ pub struct ExtractArgs {
     pub compute: BackendArgs,
 }
 
-fn loader(format: Format) -> LoaderOptions {
-    match format {
-        Format::Replica => LoaderOptions::Replica(Default::default()),
-        Format::Blender => LoaderOptions::Blender(Default::default()),
-        Format::Llff => LoaderOptions::Llff(Default::default()),
-        Format::Colmap => LoaderOptions::Colmap(Default::default()),
-        Format::Scannet => LoaderOptions::Scannet(Default::default()),
-    }
-}
-
 fn scene_of(args: &ExtractArgs) -> Result<Scene, OpsError> {
     let invalid = |m: String| OpsError::Invalid(m);
     let source = match (args.dataset, &args.data) {
@@ -98,11 +94,8 @@ fn scene_of(args: &ExtractArgs) -> Result<Scene, OpsError> {
         },
         (_, None) => return Err(invalid("--data DIR is needed (the scene directory)".into())),
         (f, Some(path)) => {
-            if !path.is_dir() {
-                return Err(invalid(format!(
-                    "--data {}: not a directory",
-                    path.display()
-                )));
+            if !path.exists() {
+                return Err(invalid(format!("--data {}: not found", path.display())));
             }
             let format = match f {
                 ExtractFormat::Replica => Format::Replica,
@@ -110,10 +103,13 @@ fn scene_of(args: &ExtractArgs) -> Result<Scene, OpsError> {
                 ExtractFormat::Llff => Format::Llff,
                 ExtractFormat::Colmap => Format::Colmap,
                 ExtractFormat::Scannet => Format::Scannet,
+                ExtractFormat::ScannerApp => Format::ScannerApp,
+                ExtractFormat::Record3d => Format::Record3d,
+                ExtractFormat::Polycam => Format::Polycam,
                 _ => datasets::detect::detect(path)?.format,
             };
             SceneSource::Disk {
-                loader: loader(format),
+                loader: format.default_loader(),
                 path: path.clone(),
             }
         }

@@ -94,9 +94,7 @@ fn run(args: &Args) -> Result<()> {
     let (texts, colours) = classes(&args.classes, &texts)?;
     let extractor = SimulatedExtractor::new(texts.clone(), colours, args.seed)?;
     let format = datasets::detect::detect(&args.data)?.format;
-    let loader: LoaderOptions =
-        serde_json::from_value(serde_json::json!({ "format": format.name(), "options": null }))
-            .context("default loader options")?;
+    let loader: LoaderOptions = format.default_loader();
     let scene = datasets::load_scene(&SceneSource::Disk {
         loader,
         path: args.data.clone(),

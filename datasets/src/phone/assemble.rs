@@ -1,0 +1,383 @@
+//! [`assemble`]: any phone capture into a scene (the module docs of
+//! [`crate::phone`] say how).
+
+use std::path::Path;
+
+use model::geometry::{Camera, Intrinsics, SceneBox, Similarity, Vec3};
+
+use super::{ARKIT_FRAME, ARKIT_TO_Z_UP, Assembled, Capture, CaptureFrame, DepthSource};
+use crate::error::DatasetError;
+use crate::features::load_frame_features;
+use crate::mesh::{Raycaster, TriangleMesh, read_obj};
+use crate::options::{LoaderOptions, PhoneOptions};
+use crate::points::PointCloud;
+use crate::poses::{box_of, checked_pose};
+use crate::scannet::reproject_depth;
+use crate::scene::{DepthImage, Frame, Scene, SceneSource, WorldFrame};
+
+/// Largest relative difference between the aspect ratios of a depth map and
+/// its colour image (they are one camera at two resolutions).
+const ASPECT_TOLERANCE: f64 = 0.01;
+
+/// The pose of `frame` in the z-up (not yet centred) frame, OpenCV axes.
+fn z_up_pose(frame: &CaptureFrame) -> Result<model::geometry::Pose, DatasetError> {
+    let arkit = checked_pose(&frame.pose_file, "camera pose", frame.pose, true)?;
+    Ok(up().apply_pose(&arkit))
+}
+
+fn up() -> Similarity {
+    Similarity {
+        rotation: ARKIT_TO_Z_UP,
+        scale: 1.0,
+        translation: [0.0; 3],
+    }
+}
+
+/// Checks that the depth map (`depth` of `size`) has the colour image's
+/// aspect ratio.
+fn check_aspect(path: &Path, size: (u32, u32), colour: &Intrinsics) -> Result<(), DatasetError> {
+    let aspect = |w: u32, h: u32| w as f64 / h as f64;
+    let (d, c) = (aspect(size.0, size.1), aspect(colour.width, colour.height));
+    if size.0 == 0 || size.1 == 0 || ((d - c) / c).abs() > ASPECT_TOLERANCE {
+        return Err(DatasetError::invalid(
+            path,
+            format!(
+                "depth map is {}x{}, not the {}x{} colour image's aspect ratio: it cannot be \
+                 the colour camera's view",
+                size.0, size.1, colour.width, colour.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Pixels a frame's depth lost to each mask.
+#[derive(Debug, Default, Clone, Copy)]
+struct Dropped {
+    confidence: usize,
+    range: usize,
+    all: usize,
+}
+
+/// The frame's sensor depth at the colour camera `target`: masked by
+/// confidence and range, then reprojected.
+fn sensor_depth(
+    frame: &CaptureFrame,
+    depth: &DepthSource,
+    colour: &Intrinsics,
+    target: &Intrinsics,
+    options: &PhoneOptions,
+    dropped: &mut Dropped,
+) -> Result<DepthImage, DatasetError> {
+    let mut raw = depth.load()?;
+    let size = (raw.width, raw.height);
+    check_aspect(depth.path(), size, colour)?;
+    let levels = frame
+        .confidence
+        .as_ref()
+        .map(|c| c.load(size))
+        .transpose()?;
+    let min = options.min_depth_confidence.level();
+    for (i, d) in raw.data.iter_mut().enumerate() {
+        dropped.all += 1;
+        if *d <= 0.0 {
+            continue;
+        }
+        if levels.as_ref().is_some_and(|l| l[i] < min) {
+            dropped.confidence += 1;
+            *d = 0.0;
+        } else if *d as f64 > options.max_depth {
+            dropped.range += 1;
+            *d = 0.0;
+        }
+    }
+    Ok(reproject_depth(
+        &raw,
+        &colour.scaled(size.0, size.1),
+        target,
+    ))
+}
+
+/// The intrinsics of `frame` at its image's actual size `size`, refusing an
+/// image of another aspect ratio than the intrinsics describe.
+fn colour_intrinsics(frame: &CaptureFrame, size: (u32, u32)) -> Result<Intrinsics, DatasetError> {
+    let k = frame.intrinsics;
+    if (k.width, k.height) == size {
+        return Ok(k);
+    }
+    let (a, b) = (
+        k.width as f64 / k.height as f64,
+        size.0 as f64 / size.1 as f64,
+    );
+    if ((a - b) / b).abs() > ASPECT_TOLERANCE {
+        return Err(DatasetError::invalid(
+            frame.image.path(),
+            format!(
+                "image is {}x{} but its intrinsics ({}) describe a {}x{} image",
+                size.0,
+                size.1,
+                frame.pose_file.display(),
+                k.width,
+                k.height
+            ),
+        ));
+    }
+    Ok(k.scaled(size.0, size.1))
+}
+
+/// Turns a phone capture into a scene (module docs).
+pub fn assemble(
+    dir: &Path,
+    options: &PhoneOptions,
+    capture: Capture,
+    loader: &LoaderOptions,
+) -> Result<Assembled, DatasetError> {
+    if options.stride == 0 {
+        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
+    }
+    if !(options.max_depth.is_finite() && options.max_depth > 0.0) {
+        return Err(DatasetError::invalid(dir, "max depth must be positive"));
+    }
+    let mut notes = capture.notes;
+    let kept: Vec<CaptureFrame> = capture
+        .frames
+        .into_iter()
+        .step_by(options.stride)
+        .take(options.max_frames.unwrap_or(usize::MAX))
+        .collect();
+    let Some(first) = kept.first() else {
+        return Err(DatasetError::invalid(dir, "the export holds no frame"));
+    };
+    let first_size = first.image.dimensions()?;
+    let (tw, th) = options.resolution.unwrap_or(first_size);
+    if tw == 0 || th == 0 {
+        return Err(DatasetError::invalid(dir, "resolution is zero"));
+    }
+    let up = up();
+    let mesh = match &capture.mesh {
+        Some(path) => {
+            let file = read_obj(path)?;
+            notes.extend(file.notes);
+            Some(transformed(file.mesh, &up))
+        }
+        None => None,
+    };
+    let any_depth = kept.iter().any(|f| f.depth.is_some());
+    let raycaster = match (&mesh, any_depth) {
+        (Some(m), false) => {
+            notes.push("no depth maps: depth targets are ray-cast from the mesh".into());
+            Some(Raycaster::new(m))
+        }
+        _ => None,
+    };
+    if mesh.is_none() && !any_depth {
+        notes.push("no depth maps and no mesh: the field is trained on colour alone".into());
+    }
+    let frames = load_frames(
+        &kept,
+        first_size,
+        (tw, th),
+        raycaster.as_ref(),
+        options,
+        &mut notes,
+    )?;
+    let (points, fitted) = match mesh {
+        Some(m) => {
+            let n = m.positions.len();
+            (m.point_cloud(), format!("the mesh's {n} vertices"))
+        }
+        None => (
+            depth_cloud(&frames, options.box_pixel_step),
+            "the depth maps".to_string(),
+        ),
+    };
+    let (frames, points, scene_box, shift) = centred(dir, frames, points, options.box_margin)?;
+    let features = options
+        .features
+        .as_ref()
+        .map(|path| {
+            load_frame_features(
+                path,
+                &frames,
+                options.pca,
+                options.basis.as_ref(),
+                options.seed,
+            )
+        })
+        .transpose()?;
+    let world = WorldFrame {
+        name: ARKIT_FRAME.into(),
+        to_scene: shift.compose(&up),
+        fitted_to: format!(
+            "z up from ARKit's gravity-aligned y, metric; centred on the box of the {} \
+             cameras and {fitted}",
+            frames.len()
+        ),
+    };
+    let scene = Scene {
+        name: dir
+            .file_name()
+            .map_or(loader.format().into(), |n| n.to_string_lossy().into_owned()),
+        frames,
+        features,
+        scene_box,
+        background: None,
+        points: (!points.positions.is_empty()).then_some(points),
+        classes: None,
+        source: SceneSource::Disk {
+            loader: without_basis(loader),
+            path: dir.to_path_buf(),
+        },
+        world: Some(world),
+    };
+    Ok(Assembled { scene, notes })
+}
+
+/// The kept frames, loaded at `size` (`first_size` the images' own size):
+/// poses in the z-up frame, depth from the sensor or the mesh.
+fn load_frames(
+    kept: &[CaptureFrame],
+    first_size: (u32, u32),
+    (tw, th): (u32, u32),
+    raycaster: Option<&Raycaster>,
+    options: &PhoneOptions,
+    notes: &mut Vec<String>,
+) -> Result<Vec<Frame>, DatasetError> {
+    let any_depth = kept.iter().any(|f| f.depth.is_some());
+    let mut dropped = Dropped::default();
+    let mut frames = Vec::with_capacity(kept.len());
+    for cf in kept {
+        let size = cf.image.dimensions()?;
+        if size != first_size {
+            return Err(DatasetError::invalid(
+                cf.image.path(),
+                format!(
+                    "image is {}x{}, the first image {}x{}",
+                    size.0, size.1, first_size.0, first_size.1
+                ),
+            ));
+        }
+        let colour = colour_intrinsics(cf, size)?;
+        let target = colour.scaled(tw, th);
+        let camera = Camera {
+            intrinsics: target,
+            pose: z_up_pose(cf)?,
+        };
+        let depth = match (&cf.depth, raycaster) {
+            (Some(d), _) => Some(sensor_depth(
+                cf,
+                d,
+                &colour,
+                &target,
+                options,
+                &mut dropped,
+            )?),
+            (None, Some(r)) => Some(r.depth_image(&camera)),
+            (None, None) => None,
+        };
+        frames.push(Frame {
+            name: cf.name.clone(),
+            camera,
+            rgb: cf.image.load_rgb((tw, th))?,
+            depth,
+            depth_weight: 1.0,
+            color_weight: 1.0,
+            labels: None,
+            mask: None,
+        });
+    }
+    if any_depth && dropped.all > 0 {
+        let pct = |n: usize| 100.0 * n as f64 / dropped.all as f64;
+        notes.push(format!(
+            "{:.1}% of depth pixels below {} confidence and {:.1}% beyond {} m are no target",
+            pct(dropped.confidence),
+            options.min_depth_confidence.name(),
+            pct(dropped.range),
+            options.max_depth
+        ));
+    }
+    Ok(frames)
+}
+
+/// Frames, points and box moved so that the box of the camera centres and
+/// the points is centred on the origin, with the shift that did it.
+fn centred(
+    dir: &Path,
+    mut frames: Vec<Frame>,
+    points: PointCloud,
+    margin: f64,
+) -> Result<(Vec<Frame>, PointCloud, SceneBox, Similarity), DatasetError> {
+    let centres: Vec<Vec3> = frames.iter().map(|f| f.camera.pose.center()).collect();
+    let mut extent = centres.clone();
+    extent.extend(points.positions.iter().copied());
+    let centre = box_of(dir, extent.clone(), 0.0)?.center();
+    let shift = Similarity {
+        rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        scale: 1.0,
+        translation: centre.map(|c| -c),
+    };
+    for f in &mut frames {
+        f.camera.pose = shift.apply_pose(&f.camera.pose);
+    }
+    let points = PointCloud {
+        positions: points
+            .positions
+            .iter()
+            .map(|&p| shift.apply_point(p))
+            .collect(),
+        ..points
+    };
+    let scene_box = box_of(
+        dir,
+        extent.iter().map(|&p| shift.apply_point(p)).collect(),
+        margin,
+    )?;
+    Ok((frames, points, scene_box, shift))
+}
+
+/// `loader` without a compression basis (not part of the saved options).
+fn without_basis(loader: &LoaderOptions) -> LoaderOptions {
+    let strip = |o: &PhoneOptions| PhoneOptions {
+        basis: None,
+        ..o.clone()
+    };
+    match loader {
+        LoaderOptions::ScannerApp(o) => LoaderOptions::ScannerApp(strip(o)),
+        LoaderOptions::Record3d(o) => LoaderOptions::Record3d(strip(o)),
+        LoaderOptions::Polycam(o) => LoaderOptions::Polycam(strip(o)),
+        other => other.clone(),
+    }
+}
+
+/// `mesh` with its vertices mapped by `s`.
+fn transformed(mesh: TriangleMesh, s: &Similarity) -> TriangleMesh {
+    TriangleMesh {
+        positions: mesh.positions.iter().map(|&p| s.apply_point(p)).collect(),
+        ..mesh
+    }
+}
+
+/// Every `step`-th depth pixel of every frame, with its image's colour.
+fn depth_cloud(frames: &[Frame], step: u32) -> PointCloud {
+    let mut positions = Vec::new();
+    let mut colors = Vec::new();
+    let step = step.max(1);
+    for f in frames {
+        let Some(depth) = &f.depth else { continue };
+        for y in (0..depth.height).step_by(step as usize) {
+            for x in (0..depth.width).step_by(step as usize) {
+                let d = depth.get(x, y) as f64;
+                if d > 0.0 {
+                    let r = f.camera.ray(x as f64, y as f64);
+                    positions.push(std::array::from_fn(|i| r.origin[i] + d * r.direction[i]));
+                    colors.push(f.rgb.get(x, y).map(|c| (c * 255.0).round() as u8));
+                }
+            }
+        }
+    }
+    PointCloud {
+        positions,
+        colors: Some(colors),
+        labels: None,
+    }
+}
