@@ -260,7 +260,7 @@ fn broken_phone_exports_are_refused_naming_the_file() {
         tmp.path(),
         &d,
         &["--dataset", "scanner-app"],
-        &["empty", "no frame_NNNNN.jpg"],
+        &["empty", "the export directory is empty"],
     );
     // Flags at their bad values, and where they do not apply.
     let d = fresh("flags");
