@@ -28,7 +28,10 @@ fn replica(dir: &Path) -> Scene {
     .expect("replica loads")
 }
 
-fn phone(dir: &Path, loader: fn(PhoneOptions) -> LoaderOptions, o: PhoneOptions) -> Scene {
+/// A phone format's loader options from its options.
+type Loader = fn(PhoneOptions) -> LoaderOptions;
+
+fn phone(dir: &Path, loader: Loader, o: PhoneOptions) -> Scene {
     let source = SceneSource::Disk {
         loader: loader(PhoneOptions {
             resolution: Some(SIZE),
@@ -147,7 +150,7 @@ fn each_phone_export_of_the_replica_frames_loads_back_as_replica() {
     phone_export::record3d::write_exr(&frames, &r3d_dir).expect("write");
     let r3d = tmp.path().join("capture.r3d");
     phone_export::record3d::write_r3d(&frames, &r3d).expect("write");
-    let cases: [(&Path, fn(PhoneOptions) -> LoaderOptions, f32); 4] = [
+    let cases: [(&Path, Loader, f32); 4] = [
         (&scan, LoaderOptions::ScannerApp, mm),
         (&poly, LoaderOptions::Polycam, mm),
         (&r3d_dir, LoaderOptions::Record3d, 1e-6),
