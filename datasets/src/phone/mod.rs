@@ -75,6 +75,34 @@ pub struct Capture {
     pub notes: Vec<String>,
 }
 
+impl Capture {
+    /// Notes on the frames without a depth map (`place` names where the
+    /// maps were looked for) and the depth maps without a confidence map.
+    pub(crate) fn note_depth_coverage(&mut self, place: &str) {
+        let n = self.frames.len();
+        let with_depth = self.frames.iter().filter(|f| f.depth.is_some()).count();
+        if with_depth == 0 {
+            self.notes.push(format!("no depth maps in {place}"));
+        } else if with_depth < n {
+            self.notes.push(format!(
+                "{} of {n} frames have no depth map",
+                n - with_depth
+            ));
+        }
+        let with_conf = self
+            .frames
+            .iter()
+            .filter(|f| f.depth.is_some() && f.confidence.is_some())
+            .count();
+        if with_conf < with_depth {
+            self.notes.push(format!(
+                "{} depth maps have no confidence map: all their pixels are kept",
+                with_depth - with_conf
+            ));
+        }
+    }
+}
+
 /// The rotation from ARKit's world (y up) to the scene's (z up): x stays,
 /// ARKit's y becomes z, and its z (towards the viewer at the session's
 /// start) becomes -y.

@@ -209,28 +209,6 @@ pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
                 .then_some(ConfidenceSource::PngScaled(confidence)),
         });
     }
-    let n = capture.frames.len();
-    let with_depth = capture.frames.iter().filter(|f| f.depth.is_some()).count();
-    if with_depth == 0 {
-        capture
-            .notes
-            .push("no depth maps in keyframes/depth".into());
-    } else if with_depth < n {
-        capture.notes.push(format!(
-            "{} of {n} frames have no depth map",
-            n - with_depth
-        ));
-    }
-    let with_conf = capture
-        .frames
-        .iter()
-        .filter(|f| f.depth.is_some() && f.confidence.is_some())
-        .count();
-    if with_conf < with_depth {
-        capture.notes.push(format!(
-            "{} depth maps have no confidence map: all their pixels are kept",
-            with_depth - with_conf
-        ));
-    }
+    capture.note_depth_coverage("keyframes/depth");
     Ok(capture)
 }

@@ -255,31 +255,13 @@ pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
             meta.pose_count()
         ));
     }
-    let with_depth = capture.frames.iter().filter(|f| f.depth.is_some()).count();
-    if with_depth == 0 {
-        capture.notes.push("no depth maps in the export".into());
-    } else if with_depth < n {
-        capture.notes.push(format!(
-            "{} of {n} frames have no depth map",
-            n - with_depth
-        ));
-    }
-    if with_depth > 0 && meta.depth_size.is_none() && layout.r3d {
+    capture.note_depth_coverage("the export");
+    let with_depth = capture.frames.iter().any(|f| f.depth.is_some());
+    if with_depth && meta.depth_size.is_none() && layout.r3d {
         capture.notes.push(
             "no `dw`/`dh` in the metadata: each depth map's size is inferred from its length"
                 .into(),
         );
-    }
-    let with_conf = capture
-        .frames
-        .iter()
-        .filter(|f| f.depth.is_some() && f.confidence.is_some())
-        .count();
-    if with_conf < with_depth {
-        capture.notes.push(format!(
-            "{} depth maps have no confidence map: all their pixels are kept",
-            with_depth - with_conf
-        ));
     }
     Ok(capture)
 }

@@ -188,14 +188,7 @@ pub fn read_capture(dir: &Path) -> Result<Capture, DatasetError> {
             "{without} poses without an image skipped (the app saves images for keyframes only)"
         ));
     }
-    let with_depth = capture.frames.iter().filter(|f| f.depth.is_some()).count();
-    if with_depth > 0 && with_depth < capture.frames.len() {
-        capture.notes.push(format!(
-            "{} of {} frames have no depth map",
-            capture.frames.len() - with_depth,
-            capture.frames.len()
-        ));
-    }
+    capture.note_depth_coverage("the export");
     let mesh = dir.join(MESH_FILE);
     if mesh.is_file() {
         capture.mesh = Some(mesh);
