@@ -4,13 +4,18 @@
 # trained for the same seconds with simulated feature maps, held-out PSNR
 # and the segmentation of labelled points compared.
 #
-#   bash scripts/phone-table.sh OUT [SECONDS]
+#   bash scripts/phone-table.sh OUT [SECONDS] [SEEDS]
 #
-# OUT/phone_table.csv and OUT/phone_table.md hold the table. Runs one after
-# another (each run is timed): nothing else should load the machine.
+# SEEDS (default "0") is a space-separated list of training seeds: every
+# loader is trained once per seed, so that a loader's difference can be told
+# from the spread between runs of the same command. OUT/phone_runs.csv holds
+# every run; OUT/phone_table.csv and OUT/phone_table.md the mean and standard
+# deviation per loader. Runs one after another (each run is timed): nothing
+# else should load the machine.
 set -euo pipefail
-out=${1:?usage: bash scripts/phone-table.sh OUT [SECONDS]}
+out=${1:?usage: bash scripts/phone-table.sh OUT [SECONDS] [SEEDS]}
 budget=${2:-300}
+seeds=${3:-0}
 data=${OPENNERF_DATA:-../shared/data}
 replica=$data/replica_room0_20f
 embeddings=$data/clip_text/scannet200_vitb_512.npy
@@ -18,9 +23,16 @@ names=$data/clip_text/scannet200_labels.txt
 # The room's colours as the simulated VLM's classes (and the labels of the
 # ground-truth points: each point takes the nearest colour's class).
 classes="wall=#d8cdc2,floor=#58595b,cabinet=#6b5840,ottoman=#c5aa80,couch=#f2f0ee,door=#b48c50"
-run() { cargo run -q --release -p "$1" --bin "$2" -- "${@:3}"; }
-
-cargo build -q --release -p train -p eval -p bench --bins
+# train and eval run from OUT/bin, built and copied there once, so that a
+# rerun after the code changed, or a build beside it, keeps the programs.
+. "$(dirname "$0")/frozen-bins.sh"
+freeze_bins "$out"
+run() {
+  case "$2" in
+    train | eval) "$bin/$2" "${@:3}" ;;
+    *) cargo run -q --release -p "$1" --bin "$2" -- "${@:3}" ;;
+  esac
+}
 # Each step is skipped where its output is there already, so that the
 # script can be run again after a failure without redoing a timed run.
 [ -d "$out/exports" ] ||
@@ -28,55 +40,88 @@ cargo build -q --release -p train -p eval -p bench --bins
 ex=$out/exports
 # Record3D's EXR + JPG export (record3d/) loads into the very scene its R3D
 # file does (bench/tests/phone_exports.rs), so the R3D file stands for both.
-for entry in "replica=$replica" "scanner-app=$ex/scanner-app" "polycam=$ex/polycam" \
-  "record3d=$ex/capture.r3d"; do
+loaders="replica=$replica scanner-app=$ex/scanner-app polycam=$ex/polycam record3d=$ex/capture.r3d"
+for entry in $loaders; do
   name=${entry%%=*}
-  dir=${entry#*=}
-  if [ "$name" = replica ]; then
-    points=$ex/points_replica.ply
-    frame=scene
-  else
-    points=$ex/points_arkit.ply
-    frame=capture
-  fi
-  echo "== $name"
-  [ -d "$out/features/$name" ] || run train simulate_features --data "$dir" --embeddings "$embeddings" --names "$names" \
-    --classes "$classes" --out "$out/features/$name"
-  [ -f "$out/runs/$name/summary.json" ] || run train train --data "$dir" --features "$out/features/$name" --resolution 300x170 \
-    --holdout-every 5 --time-budget "$budget" --no-final-render --quiet --out "$out/runs/$name"
-  [ -f "$out/segment/$name/segmentation.json" ] || run eval eval segment --run "$out/runs/$name" --points "$points" --frame "$frame" \
-    --embeddings "$out/features/$name/classes/embeddings.npy" \
-    --names "$out/features/$name/classes/names.txt" --max-views 10 --render-scale 0.5 \
-    --out "$out/segment/$name"
-  # Held-out PSNR over every pixel of the four held-out frames.
-  [ -f "$out/render/$name/psnr.txt" ] || {
-    mkdir -p "$out/render/$name"
-    run eval eval render --run "$out/runs/$name" --cameras heldout --out "$out/render/$name" |
-      tee "$out/render/$name.log"
-    grep "PSNR against" "$out/render/$name.log" > "$out/render/$name/psnr.txt"
-  }
+  [ -d "$out/features/$name" ] || run train simulate_features --data "${entry#*=}" --embeddings "$embeddings" \
+    --names "$names" --classes "$classes" --out "$out/features/$name"
 done
-python3 - "$out" <<'EOF'
-import json, sys, pathlib
+# Seeds outside, loaders inside: a slow spell of the machine falls on every
+# loader alike.
+for seed in $seeds; do
+  for entry in $loaders; do
+    name=${entry%%=*}
+    dir=${entry#*=}
+    tag=$name-seed$seed
+    if [ "$name" = replica ]; then
+      points=$ex/points_replica.ply
+      frame=scene
+    else
+      points=$ex/points_arkit.ply
+      frame=capture
+    fi
+    echo "== $tag"
+    [ -f "$out/runs/$tag/summary.json" ] || run train train --data "$dir" --features "$out/features/$name" \
+      --resolution 300x170 --holdout-every 5 --time-budget "$budget" --seed "$seed" --no-final-render --quiet \
+      --out "$out/runs/$tag"
+    [ -f "$out/segment/$tag/segmentation.json" ] || run eval eval segment --run "$out/runs/$tag" --points "$points" \
+      --frame "$frame" --embeddings "$out/features/$name/classes/embeddings.npy" \
+      --names "$out/features/$name/classes/names.txt" --max-views 10 --render-scale 0.5 --out "$out/segment/$tag"
+    # Held-out PSNR over every pixel of the four held-out frames.
+    [ -f "$out/render/$tag/psnr.txt" ] || {
+      mkdir -p "$out/render/$tag"
+      run eval eval render --run "$out/runs/$tag" --cameras heldout --out "$out/render/$tag" | tee "$out/render/$tag.log"
+      grep "PSNR against" "$out/render/$tag.log" > "$out/render/$tag/psnr.txt"
+    }
+  done
+done
+python3 - "$out" "$seeds" <<'EOF'
+import json, statistics, sys, pathlib
 out = pathlib.Path(sys.argv[1])
-rows = []
-for name in ["replica", "scanner-app", "polycam", "record3d"]:
-    s = json.loads((out / "runs" / name / "summary.json").read_text())
-    g = json.loads((out / "segment" / name / "segmentation.json").read_text())
-    g = g.get("hybrid", g).get("all", g)
-    line = (out / "render" / name / "psnr.txt").read_text()
-    whole = float(line.split("):")[1].split("dB")[0])
-    rows.append((name, s["iterations"], s["heldout_interior"]["psnr"], whole,
-                 100 * g["miou"], 100 * g["macc"]))
-base = rows[0]
-lines = ["loader,iterations,heldout_psnr_sampled_db,heldout_psnr_db,miou,macc,psnr_vs_replica_db,miou_vs_replica"]
-md = ["| loader | iterations | held-out PSNR, 1024 interior pixels | held-out PSNR, every pixel | mIoU | mAcc | PSNR vs Replica | mIoU vs Replica |",
+seeds = sys.argv[2].split()
+loaders = ["replica", "scanner-app", "polycam", "record3d"]
+runs = []
+for name in loaders:
+    for seed in seeds:
+        tag = f"{name}-seed{seed}"
+        s = json.loads((out / "runs" / tag / "summary.json").read_text())
+        g = json.loads((out / "segment" / tag / "segmentation.json").read_text())
+        g = g.get("hybrid", g).get("all", g)
+        line = (out / "render" / tag / "psnr.txt").read_text()
+        whole = float(line.split("):")[1].split("dB")[0])
+        runs.append(dict(loader=name, seed=seed, iterations=s["iterations"],
+                         sampled=s["heldout_interior"]["psnr"], psnr=whole,
+                         miou=100 * g["miou"], macc=100 * g["macc"]))
+lines = ["loader,seed,iterations,heldout_psnr_sampled_db,heldout_psnr_db,miou,macc"]
+for r in runs:
+    lines.append(f"{r['loader']},{r['seed']},{r['iterations']},{r['sampled']:.3f},"
+                 f"{r['psnr']:.3f},{r['miou']:.2f},{r['macc']:.2f}")
+(out / "phone_runs.csv").write_text("\n".join(lines) + "\n")
+
+
+def stats(name, key):
+    v = [r[key] for r in runs if r["loader"] == name]
+    return statistics.mean(v), (statistics.stdev(v) if len(v) > 1 else 0.0)
+
+
+base_psnr, base_miou = stats("replica", "psnr")[0], stats("replica", "miou")[0]
+lines = ["loader,runs,iterations_mean,heldout_psnr_db_mean,heldout_psnr_db_std,"
+         "miou_mean,miou_std,macc_mean,psnr_vs_replica_db,miou_vs_replica"]
+md = ["| loader | runs | iterations (mean) | held-out PSNR, every pixel (mean ± std) "
+      "| mIoU (mean ± std) | mAcc | PSNR vs Replica | mIoU vs Replica |",
       "|---|---|---|---|---|---|---|---|"]
-for r in rows:
-    d_psnr, d_miou = r[3] - base[3], r[4] - base[4]
-    lines.append(f"{r[0]},{r[1]},{r[2]:.3f},{r[3]:.3f},{r[4]:.2f},{r[5]:.2f},{d_psnr:+.3f},{d_miou:+.2f}")
-    md.append(f"| {r[0]} | {r[1]} | {r[2]:.2f} dB | {r[3]:.2f} dB | {r[4]:.1f} | {r[5]:.1f} | {d_psnr:+.2f} dB | {d_miou:+.1f} |")
+for name in loaders:
+    it = stats(name, "iterations")[0]
+    p, ps = stats(name, "psnr")
+    m, ms = stats(name, "miou")
+    a = stats(name, "macc")[0]
+    lines.append(f"{name},{len(seeds)},{it:.0f},{p:.3f},{ps:.3f},{m:.2f},{ms:.2f},{a:.2f},"
+                 f"{p - base_psnr:+.3f},{m - base_miou:+.2f}")
+    md.append(f"| {name} | {len(seeds)} | {it:.0f} | {p:.2f} ± {ps:.2f} dB | {m:.2f} ± {ms:.2f} "
+              f"| {a:.2f} | {p - base_psnr:+.2f} dB | {m - base_miou:+.2f} |")
 (out / "phone_table.csv").write_text("\n".join(lines) + "\n")
 (out / "phone_table.md").write_text("\n".join(md) + "\n")
 print("\n".join(md))
 EOF
+# The same runs as a picture, OUT/phone_table.png.
+cargo run -q --release -p bench --example phone_table_plot -- "$out"

@@ -76,6 +76,7 @@
 
 pub mod clip;
 pub mod composite;
+pub mod exposure;
 pub mod field;
 pub mod geometry;
 pub mod loss;
@@ -88,6 +89,7 @@ pub mod sampling;
 pub mod unbounded;
 
 pub use composite::Composite;
+pub use exposure::{Exposure, ExposureConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb_mse};
 pub use nerf::{OpenNerf, OpenNerfConfig, Rays};

@@ -10,6 +10,7 @@ use burn::config::Config;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 
+use crate::exposure::{Exposure, ExposureConfig};
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
 use crate::mip::{FrustumGaussians, cast_rays, integrated_pos_enc};
@@ -46,6 +47,9 @@ pub struct OpenNerfConfig {
     /// samples, `num_samples` per ray); `None`: the coarse and the fine
     /// level of the MLP.
     pub proposal: Option<ProposalConfig>,
+    /// A learned exposure per training photograph, applied to the training
+    /// loss only (see [`crate::exposure`]); `None`: none.
+    pub exposure: Option<ExposureConfig>,
 }
 
 impl OpenNerfConfig {
@@ -63,6 +67,7 @@ impl OpenNerfConfig {
             proposal: self.proposal.as_ref().map(|p| p.init(device)),
             proposal_config: self.proposal.clone(),
             unbounded: self.unbounded.clone(),
+            exposure: self.exposure.as_ref().map(|e| e.init(device)),
             occupancy: None,
         }
     }
@@ -91,6 +96,8 @@ pub struct OpenNerf {
     /// The contraction of an unbounded scene (`None`: the scene box).
     #[module(skip)]
     pub unbounded: Option<UnboundedConfig>,
+    /// The training photographs' exposure (training loss only).
+    pub exposure: Option<Exposure>,
     /// Occupancy grid of the field's density, when empty-space skipping is
     /// on: [`OpenNerf::render`] clips its rays with it unless the request
     /// says otherwise (see [`crate::GridUse`]). Not part of the weights.

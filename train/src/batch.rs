@@ -20,6 +20,8 @@ use crate::error::TrainError;
 pub struct BatchTensors {
     /// Rays in the normalised frame.
     pub rays: Vec<NormalizedRay>,
+    /// The frame each ray was drawn from (the scene's frame index).
+    pub frames: Vec<usize>,
     /// `[n, 3]`.
     pub rgb: Tensor<2>,
     /// `[n, 1]` colour-loss weights (`None`: all 1).
@@ -51,6 +53,7 @@ impl BatchTensors {
         let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
         BatchTensors {
             rays: rows.iter().map(|&r| self.rays[r]).collect(),
+            frames: rows.iter().map(|&r| self.frames[r]).collect(),
             rgb: pick(&self.rgb),
             rgb_weight: self.rgb_weight.as_ref().map(pick),
             depth: self.depth.as_ref().map(|(d, w)| (pick(d), pick(w))),
@@ -232,6 +235,7 @@ pub fn to_tensors(batch: &RayBatch, space: &FeatureSpace, device: &Device) -> Ba
     let t2 = |v: Vec<f32>, c: usize| Tensor::<2>::from_data(TensorData::new(v, [n, c]), device);
     BatchTensors {
         rays: batch.rays.clone(),
+        frames: batch.pixels.iter().map(|p| p[0] as usize).collect(),
         rgb: t2(batch.rgb.as_flattened().to_vec(), 3),
         rgb_weight: batch.rgb_weight.as_ref().map(|w| t2(w.clone(), 1)),
         depth: batch

@@ -377,6 +377,15 @@ pub struct Cli {
     /// accurate and faster at the default sizes: docs/unbounded.md).
     #[arg(long, value_enum, default_value_t = crate::field_choice::SamplerArg::Auto)]
     pub sampler: crate::field_choice::SamplerArg,
+    /// The photographs' appearance: `exposure` learns a gain and an offset
+    /// per colour channel for each training photograph (captures whose
+    /// photographs differ in exposure or white balance), applied to its
+    /// rays' colours in the training loss only, so that the field renders
+    /// the photographs' common exposure; `none` takes every photograph as
+    /// taken at one exposure; `auto` is `none` unless the `--config` file
+    /// sets `model.exposure` (docs/unbounded.md). `train` prints its choice.
+    #[arg(long, value_enum, default_value_t = crate::appearance::AppearanceArg::Auto)]
+    pub appearance: crate::appearance::AppearanceArg,
     /// Cells per axis of the occupancy grid, in 2..=256; a refresh costs one
     /// density query per cell [default: 32].
     #[arg(long)]

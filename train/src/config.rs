@@ -30,6 +30,10 @@ pub struct LossConfig {
     /// Weight of the distortion loss on the fine level, in `s`
     /// (Mip-NeRF 360: 0.01).
     pub distortion_weight: f32,
+    /// Weight of the penalty on the learned exposure corrections' squares
+    /// (see `model::exposure`), which holds the field at the photographs'
+    /// common exposure.
+    pub exposure_penalty: f32,
 }
 
 impl Default for LossConfig {
@@ -41,6 +45,7 @@ impl Default for LossConfig {
             huber_delta: 0.2,
             interlevel_weight: 1.0,
             distortion_weight: 0.01,
+            exposure_penalty: 1e-3,
         }
     }
 }
@@ -334,6 +339,7 @@ impl TrainConfig {
             ("losses.coarse_weight", self.losses.coarse_weight),
             ("losses.interlevel_weight", self.losses.interlevel_weight),
             ("losses.distortion_weight", self.losses.distortion_weight),
+            ("losses.exposure_penalty", self.losses.exposure_penalty),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{k} must be finite and non-negative, got {v}"));
@@ -351,9 +357,10 @@ impl TrainConfig {
 }
 
 /// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
-/// `model.proposal`) that `base` leaves out, `base` first gets their
-/// defaults, so that a file may give only the keys it changes (an unbounded
-/// field's `radius` defaults to 0: the ball around the scene box).
+/// `model.proposal`, `model.exposure`) that `base` leaves out, `base` first
+/// gets their defaults, so that a file may give only the keys it changes
+/// (an unbounded field's `radius` defaults to 0: the ball around the scene
+/// box).
 fn optional_defaults(
     base: &mut serde_json::Value,
     patch: &serde_json::Value,
@@ -366,6 +373,11 @@ fn optional_defaults(
         (
             "proposal",
             serde_json::to_value(model::ProposalConfig::new())?,
+        ),
+        // `train` sets the photographs' count from the scene.
+        (
+            "exposure",
+            serde_json::to_value(model::ExposureConfig::new(0))?,
         ),
     ];
     for (key, defaults) in parts {

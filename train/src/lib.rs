@@ -9,6 +9,7 @@
 #![warn(missing_docs)]
 
 pub mod accuracy;
+pub mod appearance;
 pub mod backend;
 pub mod batch;
 pub mod checkpoint;
@@ -135,6 +136,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     apply_novel_and_grid_flags(cli, &mut config);
     let grid = config.occupancy.enabled;
     field_choice::apply(&choice, &mut config.model, grid, &scene)?;
+    choose_appearance_and_check(cli, &mut config, &scene)?;
     eprintln!(
         "scene {}: {} frames, features: {}; training {} iterations on {} into {}",
         scene.name,
@@ -155,6 +157,26 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         &session,
         stages,
     )
+}
+
+/// Chooses the appearance model (printing the choice), then checks the
+/// whole configuration before anything is written, so that a bad value
+/// from a `--config` file is named with the file.
+fn choose_appearance_and_check(
+    cli: &cli::Cli,
+    config: &mut TrainConfig,
+    scene: &datasets::Scene,
+) -> Result<(), TrainError> {
+    let appearance = appearance::choose(cli.appearance, &config.model, scene);
+    eprintln!("{}", appearance.message());
+    appearance::apply(&appearance, &mut config.model, scene);
+    match (config.validate(), &cli.config) {
+        (Err(TrainError::Config(msg)), Some(path)) => Err(TrainError::Config(format!(
+            "{msg} (the configuration of {}, with the flags laid over it)",
+            path.display()
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// Lays preset `p` over `base` with the settings for `scene`'s kind (and

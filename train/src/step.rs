@@ -5,6 +5,7 @@ use burn::module::{Module, ModuleVisitor, Param, ParamGroup};
 use burn::optim::lr_scheduler::module_lr_scheduler::ModuleLrScheduler;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
+use model::exposure::{expose, exposure_penalty};
 use model::unbounded::{distortion_loss, interlevel_loss};
 use model::{ClipStats, FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
 
@@ -112,6 +113,25 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
     }
 }
 
+/// The rendered colours of `batch`'s rays as their photographs' learned
+/// exposure makes them (see `model::exposure`), with each ray's correction
+/// `[n, 6]`; the outputs as they are when the model learns no exposure.
+pub fn expose_outputs(
+    model: &OpenNerf,
+    mut out: RenderOutputs,
+    batch: &BatchTensors,
+) -> (RenderOutputs, Option<Tensor<2>>) {
+    let Some(exposure) = model.exposure.as_ref() else {
+        return (out, None);
+    };
+    let correction = exposure.per_ray(&batch.frames);
+    out.fine.rgb = expose(out.fine.rgb, correction.clone());
+    if let Some(coarse) = out.coarse.as_mut() {
+        coarse.rgb = expose(coarse.rgb.clone(), correction.clone());
+    }
+    (out, Some(correction))
+}
+
 /// Scheduled learning rates of one step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepRates {
@@ -184,7 +204,9 @@ pub struct StepRender {
 
 /// One step: render the batch (stratified jitter on) as `render` says
 /// (background, grid use, training progress), compute the losses
-/// on the rays rendered, backpropagate, and — only when the loss and every
+/// on the rays rendered (their colours first corrected by their
+/// photographs' learned exposure, with its penalty, when the model has
+/// one: [`expose_outputs`]), backpropagate, and — only when the loss and every
 /// gradient are finite — apply Adam with the head at its own rate. Returns
 /// the (possibly unchanged) model and what was measured. One device read
 /// per step.
@@ -230,7 +252,13 @@ pub fn train_step_from(
         None => batch,
     };
     let clip = out.clip;
-    let terms = losses(&out, batch, cfg);
+    let (out, correction) = expose_outputs(&model, out, batch);
+    let mut terms = losses(&out, batch, cfg);
+    if let Some(c) = correction
+        && cfg.exposure_penalty > 0.0
+    {
+        terms.total = terms.total + exposure_penalty(c).mul_scalar(cfg.exposure_penalty);
+    }
     let grads = terms.total.backward();
     let grads = GradientsParams::from_grads(grads, &model);
     let mut visitor = GradL1 {
@@ -317,6 +345,7 @@ mod tests {
         let t = |v: Vec<f32>, c: usize| Tensor::<2>::from_data(TensorData::new(v, [n, c]), device);
         BatchTensors {
             rays,
+            frames: vec![0; n],
             rgb: t(vec![rgb; n * 3], 3),
             rgb_weight: None,
             depth: Some((t(vec![2.0; n], 1), t(vec![1.0; n], 1))),

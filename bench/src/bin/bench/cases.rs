@@ -156,6 +156,7 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
             |c: usize| Tensor::<2>::from_data(TensorData::new(vec![0.5f32; m * c], [m, c]), ad);
         BatchTensors {
             rays: r.to_vec(),
+            frames: vec![0; m],
             rgb: target(3),
             rgb_weight: None,
             depth: None,

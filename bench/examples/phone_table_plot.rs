@@ -1,0 +1,145 @@
+//! The phone loaders against the Replica loader as a picture: per loader,
+//! each seed's held-out PSNR (left) and mIoU (right) as a dot and their
+//! mean as a bar, over the band the loaders must stay in around the
+//! Replica loader's mean (0.5 dB, 1 mIoU).
+//!
+//! `cargo run -p bench --release --example phone_table_plot -- OUT`
+//!
+//! reads `OUT/phone_runs.csv` (written by `scripts/phone-table.sh`) and
+//! writes `OUT/phone_table.png`.
+
+use std::path::{Path, PathBuf};
+
+use field_ops::plot::draw_png;
+use plotters::prelude::*;
+
+/// One loader's runs: (held-out PSNR in dB, mIoU in percent) per seed.
+type Runs = Vec<(String, Vec<(f64, f64)>)>;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let dir = PathBuf::from(
+        std::env::args()
+            .nth(1)
+            .ok_or("usage: phone_table_plot OUT")?,
+    );
+    let csv = dir.join("phone_runs.csv");
+    let runs = read(&csv)?;
+    if runs.first().is_none_or(|(name, _)| name != "replica") {
+        return Err(format!("{}: no replica rows first", csv.display()).into());
+    }
+    let png = dir.join("phone_table.png");
+    plot(&png, &runs)?;
+    println!("wrote {}", png.display());
+    Ok(())
+}
+
+/// The runs of `phone_runs.csv`, loaders in their order of appearance.
+fn read(csv: &Path) -> Result<Runs, String> {
+    let err = |e: String| format!("{}: {e}", csv.display());
+    let text = std::fs::read_to_string(csv).map_err(|e| err(e.to_string()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .ok_or_else(|| err("empty".into()))?
+        .split(',')
+        .collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .ok_or_else(|| err(format!("no column {name}")))
+    };
+    let (loader, psnr, miou) = (col("loader")?, col("heldout_psnr_db")?, col("miou")?);
+    let mut runs: Runs = Vec::new();
+    for (i, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let num = |c: usize| -> Result<f64, String> {
+            f.get(c)
+                .and_then(|v| v.parse().ok())
+                .ok_or_else(|| err(format!("line {}: no number in column {c}", i + 2)))
+        };
+        let name = f.get(loader).copied().unwrap_or_default().to_string();
+        let point = (num(psnr)?, num(miou)?);
+        match runs.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, v)) => v.push(point),
+            None => runs.push((name, vec![point])),
+        }
+    }
+    Ok(runs)
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+/// Two panels: PSNR and mIoU per loader, a dot per seed, the mean as a bar,
+/// the allowed band around the Replica loader's mean shaded green.
+fn plot(path: &Path, runs: &Runs) -> Result<(), String> {
+    let n = runs.len();
+    draw_png(path, 1000, 520, |root| {
+        let panels = root.split_evenly((1, 2));
+        for (k, panel) in panels.iter().enumerate() {
+            let (what, unit, band) = if k == 0 {
+                ("held-out PSNR", "dB", 0.5)
+            } else {
+                ("mIoU", "percent", 1.0)
+            };
+            let values = |v: &[(f64, f64)]| -> Vec<f64> {
+                v.iter().map(|p| if k == 0 { p.0 } else { p.1 }).collect()
+            };
+            let all: Vec<f64> = runs.iter().flat_map(|(_, v)| values(v)).collect();
+            let (lo, hi) = all
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+            let base = mean(&values(&runs[0].1));
+            let (lo, hi) = (lo.min(base - band) - 0.5, hi.max(base + band) + 0.5);
+            let mut chart = ChartBuilder::on(panel)
+                .caption(
+                    format!("{what} (green: Replica's mean +- {band})"),
+                    ("sans-serif", 16),
+                )
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(50)
+                .build_cartesian_2d(0f64..n as f64, lo..hi)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .x_labels(0)
+                .y_desc(unit)
+                .draw()
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series([Rectangle::new(
+                    [(0.0, base - band), (n as f64, base + band)],
+                    RGBColor(120, 180, 120).mix(0.25).filled(),
+                )])
+                .map_err(|e| e.to_string())?;
+            for (i, (name, v)) in runs.iter().enumerate() {
+                let v = values(v);
+                let (x, m) = (i as f64, mean(&v));
+                chart
+                    .draw_series([PathElement::new(
+                        vec![(x + 0.2, m), (x + 0.8, m)],
+                        Palette99::pick(i).stroke_width(4),
+                    )])
+                    .map_err(|e| e.to_string())?;
+                chart
+                    .draw_series(v.iter().enumerate().map(|(j, &y)| {
+                        let dx = 0.3 + 0.4 * j as f64 / (v.len() as f64 - 1.0).max(1.0);
+                        Circle::new((x + dx, y), 4, BLACK.filled())
+                    }))
+                    .map_err(|e| e.to_string())?;
+                let (px, py) = chart.backend_coord(&(x + 0.5, lo));
+                root.draw(&Text::new(
+                    format!("{name} ({})", v.len()),
+                    (px - 35, py + 10),
+                    ("sans-serif", 13).into_font().color(&BLACK),
+                ))
+                .map_err(|e| e.to_string())?;
+            }
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# What moves the statue's held-out PSNR (docs/unbounded.md, "What holds the
+# statue back"): runs of `train` side by side, each pinned to two cores
+# (RAYON_NUM_THREADS=2, taskset), so that a machine of 16 cores runs eight
+# at once and every run of a set gets the same seconds on the same CPU.
+#
+#   bash scripts/statue-sweep.sh appearance|knobs OUT [SECONDS]
+#
+# appearance: the statue (box and unbounded field) and fern, with and
+#   without --appearance exposure (450 s in the docs);
+# knobs: the statue's box field with one setting changed per run (280 s).
+# Without feature maps: the colour and density do not depend on them.
+# OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
+set -euo pipefail
+set_name=${1:?usage: bash scripts/statue-sweep.sh appearance|knobs OUT [SECONDS]}
+out=${2:?usage: bash scripts/statue-sweep.sh appearance|knobs OUT [SECONDS]}
+data=${OPENNERF_DATA:-../shared/data}
+statue=$data/colmap_statue
+fern=$data/llff_fern
+mkdir -p "$out"
+case "$set_name" in
+  appearance)
+    budget=${3:-450}
+    runs=(
+      "statue-box-none-s0|--data $statue --field box --appearance none --seed 0"
+      "statue-box-exposure-s0|--data $statue --field box --appearance exposure --seed 0"
+      "statue-box-none-s1|--data $statue --field box --appearance none --seed 1"
+      "statue-box-exposure-s1|--data $statue --field box --appearance exposure --seed 1"
+      "statue-unbounded-none-s0|--data $statue --field unbounded --appearance none --seed 0"
+      "statue-unbounded-exposure-s0|--data $statue --field unbounded --appearance exposure --seed 0"
+      "fern-box-none-s0|--data $fern --field box --appearance none --seed 0"
+      "fern-box-exposure-s0|--data $fern --field box --appearance exposure --seed 0"
+    )
+    ;;
+  knobs)
+    budget=${3:-280}
+    for deg in 8 10; do
+      echo "{\"model\": {\"mlp\": {\"max_deg\": $deg}}}" > "$out/deg$deg.json"
+    done
+    echo '{"model": {"mlp": {"viewdir_deg": 1}}}' > "$out/view1.json"
+    runs=(
+      "base|--data $statue --field box"
+      "deg8|--data $statue --field box --config $out/deg8.json"
+      "deg10|--data $statue --field box --config $out/deg10.json"
+      "view1|--data $statue --field box --config $out/view1.json"
+      "rays1024|--data $statue --field box --rays 1024"
+      "lr2e-3|--data $statue --field box --lr 2e-3"
+      "w256d8|--data $statue --field box --width 256 --depth 8"
+      "unbounded-deg8|--data $statue --field unbounded --config $out/deg8.json"
+    )
+    ;;
+  *)
+    echo "unknown set $set_name: appearance or knobs" >&2
+    exit 2
+    ;;
+esac
+. "$(dirname "$0")/frozen-bins.sh"
+freeze_bins "$out"
+# Two cores a run: as many runs at once as the machine has pairs of cores,
+# in batches (one at a time on two cores).
+slots=$(($(nproc) / 2))
+[ "$slots" -ge 1 ] || slots=1
+i=0
+for r in "${runs[@]}"; do
+  name=${r%%|*}
+  slot=$((i % slots))
+  if [ "$i" -gt 0 ] && [ "$slot" -eq 0 ]; then
+    wait
+  fi
+  # shellcheck disable=SC2086 # the flags are words
+  RAYON_NUM_THREADS=2 taskset -c "$((2 * slot)),$((2 * slot + 1))" "$bin/train" ${r#*|} \
+    --time-budget "$budget" --no-final-render --out "$out/$name" > "$out/$name.log" 2>&1 &
+  i=$((i + 1))
+done
+wait
+for r in "${runs[@]}"; do
+  name=${r%%|*}
+  echo "$name: $(grep -E '^done' "$out/$name.log")"
+done

@@ -1,0 +1,160 @@
+//! `--appearance` through the real `train` binary: bad values refused with
+//! the choices named, the choice printed with its reason, the learned
+//! exposure saved with the run's configuration and weights (one correction
+//! per frame of the scene) and loaded back as `eval` loads a run.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// A small model, so that a real run of a few iterations takes seconds.
+const TINY: &str = r#"{
+  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
+            "num_samples": 4, "head": {"width": 8, "layers": 1}},
+  "sampler": {"rays_per_batch": 32, "border_margin": 2},
+  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
+}"#;
+
+fn train(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_train"))
+        .args(args)
+        .output()
+        .expect("the train binary runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+fn assert_refused(args: &[&str], words: &[&str]) {
+    let out = train(args);
+    let err = stderr(&out);
+    assert!(!out.status.success(), "{args:?} succeeded: {err}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for w in words {
+        assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
+    }
+    eprintln!("refused {args:?}:\n{}", err.trim_end());
+}
+
+/// Trains 2 iterations of the tiny model on the synthetic room into `run`
+/// with `extra` flags; returns what `train` printed.
+fn tiny_run(dir: &Path, run: &Path, config: &str, extra: &[&str]) -> String {
+    let path = dir.join("config.json");
+    std::fs::write(&path, config).expect("write config");
+    let args = [
+        &[
+            "--config",
+            s(&path),
+            "--iters",
+            "2",
+            "--quiet",
+            "--no-final-render",
+            "--out",
+            s(run),
+        ][..],
+        extra,
+    ]
+    .concat();
+    let out = train(&args);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{args:?}: {err}");
+    err
+}
+
+fn saved_exposure(run: &Path) -> serde_json::Value {
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).expect("config"))
+            .expect("json");
+    saved["model"]["exposure"].clone()
+}
+
+#[test]
+fn bad_appearance_values_are_refused() {
+    assert_refused(&["--appearance", "grey"], &["grey", "none", "exposure"]);
+    let tmp = tempfile::tempdir().expect("tmp");
+    let p = tmp.path().join("bad.json");
+    std::fs::write(&p, r#"{"losses": {"exposure_penalty": -1.0}}"#).expect("write");
+    let run = tmp.path().join("run");
+    assert_refused(
+        &[
+            "--config",
+            s(&p),
+            "--iters",
+            "2",
+            "--quiet",
+            "--out",
+            s(&run),
+        ],
+        &["losses.exposure_penalty", "-1", "bad.json"],
+    );
+    assert!(
+        !run.exists(),
+        "nothing is written for a refused configuration"
+    );
+}
+
+#[test]
+fn the_choice_is_printed_and_the_exposure_saved_and_loaded_with_the_run() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    // Auto on the synthetic room: none, and the configuration says so.
+    let plain = tmp.path().join("plain");
+    let err = tiny_run(tmp.path(), &plain, TINY, &[]);
+    assert!(
+        err.contains("appearance: none (auto: a synthetic scene"),
+        "{err}"
+    );
+    assert!(saved_exposure(&plain).is_null());
+    // Asked for: one correction per frame of the scene.
+    let exposed = tmp.path().join("exposed");
+    let err = tiny_run(tmp.path(), &exposed, TINY, &["--appearance", "exposure"]);
+    assert!(
+        err.contains("appearance: a learned exposure per photograph (--appearance exposure)"),
+        "{err}"
+    );
+    let scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(exposed.join("split.json")).expect("split"))
+            .expect("json");
+    let frames = scene["train"].as_array().map_or(0, Vec::len)
+        + scene["heldout"].as_array().map_or(0, Vec::len);
+    assert!(frames > 0, "{scene}");
+    assert_eq!(saved_exposure(&exposed)["images"], frames);
+    // Loaded as `eval` loads a run: the corrections are among the weights,
+    // and they moved from zero in two steps.
+    let device = burn::tensor::Device::flex();
+    let loaded = field_ops::run_dir::load_run(&exposed, &device).expect("the run loads");
+    let table: Vec<f32> = loaded
+        .model
+        .exposure
+        .as_ref()
+        .expect("exposure loaded")
+        .params
+        .val()
+        .try_into_vec_as::<f32>()
+        .expect("f32");
+    assert_eq!(table.len(), 6 * frames);
+    assert!(table.iter().any(|&v| v != 0.0), "{table:?}");
+    // A configuration that sets model.exposure chooses it under auto (its
+    // count of photographs is the scene's); --appearance none overrides it.
+    let asked = r#"{"model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
+        "num_samples": 4, "head": {"width": 8, "layers": 1}, "exposure": {"images": 3}},
+        "sampler": {"rays_per_batch": 32, "border_margin": 2},
+        "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}}"#;
+    let by_config = tmp.path().join("by-config");
+    let err = tiny_run(tmp.path(), &by_config, asked, &[]);
+    assert!(
+        err.contains("auto: the configuration's model.exposure"),
+        "{err}"
+    );
+    assert_eq!(saved_exposure(&by_config)["images"], frames);
+    let overridden = tmp.path().join("overridden");
+    let err = tiny_run(tmp.path(), &overridden, asked, &["--appearance", "none"]);
+    assert!(
+        err.contains("appearance: none (--appearance none)"),
+        "{err}"
+    );
+    assert!(saved_exposure(&overridden).is_null());
+}
