@@ -4,40 +4,14 @@
 //! per frame of the scene) and loaded back as `eval` loads a run.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// A small model, so that a real run of a few iterations takes seconds.
-const TINY: &str = r#"{
-  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
-            "num_samples": 4, "head": {"width": 8, "layers": 1}},
-  "sampler": {"rays_per_batch": 32, "border_margin": 2},
-  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
-}"#;
+mod common;
 
-fn train(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_train"))
-        .args(args)
-        .output()
-        .expect("the train binary runs")
-}
+use common::{TINY, assert_refused, s, train};
 
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-fn assert_refused(args: &[&str], words: &[&str]) {
-    let out = train(args);
-    let err = stderr(&out);
-    assert!(!out.status.success(), "{args:?} succeeded: {err}");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    for w in words {
-        assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
-    }
-    eprintln!("refused {args:?}:\n{}", err.trim_end());
 }
 
 /// Trains 2 iterations of the tiny model on the synthetic room into `run`

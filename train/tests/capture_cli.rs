@@ -3,28 +3,13 @@
 //! file and the problem, before the run directory is created.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-/// A small model, so that a real run of a few iterations takes seconds.
-const TINY: &str = r#"{
-  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
-            "num_samples": 4, "head": {"width": 8, "layers": 1}},
-  "sampler": {"rays_per_batch": 32, "border_margin": 2},
-  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
-}"#;
+mod common;
+
+use common::{TINY, s, train};
 
 const IMAGES: usize = 4;
-
-fn train(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_train"))
-        .args(args)
-        .output()
-        .expect("the train binary runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 /// The text model of a small rig: one PINHOLE camera (40x30), four images
 /// looking along +z from x = 0, 0.2, 0.4, 0.6 (world-to-camera rotation

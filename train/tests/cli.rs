@@ -4,47 +4,10 @@
 //! exact command to run next.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
+mod common;
 
-/// A small model, so that a real run of a few iterations takes seconds.
-const TINY: &str = r#"{
-  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
-            "num_samples": 4, "head": {"width": 8, "layers": 1}},
-  "sampler": {"rays_per_batch": 32, "border_margin": 2},
-  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
-}"#;
-
-fn train(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_train"))
-        .args(args)
-        .output()
-        .expect("the train binary runs")
-}
-
-fn text(out: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// Asserts a clean refusal (non-zero exit, no panic) mentioning every `words`.
-fn assert_refused(args: &[&str], words: &[&str]) -> String {
-    let out = train(args);
-    let (_, err) = text(&out);
-    assert!(!out.status.success(), "{args:?} succeeded: {err}");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    for w in words {
-        assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
-    }
-    // Shown with `--nocapture`: the message a user gets for this input.
-    eprintln!("refused {args:?}:\n{}", err.trim_end());
-    err
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
+use common::{TINY, assert_refused, s, text, train};
 
 fn tiny_config(dir: &Path) -> PathBuf {
     let p = dir.join("tiny.json");

@@ -6,19 +6,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// A small model, so that a real run of a few iterations takes seconds.
-const TINY: &str = r#"{
-  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
-            "num_samples": 4, "head": {"width": 8, "layers": 1}},
-  "sampler": {"rays_per_batch": 32, "border_margin": 2},
-  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
-}"#;
+mod common;
+
+use common::{TINY, s};
 
 const FRAMES: usize = 4;
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
 
 /// Frame `i`'s camera-to-world in ARKit's conventions: a camera 1.5 m up,
 /// turning about the vertical (y) axis, looking down its -z.

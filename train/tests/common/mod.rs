@@ -1,0 +1,50 @@
+//! What the `train` binary's command-line tests share: a small model, the
+//! binary run with arguments, and a refusal checked for its words.
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+/// A small model, so that a real run of a few iterations takes seconds.
+pub const TINY: &str = r#"{
+  "model": {"mlp": {"width": 16, "depth": 2, "skip_layer": 1, "max_deg": 4},
+            "num_samples": 4, "head": {"width": 8, "layers": 1}},
+  "sampler": {"rays_per_batch": 32, "border_margin": 2},
+  "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
+}"#;
+
+/// Runs the `train` binary with `args`.
+pub fn train(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_train"))
+        .args(args)
+        .output()
+        .expect("the train binary runs")
+}
+
+/// What a run printed: (stdout, stderr).
+pub fn text(out: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A path as a `&str` argument.
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Asserts a clean refusal (non-zero exit, no panic) mentioning every
+/// `words`; returns what it printed on stderr.
+pub fn assert_refused(args: &[&str], words: &[&str]) -> String {
+    let out = train(args);
+    let (_, err) = text(&out);
+    assert!(!out.status.success(), "{args:?} succeeded: {err}");
+    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    for w in words {
+        assert!(err.contains(w), "{args:?}: {w:?} not in {err:?}");
+    }
+    // Shown with `--nocapture`: the message a user gets for this input.
+    eprintln!("refused {args:?}:\n{}", err.trim_end());
+    err
+}
