@@ -218,10 +218,48 @@ pub struct RunScene {
 /// compressed with the stored basis (not a new fit), so that the targets
 /// are the ones the field was trained on, and the recorded novel views are
 /// appended as read from `novel/`.
+///
+/// The capture is refused where it no longer loads into the frame the run
+/// recorded (the capture or its loader changed since training): the field's
+/// coordinates would silently mean other places.
 pub fn rebuild_scene(dir: &RunDir, meta: &SceneMeta) -> Result<RunScene, OpsError> {
     let mut scene = datasets::load_scene_with_basis(&meta.source, meta.pca.as_ref())?;
+    check_same_frame(dir, meta.world.as_ref(), scene.world.as_ref())?;
     let novel = append_recorded(&mut scene, &dir.novel())?;
     Ok(RunScene { scene, novel })
+}
+
+/// Refuses a rebuilt scene whose map from the capture's frame differs from
+/// the recorded one (beyond rounding); a run recorded without one (written
+/// before runs recorded it) is not checked.
+fn check_same_frame(
+    dir: &RunDir,
+    recorded: Option<&datasets::WorldFrame>,
+    rebuilt: Option<&datasets::WorldFrame>,
+) -> Result<(), OpsError> {
+    let Some(recorded) = recorded else {
+        return Ok(());
+    };
+    let (a, b) = (
+        recorded.to_scene.to_matrix(),
+        rebuilt.map(|w| w.to_scene.to_matrix()),
+    );
+    let moved = b.is_none_or(|b| {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .any(|(x, y)| (x - y).abs() > 1e-6 * (1.0 + x.abs()))
+    });
+    if moved {
+        return Err(OpsError::Invalid(format!(
+            "{}: the capture now loads into another frame than the `{}` frame this run was \
+             trained in (the capture or its loader changed since): the field's coordinates \
+             would mean other places; train the run again",
+            dir.scene().display(),
+            recorded.name
+        )));
+    }
+    Ok(())
 }
 
 /// [`rebuild_scene`], with the novel views' indices added to
@@ -243,6 +281,27 @@ pub fn load_run_scene(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_capture_loaded_into_another_frame_is_refused() {
+        let dir = RunDir::new("/tmp/run");
+        let frame = |yaw: f64| datasets::WorldFrame {
+            name: "arkit".into(),
+            to_scene: model::geometry::yaw_rotation(yaw),
+            fitted_to: String::new(),
+        };
+        check_same_frame(&dir, Some(&frame(0.3)), Some(&frame(0.3))).expect("same frame");
+        check_same_frame(&dir, None, Some(&frame(0.3))).expect("older runs are not checked");
+        for rebuilt in [Some(frame(0.31)), None] {
+            let e = check_same_frame(&dir, Some(&frame(0.3)), rebuilt.as_ref())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("/tmp/run/scene.json") && e.contains("`arkit` frame"),
+                "{e}"
+            );
+        }
+    }
 
     #[test]
     fn run_dir_paths() {

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use model::geometry::{Camera, Intrinsics, SceneBox, Similarity, Vec3};
+use model::geometry::{Camera, Intrinsics, SceneBox, Similarity, Vec3, aligning_yaw, yaw_rotation};
 
 use super::{ARKIT_FRAME, ARKIT_TO_Z_UP, Assembled, Capture, CaptureFrame, DepthSource};
 use crate::error::DatasetError;
@@ -209,8 +209,8 @@ pub fn assemble(
         name: ARKIT_FRAME.into(),
         to_scene: shift.compose(&up),
         fitted_to: format!(
-            "z up from ARKit's gravity-aligned y, metric; centred on the box of the {} \
-             cameras and {fitted}",
+            "z up from ARKit's gravity-aligned y, metric; turned about z to the tightest \
+             box of the {} cameras and {fitted}, and centred on it",
             frames.len()
         ),
     };
@@ -299,40 +299,43 @@ fn load_frames(
     Ok(frames)
 }
 
-/// Frames, points and box moved so that the box of the camera centres and
-/// the points is centred on the origin, with the shift that did it.
+/// Frames, points and box turned about the vertical so that the smallest
+/// rectangle around the footprint of the camera centres and the points runs
+/// along x and y, and moved so that their box is centred on the origin,
+/// with the map that did it.
 fn centred(
     dir: &Path,
     mut frames: Vec<Frame>,
     points: PointCloud,
     margin: f64,
 ) -> Result<(Vec<Frame>, PointCloud, SceneBox, Similarity), DatasetError> {
-    let centres: Vec<Vec3> = frames.iter().map(|f| f.camera.pose.center()).collect();
-    let mut extent = centres.clone();
+    let mut extent: Vec<Vec3> = frames.iter().map(|f| f.camera.pose.center()).collect();
     extent.extend(points.positions.iter().copied());
-    let centre = box_of(dir, extent.clone(), 0.0)?.center();
-    let shift = Similarity {
-        rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        scale: 1.0,
+    let turn = yaw_rotation(aligning_yaw(&extent));
+    let turned: Vec<Vec3> = extent.iter().map(|&p| turn.apply_point(p)).collect();
+    let centre = box_of(dir, turned, 0.0)?.center();
+    let map = Similarity {
         translation: centre.map(|c| -c),
-    };
+        ..Similarity::IDENTITY
+    }
+    .compose(&turn);
     for f in &mut frames {
-        f.camera.pose = shift.apply_pose(&f.camera.pose);
+        f.camera.pose = map.apply_pose(&f.camera.pose);
     }
     let points = PointCloud {
         positions: points
             .positions
             .iter()
-            .map(|&p| shift.apply_point(p))
+            .map(|&p| map.apply_point(p))
             .collect(),
         ..points
     };
     let scene_box = box_of(
         dir,
-        extent.iter().map(|&p| shift.apply_point(p)).collect(),
+        extent.iter().map(|&p| map.apply_point(p)).collect(),
         margin,
     )?;
-    Ok((frames, points, scene_box, shift))
+    Ok((frames, points, scene_box, map))
 }
 
 /// `loader` without a compression basis (not part of the saved options).

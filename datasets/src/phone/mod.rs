@@ -9,8 +9,12 @@
 //!
 //! - **Poses.** ARKit's cameras look down -z with y up (OpenGL axes); they
 //!   are turned to OpenCV axes. ARKit's world is gravity-aligned with y up:
-//!   it is rotated so that z is up, kept metric, and centred on the box of
-//!   the camera centres and the mesh (or, without a mesh, the depth). The
+//!   it is rotated so that z is up and kept metric. Its horizontal axes
+//!   point wherever the phone did when the capture began, so it is turned
+//!   about z until the smallest rectangle around the footprint of the
+//!   camera centres and the mesh (or, without a mesh, the depth) runs along
+//!   x and y (a room's walls, so that the box is tight and the field no
+//!   coarser than the room needs), and centred on their box. The
 //!   map is the scene's [`WorldFrame`](crate::scene::WorldFrame) `arkit` (`scene.json`'s `world`), so
 //!   `eval --frame capture` writes outputs in the export's own frame.
 //! - **Depth.** The LiDAR map (about 256x192) sees what the colour camera

@@ -14,10 +14,12 @@
 use std::fmt;
 
 mod distortion;
+mod footprint;
 mod scene_box;
 mod similarity;
 
 pub use distortion::Distortion;
+pub use footprint::{aligning_yaw, footprint_area, yaw_rotation};
 pub use scene_box::{NormalizedRay, SceneBox};
 pub use similarity::Similarity;
 
