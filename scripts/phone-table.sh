@@ -11,11 +11,14 @@
 # from the spread between runs of the same command. OUT/phone_runs.csv holds
 # every run; OUT/phone_table.csv and OUT/phone_table.md the mean and standard
 # deviation per loader. Runs one after another (each run is timed): nothing
-# else should load the machine.
+# else should load the machine. With ITERS=N in the environment every run
+# trains N iterations instead of SECONDS: an equal-iterations comparison,
+# which a machine whose speed drifts (or a build beside it) does not bias.
 set -euo pipefail
 out=${1:?usage: bash scripts/phone-table.sh OUT [SECONDS] [SEEDS]}
 budget=${2:-300}
 seeds=${3:-0}
+if [ -n "${ITERS:-}" ]; then length=(--iters "$ITERS"); else length=(--time-budget "$budget"); fi
 data=${OPENNERF_DATA:-../shared/data}
 replica=$data/replica_room0_20f
 embeddings=$data/clip_text/scannet200_vitb_512.npy
@@ -62,7 +65,7 @@ for seed in $seeds; do
     fi
     echo "== $tag"
     [ -f "$out/runs/$tag/summary.json" ] || run train train --data "$dir" --features "$out/features/$name" \
-      --resolution 300x170 --holdout-every 5 --time-budget "$budget" --seed "$seed" --no-final-render --quiet \
+      --resolution 300x170 --holdout-every 5 "${length[@]}" --seed "$seed" --no-final-render --quiet \
       --out "$out/runs/$tag"
     [ -f "$out/segment/$tag/segmentation.json" ] || run eval eval segment --run "$out/runs/$tag" --points "$points" \
       --frame "$frame" --embeddings "$out/features/$name/classes/embeddings.npy" \

@@ -230,26 +230,23 @@ pub fn rebuild_scene(dir: &RunDir, meta: &SceneMeta) -> Result<RunScene, OpsErro
 }
 
 /// Refuses a rebuilt scene whose map from the capture's frame differs from
-/// the recorded one (beyond rounding); a run recorded without one (written
-/// before runs recorded it) is not checked.
+/// the recorded one (beyond rounding). Where either side has none (a run
+/// written before runs recorded it, or a frame given to the run by hand
+/// over a scene whose loader records none) there is nothing to compare.
 fn check_same_frame(
     dir: &RunDir,
     recorded: Option<&datasets::WorldFrame>,
     rebuilt: Option<&datasets::WorldFrame>,
 ) -> Result<(), OpsError> {
-    let Some(recorded) = recorded else {
+    let (Some(recorded), Some(rebuilt)) = (recorded, rebuilt) else {
         return Ok(());
     };
-    let (a, b) = (
-        recorded.to_scene.to_matrix(),
-        rebuilt.map(|w| w.to_scene.to_matrix()),
-    );
-    let moved = b.is_none_or(|b| {
-        a.iter()
-            .flatten()
-            .zip(b.iter().flatten())
-            .any(|(x, y)| (x - y).abs() > 1e-6 * (1.0 + x.abs()))
-    });
+    let (a, b) = (recorded.to_scene.to_matrix(), rebuilt.to_scene.to_matrix());
+    let moved = a
+        .iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .any(|(x, y)| (x - y).abs() > 1e-6 * (1.0 + x.abs()));
     if moved {
         return Err(OpsError::Invalid(format!(
             "{}: the capture now loads into another frame than the `{}` frame this run was \
@@ -292,8 +289,9 @@ mod tests {
         };
         check_same_frame(&dir, Some(&frame(0.3)), Some(&frame(0.3))).expect("same frame");
         check_same_frame(&dir, None, Some(&frame(0.3))).expect("older runs are not checked");
-        for rebuilt in [Some(frame(0.31)), None] {
-            let e = check_same_frame(&dir, Some(&frame(0.3)), rebuilt.as_ref())
+        check_same_frame(&dir, Some(&frame(0.3)), None).expect("nothing to compare");
+        for turn in [0.31, 0.3 + 1e-4, -0.3] {
+            let e = check_same_frame(&dir, Some(&frame(0.3)), Some(&frame(turn)))
                 .unwrap_err()
                 .to_string();
             assert!(

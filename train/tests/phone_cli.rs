@@ -153,13 +153,27 @@ fn a_scanner_app_export_trains_with_its_frame_and_mesh() {
     let meta: datasets::SceneMeta =
         serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
             .expect("scene.json parses");
-    let world = meta.world.expect("the ARKit frame is recorded");
+    let world = meta.world.clone().expect("the ARKit frame is recorded");
     assert_eq!(world.name, "arkit");
     // ARKit's y (up) is the scene's z, metric.
     let up = world.to_scene.apply_vector([0.0, 1.0, 0.0]);
     assert!(
         (up[2] - 1.0).abs() < 1e-12 && world.to_scene.scale == 1.0,
         "{up:?}"
+    );
+    // The run rebuilds in its recorded frame, and is refused in another.
+    let dir = field_ops::run_dir::RunDir::new(&out);
+    field_ops::run_dir::rebuild_scene(&dir, &meta).expect("the run rebuilds in its frame");
+    let mut moved = meta.clone();
+    moved.world.as_mut().expect("frame").to_scene =
+        model::geometry::yaw_rotation(0.2).compose(&world.to_scene);
+    let e = field_ops::run_dir::rebuild_scene(&dir, &moved)
+        .err()
+        .expect("another frame is refused")
+        .to_string();
+    assert!(
+        e.contains("scene.json") && e.contains("`arkit` frame"),
+        "{e}"
     );
     let scene = datasets::load_scene(&meta.source).expect("scene rebuilds");
     let cloud = scene.points.expect("the mesh is the point cloud");
