@@ -76,11 +76,9 @@ impl ReplicaFrames {
     /// The rigid map from Replica's world to the export's ARKit world: a
     /// turn of 30 degrees about Replica's z and a shift, then z up to y up.
     pub fn to_arkit() -> Similarity {
-        let (s, c) = 30f64.to_radians().sin_cos();
         let turn = Similarity {
-            rotation: [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
-            scale: 1.0,
             translation: [1.0, -2.0, 0.5],
+            ..model::geometry::yaw_rotation(30f64.to_radians())
         };
         let z_up_to_y_up = Similarity {
             rotation: transpose(datasets::phone::ARKIT_TO_Z_UP),
