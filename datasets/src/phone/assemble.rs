@@ -181,17 +181,28 @@ pub fn assemble(
         options,
         &mut notes,
     )?;
-    let (points, fitted) = match mesh {
-        Some(m) => {
+    // The box holds the cameras, the mesh and the sensor's depth maps: a
+    // mesh can cover less than the depth maps do (cropped in the app, made
+    // from part of the scan), and a box cut at the mesh cuts the field there.
+    let depth_points = any_depth.then(|| depth_cloud(&frames, options.box_pixel_step));
+    let (points, fitted, also) = match (mesh, depth_points) {
+        (Some(m), depth) => {
             let n = m.positions.len();
-            (m.point_cloud(), format!("the mesh's {n} vertices"))
+            let fitted = match depth {
+                Some(_) => format!("the mesh's {n} vertices and the depth maps"),
+                None => format!("the mesh's {n} vertices"),
+            };
+            let also = depth.map(|d| d.positions).unwrap_or_default();
+            (m.point_cloud(), fitted, also)
         }
-        None => (
-            depth_cloud(&frames, options.box_pixel_step),
+        (None, depth) => (
+            depth.unwrap_or_default(),
             "the depth maps".to_string(),
+            Vec::new(),
         ),
     };
-    let (frames, points, scene_box, shift) = centred(dir, frames, points, options.box_margin)?;
+    let (frames, points, scene_box, shift) =
+        centred(dir, frames, points, &also, options.box_margin)?;
     let features = options
         .features
         .as_ref()
@@ -300,17 +311,20 @@ fn load_frames(
 }
 
 /// Frames, points and box turned about the vertical so that the smallest
-/// rectangle around the footprint of the camera centres and the points runs
-/// along x and y, and moved so that their box is centred on the origin,
-/// with the map that did it.
+/// rectangle around the footprint of the camera centres, the points and
+/// `also` (positions the box must hold that are not the scene's points)
+/// runs along x and y, and moved so that their box is centred on the
+/// origin, with the map that did it.
 fn centred(
     dir: &Path,
     mut frames: Vec<Frame>,
     points: PointCloud,
+    also: &[Vec3],
     margin: f64,
 ) -> Result<(Vec<Frame>, PointCloud, SceneBox, Similarity), DatasetError> {
     let mut extent: Vec<Vec3> = frames.iter().map(|f| f.camera.pose.center()).collect();
     extent.extend(points.positions.iter().copied());
+    extent.extend(also.iter().copied());
     let turn = yaw_rotation(aligning_yaw(&extent));
     let turned: Vec<Vec3> = extent.iter().map(|&p| turn.apply_point(p)).collect();
     let centre = box_of(dir, turned, 0.0)?.center();

@@ -12,7 +12,7 @@
 //!   it is rotated so that z is up and kept metric. Its horizontal axes
 //!   point wherever the phone did when the capture began, so it is turned
 //!   about z until the smallest rectangle around the footprint of the
-//!   camera centres and the mesh (or, without a mesh, the depth) runs along
+//!   camera centres, the mesh and the depth maps (whichever it has) runs along
 //!   x and y (a room's walls, so that the box is tight and the field no
 //!   coarser than the room needs), and centred on their box. The
 //!   map is the scene's [`WorldFrame`](crate::scene::WorldFrame) `arkit` (`scene.json`'s `world`), so
@@ -26,6 +26,8 @@
 //! - **Points.** The mesh's vertices, coloured from its texture, are the
 //!   scene's point cloud; without a mesh, every `box_pixel_step`-th depth
 //!   pixel of every frame, coloured by its image.
+//! - **Box.** The scene box holds the cameras, the mesh and the depth maps,
+//!   all of them: a mesh may cover less than the scan's depth maps.
 
 mod assemble;
 pub mod polycam;
