@@ -57,18 +57,26 @@ impl Exposure {
     /// # Shapes
     /// - output: `[frames.len(), 6]`.
     pub fn per_ray(&self, frames: &[usize]) -> Tensor<2> {
-        let table = self.params.val();
-        let device = table.device();
-        // The zero row appended below: no correction.
-        let none = table.dims()[0];
-        let table = Tensor::cat(vec![table, Tensor::zeros([1, 6], &device)], 0);
-        let ids: Vec<i64> = frames
-            .iter()
-            .map(|&f| (if f < self.images { f } else { none }) as i64)
-            .collect();
-        let ids = Tensor::<1, Int>::from_data(TensorData::new(ids, [frames.len()]), &device);
-        table.select(0, ids)
+        frame_rows(self.params.val(), frames, self.images)
     }
+}
+
+/// Row `f` of `table` for each frame `f` below `rows`, a zero row for the
+/// others: a per-photograph table read out per ray.
+///
+/// # Shapes
+/// - `table`: `[>= rows, c]`; output `[frames.len(), c]`.
+pub(crate) fn frame_rows(table: Tensor<2>, frames: &[usize], rows: usize) -> Tensor<2> {
+    let device = table.device();
+    let [none, c] = table.dims();
+    // The zero row appended below: no correction.
+    let table = Tensor::cat(vec![table, Tensor::zeros([1, c], &device)], 0);
+    let ids: Vec<i64> = frames
+        .iter()
+        .map(|&f| (if f < rows { f } else { none }) as i64)
+        .collect();
+    let ids = Tensor::<1, Int>::from_data(TensorData::new(ids, [frames.len()]), &device);
+    table.select(0, ids)
 }
 
 /// `rgb * exp(log_gain) + offset`, per ray and channel, with

@@ -83,6 +83,7 @@ pub mod loss;
 pub mod mip;
 pub mod nerf;
 pub mod occupancy;
+pub mod pose;
 pub mod proposal;
 pub mod render;
 pub mod sampling;
@@ -94,6 +95,7 @@ pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConf
 pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb_mse};
 pub use nerf::{OpenNerf, OpenNerfConfig, Rays};
 pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};
+pub use pose::{PoseCorrection, PoseCorrectionConfig};
 pub use proposal::{ProposalConfig, ProposalMlp};
 pub use render::{
     Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, ProposalLevel,
