@@ -6,20 +6,15 @@ mod common;
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor};
-use common::{assert_close, devices, tensor, vec};
+use common::{assert_close, devices, tensor, uniform, vec};
 use model::exposure::{expose, exposure_penalty};
 use model::{ExposureConfig, FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
 
 /// Deterministic values in `[lo, hi)`.
 fn values(n: usize, seed: u64, lo: f32, hi: f32) -> Vec<f32> {
-    let mut z = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-    (0..n)
-        .map(|_| {
-            z ^= z << 13;
-            z ^= z >> 7;
-            z ^= z << 17;
-            lo + (hi - lo) * ((z >> 40) as f32 / (1u64 << 24) as f32)
-        })
+    uniform(n, seed, lo as f64, hi as f64)
+        .into_iter()
+        .map(|x| x as f32)
         .collect()
 }
 

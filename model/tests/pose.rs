@@ -8,7 +8,7 @@ mod common;
 
 use burn::module::Param;
 use burn::tensor::{Device, Tensor};
-use common::{assert_close, devices, tensor, vec};
+use common::{assert_close, devices, tensor, uniform, vec};
 use model::pose::{correct_rays, rotate};
 use model::{PoseCorrectionConfig, Rays};
 
@@ -38,16 +38,15 @@ fn apply(m: &M3, v: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|r| (0..3).map(|c| m[r][c] * v[c]).sum())
 }
 
-/// Deterministic values in `[lo, hi)`.
 fn values(n: usize, seed: u64, lo: f64, hi: f64) -> Vec<f64> {
-    let mut z = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-    (0..n)
-        .map(|_| {
-            z ^= z << 13;
-            z ^= z >> 7;
-            z ^= z << 17;
-            lo + (hi - lo) * ((z >> 11) as f64 / (1u64 << 53) as f64)
-        })
+    uniform(n, seed, lo, hi)
+}
+
+/// `n` deterministic 3-vectors with components in `[lo, hi)`.
+fn vec3s(n: usize, seed: u64, lo: f64, hi: f64) -> Vec<[f64; 3]> {
+    values(3 * n, seed, lo, hi)
+        .chunks(3)
+        .map(|c| [c[0], c[1], c[2]])
         .collect()
 }
 
@@ -77,10 +76,7 @@ fn flat(v: &[[f64; 3]]) -> Vec<f32> {
 fn the_rotation_is_the_exponential_of_the_skew_matrix() {
     let w = rotation_vectors();
     let n = w.len();
-    let v: Vec<[f64; 3]> = values(3 * n, 3, -2.0, 2.0)
-        .chunks(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
+    let v = vec3s(n, 3, -2.0, 2.0);
     let expected: Vec<[f64; 3]> = (0..n).map(|i| apply(&exp_skew(w[i]), v[i])).collect();
     for (name, device) in devices(true) {
         let got = rotate(
@@ -110,14 +106,8 @@ fn the_rotation_is_the_exponential_of_the_skew_matrix() {
 fn the_gradient_matches_finite_differences_of_the_exponential() {
     let w = rotation_vectors();
     let n = w.len();
-    let v: Vec<[f64; 3]> = values(3 * n, 5, -1.0, 1.0)
-        .chunks(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
-    let c: Vec<[f64; 3]> = values(3 * n, 6, -1.0, 1.0)
-        .chunks(3)
-        .map(|c| [c[0], c[1], c[2]])
-        .collect();
+    let v = vec3s(n, 5, -1.0, 1.0);
+    let c = vec3s(n, 6, -1.0, 1.0);
     // d/dw_j of c . exp([w]x) v, central differences in float64.
     let h = 1e-6;
     let expected: Vec<f64> = (0..n)

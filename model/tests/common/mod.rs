@@ -35,6 +35,19 @@ pub fn devices(with_wgpu: bool) -> Vec<(&'static str, Device)> {
     v
 }
 
+/// `n` deterministic values in `[lo, hi)` (xorshift from `seed`).
+pub fn uniform(n: usize, seed: u64, lo: f64, hi: f64) -> Vec<f64> {
+    let mut z = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    (0..n)
+        .map(|_| {
+            z ^= z << 13;
+            z ^= z >> 7;
+            z ^= z << 17;
+            lo + (hi - lo) * ((z >> 11) as f64 / (1u64 << 53) as f64)
+        })
+        .collect()
+}
+
 /// Reads a float tensor as `Vec<f32>`.
 pub fn vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
     t.try_into_vec_as::<f32>().expect("readable f32 tensor")
