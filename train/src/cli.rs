@@ -228,6 +228,12 @@ pub struct Cli {
     /// as depth targets; zero and NaN depths are no target.
     #[arg(long)]
     pub colmap_depth: bool,
+    /// Scenes on disk: grow the scene box by this fraction of its largest
+    /// side on every side (0.5: a box twice as large). The field models
+    /// only what lies in the box; what lies past it is painted on its
+    /// walls [default: 0.05].
+    #[arg(long, value_name = "FRACTION", allow_negative_numbers = true)]
+    pub box_margin: Option<f64>,
     /// Hold out every Nth frame (frames 0, N, 2N, ...) for evaluation (N >= 2).
     #[arg(long, default_value_t = 8)]
     pub holdout_every: usize,

@@ -120,6 +120,7 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
                     Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
                     None => defaults.pca,
                 },
+                box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
                 ..defaults
             })
         }
@@ -133,6 +134,7 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             let defaults = BlenderOptions::default();
             LoaderOptions::Blender(BlenderOptions {
                 downscale: cli.downscale.unwrap_or(defaults.downscale),
+                box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
                 ..defaults
             })
         }
@@ -146,35 +148,11 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             LoaderOptions::Llff(LlffOptions {
                 // LLFF ships pre-downsampled folders `images_N`.
                 images: cli.downscale.map(|d| format!("images_{d}")),
+                box_margin: cli.box_margin.unwrap_or(LlffOptions::default().box_margin),
                 ..LlffOptions::default()
             })
         }
-        Format::Colmap => {
-            if cli.resolution.is_some() {
-                return unsupported("resolution (use --downscale N for images_N/)");
-            }
-            if cli.features.is_none() && cli.pca.is_some() {
-                return Err(TrainError::Config(
-                    "--pca needs --features (there are no feature maps to compress)".into(),
-                ));
-            }
-            let defaults = ColmapOptions::default();
-            LoaderOptions::Colmap(ColmapOptions {
-                features: cli.features.clone(),
-                pca: match &cli.features {
-                    Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-                    None => defaults.pca,
-                },
-                // COLMAP workspaces keep downscaled copies in `images_N`.
-                images: match cli.downscale {
-                    Some(d) if d > 1 => format!("images_{d}"),
-                    _ => defaults.images.clone(),
-                },
-                depth: cli.colmap_depth,
-                stride: cli.stride.unwrap_or(defaults.stride),
-                ..defaults
-            })
-        }
+        Format::Colmap => colmap_options(cli)?,
         Format::Scannet => {
             if cli.downscale.is_some() {
                 return unsupported("downscale (use --resolution WxH)");
@@ -183,11 +161,44 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             LoaderOptions::Scannet(ScannetOptions {
                 stride: cli.stride.unwrap_or(defaults.stride),
                 resolution: cli.resolution.map(|r| (r.width, r.height)),
+                box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
                 ..defaults
             })
         }
         Format::ScannerApp | Format::Record3d | Format::Polycam => phone_options(cli, format)?,
     })
+}
+
+/// The COLMAP loader's options from the command line.
+fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
+    if cli.resolution.is_some() {
+        return Err(TrainError::Config(
+            "--resolution (use --downscale N for images_N/) is not supported for --dataset colmap"
+                .into(),
+        ));
+    }
+    if cli.features.is_none() && cli.pca.is_some() {
+        return Err(TrainError::Config(
+            "--pca needs --features (there are no feature maps to compress)".into(),
+        ));
+    }
+    let defaults = ColmapOptions::default();
+    Ok(LoaderOptions::Colmap(ColmapOptions {
+        features: cli.features.clone(),
+        pca: match &cli.features {
+            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
+            None => defaults.pca,
+        },
+        // COLMAP workspaces keep downscaled copies in `images_N`.
+        images: match cli.downscale {
+            Some(d) if d > 1 => format!("images_{d}"),
+            _ => defaults.images.clone(),
+        },
+        depth: cli.colmap_depth,
+        stride: cli.stride.unwrap_or(defaults.stride),
+        box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
+        ..defaults
+    }))
 }
 
 /// The loader options of a phone `format` from the command line.
@@ -216,6 +227,7 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
             Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
             None => defaults.pca,
         },
+        box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
         ..defaults
     };
     Ok(match format {

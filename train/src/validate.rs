@@ -13,6 +13,10 @@ use crate::cli::{Cli, DatasetKind};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 
+/// The largest `--box-margin`: a box 21 times the region the capture sees
+/// leaves the field too coarse to resolve it.
+const MAX_BOX_MARGIN: f64 = 10.0;
+
 fn flag_error(message: String) -> TrainError {
     TrainError::Config(message)
 }
@@ -93,6 +97,14 @@ fn value_flags(cli: &Cli) -> Result<(), TrainError> {
     {
         return Err(flag_error(format!(
             "--max-depth {m}: must be a positive number of metres"
+        )));
+    }
+    if let Some(m) = cli.box_margin
+        && !(m.is_finite() && (0.0..=MAX_BOX_MARGIN).contains(&m))
+    {
+        return Err(flag_error(format!(
+            "--box-margin {m}: must be a fraction from 0 to {MAX_BOX_MARGIN} of the box's \
+             largest side"
         )));
     }
     if let Some(lr) = cli.lr
@@ -228,6 +240,7 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
             ("colmap-depth", cli.colmap_depth),
             ("min-depth-confidence", cli.min_depth_confidence.is_some()),
             ("max-depth", cli.max_depth.is_some()),
+            ("box-margin", cli.box_margin.is_some()),
         ] {
             if given {
                 return Err(flag_error(format!(
@@ -249,6 +262,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("colmap-depth", cli.colmap_depth),
         ("min-depth-confidence", cli.min_depth_confidence.is_some()),
         ("max-depth", cli.max_depth.is_some()),
+        ("box-margin", cli.box_margin.is_some()),
         ("features", cli.features.is_some()),
         ("vlm", cli.vlm.is_some()),
         ("stride", cli.stride.is_some()),

@@ -50,6 +50,10 @@ fn out_of_range_numbers_are_refused_by_flag() {
         (&["--time-budget", "NaN"], "--time-budget NaN"),
         (&["--holdout-every", "0"], "--holdout-every 0"),
         (&["--holdout-every", "1"], "--holdout-every 1"),
+        (&["--box-margin", "-0.1"], "--box-margin -0.1"),
+        (&["--box-margin", "NaN"], "--box-margin NaN"),
+        (&["--box-margin", "inf"], "--box-margin inf"),
+        (&["--box-margin", "10.5"], "--box-margin 10.5"),
     ] {
         assert_refused(args, &[flag]);
     }
@@ -62,6 +66,7 @@ fn scene_flags_that_would_be_ignored_are_refused() {
         &["--data", "--dataset synthetic"],
     );
     assert_refused(&["--features", "/some/feats"], &["--features", "synthetic"]);
+    assert_refused(&["--box-margin", "0.5"], &["--box-margin", "synthetic"]);
     // --data alone detects the format, so a missing directory is named.
     assert_refused(&["--data", "/some/room"], &["/some/room", "not found"]);
 }
@@ -263,6 +268,62 @@ fn training_without_features_warns_that_segmentation_is_impossible() {
     );
 }
 
+/// `--box-margin` reaches the loader: the box of a scene on disk grows by
+/// the margin's fraction of the region's largest side on every side, and
+/// the run's `scene.json` keeps it (a resume rebuilds the same box).
+#[test]
+fn box_margin_grows_the_scene_box_by_its_fraction() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let room = replica_dir(tmp.path(), 3);
+    let config = tiny_config(tmp.path());
+    let scene_box = |margin: Option<&str>| {
+        let out = tmp
+            .path()
+            .join(format!("run-{}", margin.unwrap_or("default")));
+        let mut args = vec![
+            "--dataset",
+            "replica",
+            "--data",
+            s(&room),
+            "--holdout-every",
+            "2",
+            "--config",
+            s(&config),
+            "--iters",
+            "1",
+            "--no-final-render",
+            "--out",
+            s(&out),
+        ];
+        if let Some(m) = margin {
+            args.extend(["--box-margin", m]);
+        }
+        let r = train(&args);
+        assert!(r.status.success(), "{}", text(&r).1);
+        let meta: datasets::SceneMeta =
+            serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
+                .expect("scene.json parses");
+        let b = meta.scene_box;
+        let rebuilt = datasets::load_scene(&meta.source)
+            .expect("scene rebuilds")
+            .scene_box;
+        assert_eq!(rebuilt, b, "scene.json rebuilds another box");
+        [0, 1, 2].map(|k| b.max[k] - b.min[k])
+    };
+    let default = scene_box(None);
+    let wide = scene_box(Some("0.5"));
+    // Sides are the region's plus twice the margin times its largest
+    // side: 0.05 by default.
+    let largest = default.iter().fold(0.0f64, |a, &b| a.max(b)) / 1.1;
+    for k in 0..3 {
+        let grown = wide[k] - default[k];
+        assert!(
+            (grown - 2.0 * 0.45 * largest).abs() < 1e-9 * largest.max(1.0),
+            "axis {k}: {default:?} -> {wide:?}"
+        );
+    }
+}
+
 /// A new run, resumed with bad options (nothing rewritten), with a damaged
 /// newest checkpoint (falls back to the older one) and with the temporary
 /// file of a killed checkpoint write (removed).
@@ -306,6 +367,10 @@ fn resume_checks_before_writing_and_survives_a_damaged_checkpoint() {
     assert_refused(
         &["--resume", s(&run), "--occupancy-grid"],
         &["--occupancy-grid", "--resume"],
+    );
+    assert_refused(
+        &["--resume", s(&run), "--box-margin", "0.5"],
+        &["--box-margin", "--resume"],
     );
     assert_eq!(
         std::fs::read(run.join("config.json")).expect("config.json"),
