@@ -4,16 +4,22 @@
 # (RAYON_NUM_THREADS=2, taskset), so that a machine of 16 cores runs eight
 # at once and every run of a set gets the same seconds on the same CPU.
 #
-#   bash scripts/statue-sweep.sh appearance|knobs OUT [SECONDS]
+#   bash scripts/statue-sweep.sh appearance|knobs|box OUT [SECONDS]
 #
 # appearance: the statue (box and unbounded field) and fern, with and
 #   without --appearance exposure (450 s in the docs);
-# knobs: the statue's box field with one setting changed per run (280 s).
+# knobs: the statue's box field with one setting changed per run (280 s);
+# box: the statue's box field with the box grown by --box-margin 0.05 (the
+#   default), 0.5 and 1.5, and with the distortion loss on the box field
+#   (losses.box_distortion_weight 0.01, 0.1, 1) (300 s).
+# CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
+# two at a time on a 2-core machine.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-set_name=${1:?usage: bash scripts/statue-sweep.sh appearance|knobs OUT [SECONDS]}
-out=${2:?usage: bash scripts/statue-sweep.sh appearance|knobs OUT [SECONDS]}
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box OUT [SECONDS]"
+set_name=${1:?$usage}
+out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
 statue=$data/colmap_statue
 fern=$data/llff_fern
@@ -49,16 +55,28 @@ case "$set_name" in
       "unbounded-deg8|--data $statue --field unbounded --config $out/deg8.json"
     )
     ;;
+  box)
+    budget=${3:-300}
+    runs=()
+    for margin in 0.05 0.5 1.5; do
+      runs+=("margin$margin|--data $statue --field box --box-margin $margin")
+    done
+    for w in 0.01 0.1 1; do
+      echo "{\"losses\": {\"box_distortion_weight\": $w}}" > "$out/distortion$w.json"
+      runs+=("distortion$w|--data $statue --field box --config $out/distortion$w.json")
+    done
+    ;;
   *)
-    echo "unknown set $set_name: appearance or knobs" >&2
+    echo "unknown set $set_name: appearance, knobs or box" >&2
     exit 2
     ;;
 esac
 . "$(dirname "$0")/frozen-bins.sh"
 freeze_bins "$out"
-# Two cores a run: as many runs at once as the machine has pairs of cores,
-# in batches (one at a time on two cores).
-slots=$(($(nproc) / 2))
+# CORES_PER_RUN cores a run (two by default): as many runs at once as the
+# machine has such groups of cores, in batches.
+per=${CORES_PER_RUN:-2}
+slots=$(($(nproc) / per))
 [ "$slots" -ge 1 ] || slots=1
 i=0
 for r in "${runs[@]}"; do
@@ -68,7 +86,7 @@ for r in "${runs[@]}"; do
     wait
   fi
   # shellcheck disable=SC2086 # the flags are words
-  RAYON_NUM_THREADS=2 taskset -c "$((2 * slot)),$((2 * slot + 1))" "$bin/train" ${r#*|} \
+  RAYON_NUM_THREADS=$per taskset -c "$((per * slot))-$((per * slot + per - 1))" "$bin/train" ${r#*|} \
     --time-budget "$budget" --no-final-render --out "$out/$name" > "$out/$name.log" 2>&1 &
   i=$((i + 1))
 done

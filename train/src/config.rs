@@ -30,6 +30,11 @@ pub struct LossConfig {
     /// Weight of the distortion loss on the fine level, in `s`
     /// (Mip-NeRF 360: 0.01).
     pub distortion_weight: f32,
+    /// Weight of the distortion loss on the box field's fine level, in `t`
+    /// mapped linearly onto `[0, 1]` from the first to the last post of
+    /// each ray (0: off). It gathers each ray's weight into a short
+    /// interval, against the fog a field fits few views with.
+    pub box_distortion_weight: f32,
     /// Weight of the penalty on the learned exposure corrections' squares
     /// (see `model::exposure`), which holds the field at the photographs'
     /// common exposure.
@@ -45,6 +50,7 @@ impl Default for LossConfig {
             huber_delta: 0.2,
             interlevel_weight: 1.0,
             distortion_weight: 0.01,
+            box_distortion_weight: 0.0,
             exposure_penalty: 1e-3,
         }
     }
@@ -339,6 +345,10 @@ impl TrainConfig {
             ("losses.coarse_weight", self.losses.coarse_weight),
             ("losses.interlevel_weight", self.losses.interlevel_weight),
             ("losses.distortion_weight", self.losses.distortion_weight),
+            (
+                "losses.box_distortion_weight",
+                self.losses.box_distortion_weight,
+            ),
             ("losses.exposure_penalty", self.losses.exposure_penalty),
         ] {
             if !(v.is_finite() && v >= 0.0) {

@@ -27,8 +27,9 @@ pub struct LossTerms {
     pub open: Tensor<1>,
     /// Interlevel loss summed over the proposal rounds (zero without them).
     pub interlevel: Tensor<1>,
-    /// Distortion loss of the fine level in `s` (zero for the box field
-    /// with coarse and fine level).
+    /// Distortion loss of the fine level in `s` (for the box field with
+    /// coarse and fine level only with `box_distortion_weight`, in
+    /// [`linear_s`]).
     pub distortion: Tensor<1>,
 }
 
@@ -40,7 +41,8 @@ pub struct LossTerms {
 /// target is non-zero. With the proposal sampler (no coarse level) the
 /// interlevel loss of every proposal round is added (averaged over the fine
 /// intervals and rays, as Mip-NeRF 360), and wherever the fine level has
-/// posts in `s` the distortion loss. Row `i` of `batch` is the target of
+/// posts in `s` the distortion loss; elsewhere (the box field) the
+/// distortion loss in [`linear_s`] when `box_distortion_weight` asks. Row `i` of `batch` is the target of
 /// rendered ray `i` (see [`BatchTensors::select`]).
 pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
     let device = batch.rgb.device();
@@ -89,6 +91,10 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
             distortion = distortion_loss(s.clone(), out.fine.weights.clone());
             total = total + distortion.clone().mul_scalar(cfg.distortion_weight);
         }
+    } else if cfg.box_distortion_weight > 0.0 {
+        let s = linear_s(out.fine.t_vals.clone());
+        distortion = distortion_loss(s, out.fine.weights.clone());
+        total = total + distortion.clone().mul_scalar(cfg.box_distortion_weight);
     }
     let mut open = zero();
     if let (Some(pred), Some(target)) = (out.fine.feature.as_ref(), batch.feature.as_ref())
@@ -111,6 +117,18 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
         interlevel,
         distortion,
     }
+}
+
+/// Each ray's posts mapped linearly onto `[0, 1]`, from its first post to
+/// its last: the box field's `s` for the distortion loss.
+///
+/// # Shapes
+/// - `t_vals`: `[n, posts]`; output the same.
+pub fn linear_s(t_vals: Tensor<2>) -> Tensor<2> {
+    let [n, posts] = t_vals.dims();
+    let first = t_vals.clone().slice([0..n, 0..1]);
+    let last = t_vals.clone().slice([0..n, posts - 1..posts]);
+    (t_vals - first.clone()) / (last - first).clamp_min(1e-9)
 }
 
 /// The rendered colours of `batch`'s rays as their photographs' learned
@@ -469,6 +487,60 @@ mod tests {
             + 0.02 * coarse_depth;
         assert!((s(t.total) - expected).abs() < 1e-5 * expected.max(1.0));
         assert!(s(t.open) > 0.0);
+    }
+
+    /// The box field's distortion term: off by default; with a weight, the
+    /// double integral of the fine weights over the posts mapped onto
+    /// `[0, 1]`, against a float64 brute-force sum, added to the total.
+    #[test]
+    fn box_distortion_is_the_double_integral_over_linear_s() {
+        let device = Device::flex();
+        let model = tiny_model(&device);
+        let b = batch(&device, 0.3);
+        let out = model.render(&RenderRequest::train(&b.rays).with_randomized(false));
+        let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
+        let plain = losses(&out, &b, &LossConfig::default());
+        assert_eq!(s(plain.distortion.clone()), 0.0);
+        let cfg = LossConfig {
+            box_distortion_weight: 0.5,
+            ..LossConfig::default()
+        };
+        let t = losses(&out, &b, &cfg);
+        let host = |x: Tensor<2>| x.into_data().try_to_vec::<f32>().expect("f32");
+        let (posts, weights) = (
+            host(out.fine.t_vals.clone()),
+            host(out.fine.weights.clone()),
+        );
+        let [n, p] = out.fine.t_vals.dims();
+        let mut expected = 0f64;
+        for r in 0..n {
+            let t = &posts[r * p..(r + 1) * p];
+            let w = &weights[r * (p - 1)..(r + 1) * (p - 1)];
+            let s: Vec<f64> = t
+                .iter()
+                .map(|&v| (v as f64 - t[0] as f64) / (t[p - 1] as f64 - t[0] as f64))
+                .collect();
+            for i in 0..p - 1 {
+                let ui = 0.5 * (s[i] + s[i + 1]);
+                for j in 0..p - 1 {
+                    let uj = 0.5 * (s[j] + s[j + 1]);
+                    expected += w[i] as f64 * w[j] as f64 * (ui - uj).abs();
+                }
+                expected += (w[i] as f64).powi(2) * (s[i + 1] - s[i]) / 3.0;
+            }
+        }
+        expected /= n as f64;
+        let got = s(t.distortion.clone());
+        assert!(expected > 1e-4, "{expected}");
+        assert!(
+            (got - expected).abs() < 1e-5 * expected.max(1e-3),
+            "{got} vs {expected}"
+        );
+        let added = s(t.total) - s(plain.total);
+        assert!(
+            (added - 0.5 * expected).abs() < 1e-5,
+            "{added} vs {expected}"
+        );
     }
 
     #[test]
