@@ -67,6 +67,13 @@ job() {
     frame=scene
   fi
   echo "== $tag"
+  # The processor each run trained on (OUT/runs/TAG.cpu): a table resumed
+  # on another machine says so run by run.
+  [ -f "$out/runs/$tag/summary.json" ] || {
+    mkdir -p "$out/runs"
+    lscpu | sed -n 's/^Model name: *//p; s/^CPU family: *\(.*\)/family \1/p; s/^Model: *\(.*\)/model \1/p' |
+      paste -sd ' ' > "$out/runs/$tag.cpu"
+  }
   [ -f "$out/runs/$tag/summary.json" ] || "${pin[@]}" "$bin/train" --data "$dir" \
     --features "$out/features/$name" --resolution 300x170 --holdout-every 5 "${length[@]}" \
     --seed "$seed" --no-final-render --quiet --out "$out/runs/$tag"
@@ -131,26 +138,28 @@ for line in (out / "manifest.txt").read_text().splitlines():
     g = g.get("hybrid", g).get("all", g)
     text = (out / "render" / tag / "psnr.txt").read_text()
     whole = float(text.split("):")[1].split("dB")[0])
-    runs[tag] = dict(loader=name, seed=seed, tag=tag, partner=partner,
+    cpu = out / "runs" / f"{tag}.cpu"
+    cpu = cpu.read_text().strip().replace(",", " ") if cpu.exists() else "unrecorded"
+    runs[tag] = dict(loader=name, seed=seed, tag=tag, partner=partner, cpu=cpu,
                      iterations=s["iterations"], sampled=s["heldout_interior"]["psnr"],
                      psnr=whole, miou=100 * g["miou"], macc=100 * g["macc"])
 runs = sorted(runs.values(), key=lambda r: (loaders.index(r["loader"]), r["tag"]))
-lines = ["loader,seed,run,iterations,heldout_psnr_sampled_db,heldout_psnr_db,miou,macc"]
+lines = ["loader,seed,run,iterations,heldout_psnr_sampled_db,heldout_psnr_db,miou,macc,cpu"]
 for r in runs:
     lines.append(f"{r['loader']},{r['seed']},{r['tag']},{r['iterations']},{r['sampled']:.3f},"
-                 f"{r['psnr']:.3f},{r['miou']:.2f},{r['macc']:.2f}")
+                 f"{r['psnr']:.3f},{r['miou']:.2f},{r['macc']:.2f},{r['cpu']}")
 (out / "phone_runs.csv").write_text("\n".join(lines) + "\n")
 by_tag = {r["tag"]: r for r in runs}
 paired = any(r["partner"] != "-" for r in runs)
 if paired:
-    lines = ["loader,seed,iterations,replica_iterations,psnr_vs_replica_db,miou_vs_replica"]
+    lines = ["loader,seed,iterations,replica_iterations,psnr_vs_replica_db,miou_vs_replica,cpu"]
     for r in runs:
         if r["partner"] == "-":
             continue
         q = by_tag[r["partner"]]
         r["dpsnr"], r["dmiou"] = r["psnr"] - q["psnr"], r["miou"] - q["miou"]
         lines.append(f"{r['loader']},{r['seed']},{r['iterations']},{q['iterations']},"
-                     f"{r['dpsnr']:+.3f},{r['dmiou']:+.2f}")
+                     f"{r['dpsnr']:+.3f},{r['dmiou']:+.2f},{r['cpu']}")
     (out / "phone_pairs.csv").write_text("\n".join(lines) + "\n")
 
 
