@@ -1,7 +1,7 @@
 """How much of a run's held-out error a colour change or a camera shift
 could explain (docs/unbounded.md, "What holds the statue back").
 
-    python3 scripts/heldout-alignment.py RUN IMAGES OUT_PREFIX
+    python3 scripts/heldout-alignment.py RUN IMAGES OUT_PREFIX [SPARSE]
 
 For each held-out view rendered into RUN/renders/ (`NAME_rgb.png`, with
 `NAME_depth.png` beside it), against its photograph IMAGES/NAME.jpg, over
@@ -9,7 +9,12 @@ the pixels at least 20 from the border: the PSNR as rendered; after the
 best gain and offset per colour channel (least squares: what a per-image
 exposure could at most recover); after the best shift of the photograph
 by up to 16 pixels in each axis, in steps of 2 (to first order what a
-rotation of the camera could recover); and after both. Writes
+rotation of the camera could recover); and after both. With SPARSE, a
+COLMAP model's directory (`images.bin`), also the PSNR inside and outside
+the convex hull of the view's registered sparse points (where the points
+lie: on a captured object, the object), the share of the squared error
+outside it, and the PSNR the view would have with the inside at 25 dB
+and the outside as rendered. Writes
 OUT_PREFIX.csv and OUT_PREFIX.png (photograph, render, rendered depth, one
 row per view). Needs numpy and Pillow.
 """
@@ -18,8 +23,10 @@ import csv
 import pathlib
 import sys
 
+import struct
+
 import numpy as np
-from PIL import Image
+from PIL import Image, ImageDraw
 
 BORDER = 20
 MAX_SHIFT = 16
@@ -44,6 +51,64 @@ def affine_fit(x, y):
     return out
 
 
+def registered_points(sparse):
+    """Per image stem, the pixel positions of its points with a 3D point,
+    from COLMAP's binary `images.bin`."""
+    points = {}
+    with open(sparse / "images.bin", "rb") as f:
+        (count,) = struct.unpack("<Q", f.read(8))
+        for _ in range(count):
+            f.read(4 + 56 + 4)  # image id, pose, camera id
+            name = b""
+            while (c := f.read(1)) != b"\0":
+                name += c
+            (n,) = struct.unpack("<Q", f.read(8))
+            obs = [struct.unpack("<ddq", f.read(24)) for _ in range(n)]
+            stem = pathlib.Path(name.decode()).stem
+            points[stem] = [(x, y) for x, y, p in obs if p != -1]
+    return points
+
+
+def hull(points):
+    """The convex hull of 2D points, counter-clockwise (monotone chain)."""
+    pts = sorted(set(points))
+
+    def turn(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and turn(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and turn(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return lower[:-1] + upper[:-1]
+
+
+def split_by_points(r, g, points):
+    """PSNR inside and outside the hull of `points`, over the interior."""
+    h, w = r.shape[:2]
+    mask = Image.new("L", (w, h), 0)
+    ImageDraw.Draw(mask).polygon(hull(points), fill=1)
+    inside = np.asarray(mask).astype(bool)
+    interior = np.zeros((h, w), bool)
+    interior[BORDER : h - BORDER, BORDER : w - BORDER] = True
+    err = ((r - g) ** 2).mean(2)
+    a, b = err[inside & interior], err[~inside & interior]
+    frac = a.size / (a.size + b.size)
+    total = err[interior].mean()
+    return dict(
+        hull_pixels_percent=f"{100 * frac:.1f}",
+        inside_db=f"{-10 * np.log10(a.mean()):.2f}",
+        outside_db=f"{-10 * np.log10(b.mean()):.2f}",
+        error_outside_percent=f"{100 * (1 - frac) * b.mean() / total:.1f}",
+        inside_at_25db_db=f"{-10 * np.log10(frac * 10 ** -2.5 + (1 - frac) * b.mean()):.2f}",
+    )
+
+
 def load(path, size=None):
     img = Image.open(path).convert("RGB")
     if size is not None and img.size != size:
@@ -53,6 +118,7 @@ def load(path, size=None):
 
 def main():
     run, images, prefix = map(pathlib.Path, sys.argv[1:4])
+    points = registered_points(pathlib.Path(sys.argv[4])) if len(sys.argv) > 4 else None
     rows, strips = [], []
     for render in sorted((run / "renders").glob("*_rgb.png")):
         name = render.name[: -len("_rgb.png")]
@@ -75,6 +141,8 @@ def main():
                  best_shift_x=dx, best_shift_y=dy, shifted_db=f"{shifted:.2f}",
                  shifted_and_colour_fitted_db=f"{both:.2f}")
         )
+        if points is not None:
+            rows[-1].update(split_by_points(r, g, points[name]))
         depth = load(run / "renders" / f"{name}_depth.png", size)
         strips.append(np.concatenate([g, r, depth], 1))
     if not rows:
