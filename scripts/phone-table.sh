@@ -67,16 +67,16 @@ job() {
     frame=scene
   fi
   echo "== $tag"
-  # The processor each run trained on (OUT/runs/TAG.cpu): a table resumed
-  # on another machine says so run by run.
   [ -f "$out/runs/$tag/summary.json" ] || {
+    # The processor each run trains on (OUT/runs/TAG.cpu): a table resumed
+    # on another machine says so run by run.
     mkdir -p "$out/runs"
     lscpu | sed -n 's/^Model name: *//p; s/^CPU family: *\(.*\)/family \1/p; s/^Model: *\(.*\)/model \1/p' |
       paste -sd ' ' > "$out/runs/$tag.cpu"
+    "${pin[@]}" "$bin/train" --data "$dir" \
+      --features "$out/features/$name" --resolution 300x170 --holdout-every 5 "${length[@]}" \
+      --seed "$seed" --no-final-render --quiet --out "$out/runs/$tag"
   }
-  [ -f "$out/runs/$tag/summary.json" ] || "${pin[@]}" "$bin/train" --data "$dir" \
-    --features "$out/features/$name" --resolution 300x170 --holdout-every 5 "${length[@]}" \
-    --seed "$seed" --no-final-render --quiet --out "$out/runs/$tag"
   [ -f "$out/segment/$tag/segmentation.json" ] || "${pin[@]}" "$bin/eval" segment \
     --run "$out/runs/$tag" --points "$points" --frame "$frame" \
     --embeddings "$out/features/$name/classes/embeddings.npy" \

@@ -34,6 +34,19 @@ pub enum LoaderOptions {
 }
 
 impl LoaderOptions {
+    /// The scene box's margin, a fraction of its largest extent: every
+    /// format has one.
+    pub fn box_margin_mut(&mut self) -> &mut f64 {
+        match self {
+            Self::Replica(o) => &mut o.box_margin,
+            Self::Blender(o) => &mut o.box_margin,
+            Self::Llff(o) => &mut o.box_margin,
+            Self::Colmap(o) => &mut o.box_margin,
+            Self::Scannet(o) => &mut o.box_margin,
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => &mut o.box_margin,
+        }
+    }
+
     /// The format's name (`replica`, `blender`, `llff`, `colmap`,
     /// `scannet`, `scanner_app`, `record3d` or `polycam`), as serialised.
     pub fn format(&self) -> &'static str {

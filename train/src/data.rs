@@ -64,7 +64,10 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
         DatasetKind::Polycam => Format::Polycam,
         DatasetKind::Synthetic => unreachable!("handled above"),
     };
-    let loader = loader_options(cli, format)?;
+    let mut loader = loader_options(cli, format)?;
+    if let Some(margin) = cli.box_margin {
+        *loader.box_margin_mut() = margin;
+    }
     Ok(SceneSource::Disk { loader, path })
 }
 
@@ -120,7 +123,6 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
                     Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
                     None => defaults.pca,
                 },
-                box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
                 ..defaults
             })
         }
@@ -134,7 +136,6 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             let defaults = BlenderOptions::default();
             LoaderOptions::Blender(BlenderOptions {
                 downscale: cli.downscale.unwrap_or(defaults.downscale),
-                box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
                 ..defaults
             })
         }
@@ -148,7 +149,6 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             LoaderOptions::Llff(LlffOptions {
                 // LLFF ships pre-downsampled folders `images_N`.
                 images: cli.downscale.map(|d| format!("images_{d}")),
-                box_margin: cli.box_margin.unwrap_or(LlffOptions::default().box_margin),
                 ..LlffOptions::default()
             })
         }
@@ -161,7 +161,6 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             LoaderOptions::Scannet(ScannetOptions {
                 stride: cli.stride.unwrap_or(defaults.stride),
                 resolution: cli.resolution.map(|r| (r.width, r.height)),
-                box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
                 ..defaults
             })
         }
@@ -196,7 +195,6 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
         },
         depth: cli.colmap_depth,
         stride: cli.stride.unwrap_or(defaults.stride),
-        box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
         ..defaults
     }))
 }
@@ -227,7 +225,6 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
             Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
             None => defaults.pca,
         },
-        box_margin: cli.box_margin.unwrap_or(defaults.box_margin),
         ..defaults
     };
     Ok(match format {
@@ -314,5 +311,34 @@ mod pca_flag_tests {
         assert!(e.to_string().contains("--features"), "{e}");
         assert!(Cli::try_parse_from(["train", "--pca", "0"]).is_err());
         assert!(Cli::try_parse_from(["train", "--pca", "most"]).is_err());
+    }
+
+    /// `--box-margin` reaches the options of every format on disk; without
+    /// it each keeps its default.
+    #[test]
+    fn box_margin_reaches_every_loader() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let data = dir.path().display().to_string();
+        for fmt in [
+            "replica",
+            "blender",
+            "llff",
+            "colmap",
+            "scannet",
+            "scanner-app",
+            "record3d",
+            "polycam",
+        ] {
+            let margin = |extra: &[&str]| {
+                let mut args = vec!["--dataset", fmt, "--data", &data];
+                args.extend_from_slice(extra);
+                match source(&args).expect(fmt) {
+                    SceneSource::Disk { mut loader, .. } => *loader.box_margin_mut(),
+                    other => panic!("{other:?}"),
+                }
+            };
+            assert_eq!(margin(&["--box-margin", "0.7"]), 0.7, "{fmt}");
+            assert_eq!(margin(&[]), 0.05, "{fmt}");
+        }
     }
 }

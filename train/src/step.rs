@@ -42,8 +42,9 @@ pub struct LossTerms {
 /// interlevel loss of every proposal round is added (averaged over the fine
 /// intervals and rays, as Mip-NeRF 360), and wherever the fine level has
 /// posts in `s` the distortion loss; elsewhere (the box field) the
-/// distortion loss in [`linear_s`] when `box_distortion_weight` asks. Row `i` of `batch` is the target of
-/// rendered ray `i` (see [`BatchTensors::select`]).
+/// distortion loss in [`linear_s`] when `box_distortion_weight` asks. Row
+/// `i` of `batch` is the target of rendered ray `i` (see
+/// [`BatchTensors::select`]).
 pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> LossTerms {
     let device = batch.rgb.device();
     let zero = || Tensor::<1>::zeros([1], &device);

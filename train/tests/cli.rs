@@ -4,7 +4,7 @@
 //! exact command to run next.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 mod common;
 
 use common::{TINY, assert_refused, s, text, train};
@@ -39,6 +39,28 @@ fn replica_dir(dir: &Path, n: usize) -> PathBuf {
     }
     std::fs::write(root.join("traj.txt"), traj).expect("write");
     root
+}
+
+/// `train` on the room of `replica_dir` (every other frame held out) with
+/// the tiny configuration, for `iters` iterations into `out`, with `extra`
+/// flags.
+fn train_tiny_room(room: &Path, config: &Path, iters: &str, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "--dataset",
+        "replica",
+        "--data",
+        s(room),
+        "--holdout-every",
+        "2",
+        "--config",
+        s(config),
+        "--iters",
+        iters,
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    train(&args)
 }
 
 #[test]
@@ -231,20 +253,7 @@ fn training_without_features_warns_that_segmentation_is_impossible() {
     let room = replica_dir(tmp.path(), 3);
     let config = tiny_config(tmp.path());
     let out = tmp.path().join("run");
-    let r = train(&[
-        "--dataset",
-        "replica",
-        "--data",
-        s(&room),
-        "--holdout-every",
-        "2",
-        "--config",
-        s(&config),
-        "--iters",
-        "2",
-        "--out",
-        s(&out),
-    ]);
+    let r = train_tiny_room(&room, &config, "2", &out, &[]);
     let (stdout, stderr) = text(&r);
     assert!(r.status.success(), "{stderr}");
     assert!(stderr.contains("without --features"), "{stderr}");
@@ -280,25 +289,11 @@ fn box_margin_grows_the_scene_box_by_its_fraction() {
         let out = tmp
             .path()
             .join(format!("run-{}", margin.unwrap_or("default")));
-        let mut args = vec![
-            "--dataset",
-            "replica",
-            "--data",
-            s(&room),
-            "--holdout-every",
-            "2",
-            "--config",
-            s(&config),
-            "--iters",
-            "1",
-            "--no-final-render",
-            "--out",
-            s(&out),
-        ];
+        let mut extra = vec!["--no-final-render"];
         if let Some(m) = margin {
-            args.extend(["--box-margin", m]);
+            extra.extend(["--box-margin", m]);
         }
-        let r = train(&args);
+        let r = train_tiny_room(&room, &config, "1", &out, &extra);
         assert!(r.status.success(), "{}", text(&r).1);
         let meta: datasets::SceneMeta =
             serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
@@ -312,13 +307,13 @@ fn box_margin_grows_the_scene_box_by_its_fraction() {
     };
     let default = scene_box(None);
     let wide = scene_box(Some("0.5"));
-    // Sides are the region's plus twice the margin times its largest
-    // side: 0.05 by default.
-    let largest = default.iter().fold(0.0f64, |a, &b| a.max(b)) / 1.1;
+    // Sides are the region's plus twice the margin times its largest side.
+    let d = datasets::replica::ReplicaOptions::default().box_margin;
+    let largest = default.iter().fold(0.0f64, |a, &b| a.max(b)) / (1.0 + 2.0 * d);
     for k in 0..3 {
         let grown = wide[k] - default[k];
         assert!(
-            (grown - 2.0 * 0.45 * largest).abs() < 1e-9 * largest.max(1.0),
+            (grown - 2.0 * (0.5 - d) * largest).abs() < 1e-9 * largest.max(1.0),
             "axis {k}: {default:?} -> {wide:?}"
         );
     }
