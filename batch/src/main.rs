@@ -58,6 +58,8 @@ struct Cli {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Subnormals flushed to zero: docs/cpu-step.md.
+    field_ops::subnormals::flush_to_zero();
     let stop = StopFlag::on_signals().unwrap_or_else(|e| {
         eprintln!("warning: signals will stop the batch without a checkpoint: {e}");
         StopFlag::new()

@@ -88,6 +88,7 @@ pub mod sample;
 pub mod scores;
 pub mod similarity;
 pub mod stages;
+pub mod subnormals;
 pub mod text_query;
 pub mod uncertainty;
 pub mod vlm_maps;

@@ -75,6 +75,34 @@ pub fn blur_weights(weights: Tensor<2>, padding: f32) -> Tensor<2> {
         .add_scalar(padding)
 }
 
+/// The quantiles [`sample_pdf`] inverts the CDF at: `num_posts` evenly
+/// spaced in `[0, 1)`, each jittered uniformly inside its own stratum when
+/// `randomized` (one draw of the backend's generator), so every row is
+/// sorted.
+///
+/// # Shapes
+/// - output: `[rays, num_posts]`.
+pub fn pdf_quantiles(
+    rays: usize,
+    num_posts: usize,
+    randomized: bool,
+    device: &burn::tensor::Device,
+) -> Tensor<2> {
+    let eps = 1e-5f32;
+    if randomized {
+        let step = 1.0 / num_posts as f32;
+        let base = linspace_row(num_posts, step * (num_posts.max(2) - 1) as f32, device);
+        let jitter = Tensor::random(
+            [rays, num_posts],
+            Distribution::Uniform(0.0, (step - f32::EPSILON) as f64),
+            device,
+        );
+        base.add(jitter).clamp_max(1.0 - eps)
+    } else {
+        linspace_row(num_posts, 1.0 - eps, device).repeat_dim(0, rays)
+    }
+}
+
 /// Inverse-CDF sampling of `num_posts` sorted values from the piecewise
 /// constant density with `weights` on the intervals between `bins`
 /// (Mip-NeRF's `sorted_piecewise_constant_pdf`). With `randomized`, each
@@ -105,18 +133,7 @@ pub fn sample_pdf(
     }
     parts.push(Tensor::ones([rays, 1], &device));
     let cdf = Tensor::cat(parts, 1); // [rays, s + 1]
-    let u = if randomized {
-        let step = 1.0 / num_posts as f32;
-        let base = linspace_row(num_posts, step * (num_posts.max(2) - 1) as f32, &device);
-        let jitter = Tensor::random(
-            [rays, num_posts],
-            Distribution::Uniform(0.0, (step - f32::EPSILON) as f64),
-            &device,
-        );
-        base.add(jitter).clamp_max(1.0 - eps)
-    } else {
-        linspace_row(num_posts, 1.0 - eps, &device).repeat_dim(0, rays)
-    }; // [rays, n]
+    let u = pdf_quantiles(rays, num_posts, randomized, &device); // [rays, n]
     // mask[r, j, i] = u_i >= cdf_j: the interval of u_i starts at the last j
     // with the mask set and ends at the first j without it.
     let m = s + 1;

@@ -2,7 +2,8 @@
 //! Gaussians pushed through it ([`mod@contract`]), the normalised-disparity ray
 //! parameterisation ([`spacing`]), and the proposal (interlevel) and
 //! distortion losses with the proposal-weight helpers ([`stepfun`], and
-//! the dilation on the host, [`mod@dilate`]), and an
+//! the dilation and the resampling on the host, [`mod@dilate`],
+//! [`mod@resample`]), and an
 //! unbounded scene's configuration with the ray coordinate `s` ([`scene`]).
 //!
 //! Everything but the configuration is a pure, differentiable function on
@@ -11,6 +12,7 @@
 
 pub mod contract;
 pub mod dilate;
+pub mod resample;
 pub mod scene;
 pub mod spacing;
 pub mod stepfun;
@@ -20,6 +22,7 @@ pub use contract::{
     frustum_covariance,
 };
 pub use dilate::max_dilate_weights_host;
+pub use resample::{anneal_weights_host, sample_pdf_host};
 pub use scene::{CONTRACTED_SCALE, Spacing, UnboundedConfig};
 pub use spacing::{s_to_t, t_to_s};
 pub use stepfun::{

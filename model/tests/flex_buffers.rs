@@ -73,3 +73,24 @@ fn the_workspace_builds_the_patched_burn_flex() {
     );
     assert!(entry.contains("version = \"0.22.1\""), "{entry}");
 }
+
+#[test]
+fn the_workspace_builds_gemms_avx512_kernels() {
+    // gemm picks its AVX-512 kernels at run time only if they were compiled
+    // (its `x86-v4` feature). workspace-hack lists the features every
+    // member builds a dependency with (CI checks it is current), so a
+    // member that stops asking for the feature fails here, not silently
+    // in the step time on AVX-512 CPUs.
+    let hack = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../workspace-hack/Cargo.toml"
+    ))
+    .unwrap();
+    for package in ["gemm", "gemm-common", "gemm-f32"] {
+        let line = hack
+            .lines()
+            .find(|l| l.starts_with(&format!("{package} = ")))
+            .unwrap_or_else(|| panic!("{package} is not in workspace-hack/Cargo.toml"));
+        assert!(line.contains("\"x86-v4\""), "{line}");
+    }
+}

@@ -507,3 +507,7 @@ fn s_space_round_trips_and_hits_the_ends() {
 /// The step-function losses and proposal helpers.
 #[path = "unbounded/stepfun.rs"]
 mod stepfun;
+
+/// The proposal sampler's resampling on the host.
+#[path = "unbounded/resample.rs"]
+mod resample;

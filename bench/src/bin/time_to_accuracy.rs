@@ -165,6 +165,8 @@ fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<(Row, Vec<(f64,
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    // Subnormals flushed to zero: docs/cpu-step.md.
+    field_ops::subnormals::flush_to_zero();
     args.compute.check().map_err(anyhow::Error::msg)?;
     if !args.data.join("transforms_train.json").exists()
         && !args.data.join("transforms.json").exists()

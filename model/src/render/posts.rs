@@ -8,8 +8,10 @@ use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
 use crate::nerf::{OpenNerf, Rays};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::sampling::{resample_t_vals, sample_pdf, stratified_t_vals};
-use crate::unbounded::{Spacing, anneal_exponent, anneal_weights, max_dilate_weights_host};
+use crate::sampling::{pdf_quantiles, resample_t_vals, stratified_t_vals};
+use crate::unbounded::{
+    Spacing, anneal_exponent, anneal_weights_host, max_dilate_weights_host, sample_pdf_host,
+};
 
 /// One proposal round's histogram along the rays, what the interlevel loss
 /// makes an upper envelope of the NeRF weights.
@@ -120,11 +122,13 @@ impl OpenNerf {
     }
 }
 
-/// One resampling: round `round` (after the first) dilates the previous
-/// histogram `(s, w)` (on the host, [`max_dilate_weights_host`]), the
-/// weights are annealed, and `count + 1` new posts are drawn from them
-/// (detached), the first and the last pinned to 0 and 1 so that every
-/// round covers the whole ray, jittered or not.
+/// One resampling, on the host: round `round` (after the first) dilates
+/// the previous histogram `(s, w)` ([`max_dilate_weights_host`]), the
+/// weights are annealed ([`anneal_weights_host`]), and `count + 1` new
+/// posts are drawn from them ([`sample_pdf_host`] at the quantiles of
+/// [`pdf_quantiles`]), the first and the last pinned to 0 and 1 so that
+/// every round covers the whole ray, jittered or not. The posts are
+/// detached: only the proposal weights learn (from the interlevel loss).
 fn resample_round(
     cfg: &ProposalConfig,
     round: usize,
@@ -135,8 +139,8 @@ fn resample_round(
     randomized: bool,
 ) -> Tensor<2> {
     let device = s.device();
-    let (s, w) = if round > 0 {
-        let [n, posts] = s.dims();
+    let [n, posts] = s.dims();
+    let (ends, mut weights) = if round > 0 {
         let (ends, weights) =
             max_dilate_weights_host(&host(s), &host(w), n, cfg.dilation(round), (0.0, 1.0), true);
         let m = 3 * (posts - 1);
@@ -146,22 +150,18 @@ fn resample_round(
             .chunks(m)
             .flat_map(|r| r[1..m - 1].to_vec())
             .collect();
-        (
-            Tensor::from_data(TensorData::new(ends, [n, m - 1]), &device),
-            Tensor::from_data(TensorData::new(weights, [n, m - 2]), &device),
-        )
+        (ends, weights)
     } else {
-        (s.detach(), w.detach())
+        (host(s), host(w))
     };
-    let w = anneal_weights(s.clone(), w, exponent, cfg.resample_padding);
-    let posts = sample_pdf(s, w, count + 1, randomized);
-    let [n, _] = posts.dims();
-    let mut parts = vec![Tensor::zeros([n, 1], &device)];
-    if count > 1 {
-        parts.push(posts.slice_dim(1, 1..count));
+    anneal_weights_host(&ends, &mut weights, n, exponent, cfg.resample_padding);
+    let u = host(pdf_quantiles(n, count + 1, randomized, &device));
+    let mut drawn = sample_pdf_host(&ends, &weights, &u, n);
+    for row in drawn.chunks_mut(count + 1) {
+        row[0] = 0.0;
+        row[count] = 1.0;
     }
-    parts.push(Tensor::ones([n, 1], &device));
-    Tensor::cat(parts, 1)
+    Tensor::from_data(TensorData::new(drawn, [n, count + 1]), &device)
 }
 
 fn host(t: Tensor<2>) -> Vec<f32> {

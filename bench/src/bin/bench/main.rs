@@ -68,6 +68,11 @@ struct Args {
     /// surface (0: the untrained field, a fog no ray ends in).
     #[arg(long, default_value_t = 60)]
     fit_steps: usize,
+    /// Compute with subnormal floats as the CPU does by default instead of
+    /// flushing them to zero as the workspace's binaries do (x86-64), to
+    /// time what flushing saves.
+    #[arg(long)]
+    keep_subnormals: bool,
     /// Cases to run (all by default), e.g. `--cases plain` to profile one.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [CaseName::Composited, CaseName::Plain, CaseName::Grid, CaseName::Proposal])]
     cases: Vec<CaseName>,
@@ -263,6 +268,11 @@ fn run_backend(
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
+    if args.keep_subnormals {
+        eprintln!("subnormals: kept (--keep-subnormals)");
+    } else {
+        field_ops::subnormals::flush_to_zero();
+    }
     args.compute.check().map_err(anyhow::Error::msg)?;
     if let Some(fifo) = &args.perf_control {
         profile::open(fifo)

@@ -251,6 +251,8 @@ fn print_table(
 
 fn main() -> Result<()> {
     let args = Args::parse();
+    // Subnormals flushed to zero: docs/cpu-step.md.
+    field_ops::subnormals::flush_to_zero();
     args.compute.check().map_err(anyhow::Error::msg)?;
     ensure!(
         !args.compute.backend.is_empty() || args.python.is_some(),

@@ -1,0 +1,139 @@
+//! The proposal sampler's host resampling against the tensor forms it
+//! replaces (`sample_pdf`, `anneal_weights`) and against inverse-CDF
+//! sampling evaluated in f64, on step functions with empty intervals,
+//! weightless rays and single intervals.
+
+use super::{anneal_weights, assert_close, devices, tensor, vec};
+use model::sampling::{pdf_quantiles, sample_pdf};
+use model::unbounded::{anneal_weights_host, sample_pdf_host};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// `rays` step functions of `n` intervals on [0, 1], row-major: sorted ends
+/// (about a fifth of the intervals empty) and weights (some zero, and every
+/// fourth ray weightless).
+fn steps(rng: &mut ChaCha8Rng, rays: usize, n: usize) -> (Vec<f32>, Vec<f32>) {
+    let (mut t, mut w) = (Vec::new(), Vec::new());
+    for r in 0..rays {
+        let mut ends: Vec<f32> = (0..n + 1).map(|_| rng.random_range(0.0..1.0)).collect();
+        for j in 1..=n {
+            if rng.random_range(0.0..1.0) < 0.2 {
+                ends[j] = ends[j - 1];
+            }
+        }
+        ends.sort_by(f32::total_cmp);
+        t.extend(ends);
+        for _ in 0..n {
+            let x: f32 = rng.random_range(0.0..1.0);
+            w.push(if r % 4 == 3 || x < 0.15 { 0.0 } else { x });
+        }
+    }
+    (t, w)
+}
+
+/// Inverse-CDF sampling in f64 by a scan over the intervals: the pdf of
+/// `sample_pdf` (weights padded towards uniform when they sum below 1e-5),
+/// and each quantile placed linearly inside the last interval whose CDF
+/// starts at or below it (an interval of no mass yields its start).
+fn sample_pdf64(bins: &[f32], weights: &[f32], u: &[f32], rays: usize) -> Vec<f64> {
+    let n = weights.len() / rays;
+    let k = u.len() / rays;
+    let mut out = Vec::new();
+    for r in 0..rays {
+        let b: Vec<f64> = bins[r * (n + 1)..(r + 1) * (n + 1)]
+            .iter()
+            .map(|&x| x as f64)
+            .collect();
+        let w: Vec<f64> = weights[r * n..(r + 1) * n]
+            .iter()
+            .map(|&x| x as f64)
+            .collect();
+        let sum: f64 = w.iter().sum();
+        let pad = (1e-5 - sum).max(0.0);
+        let mut cdf = vec![0.0];
+        for j in 0..n - 1 {
+            cdf.push((cdf[j] + (w[j] + pad / n as f64) / (sum + pad)).min(1.0));
+        }
+        cdf.push(1.0);
+        for &q in &u[r * k..(r + 1) * k] {
+            let q = q as f64;
+            let count = cdf.iter().filter(|&&c| c <= q).count();
+            let lo = count.saturating_sub(1);
+            let hi = count.min(n);
+            let d = cdf[hi] - cdf[lo];
+            let f = if d <= 0.0 {
+                0.0
+            } else {
+                ((q - cdf[lo]) / d).clamp(0.0, 1.0)
+            };
+            out.push(b[lo] + f * (b[hi] - b[lo]));
+        }
+    }
+    out
+}
+
+#[test]
+fn host_sampling_equals_the_tensor_form() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    for (name, device) in devices(false) {
+        for (n, k) in [(1, 2), (3, 9), (16, 65), (191, 33)] {
+            let rays = 24;
+            let (t, w) = steps(&mut rng, rays, n);
+            let u = vec(pdf_quantiles(rays, k, false, &device));
+            let dense = vec(sample_pdf(
+                tensor(t.clone(), [rays, n + 1], &device),
+                tensor(w.clone(), [rays, n], &device),
+                k,
+                false,
+            ));
+            let host = sample_pdf_host(&t, &w, &u, rays);
+            assert_close(&host, &dense, 2e-6, 1e-5, &format!("{name}: n {n}, k {k}"));
+        }
+    }
+}
+
+#[test]
+fn host_sampling_inverts_the_cdf_in_float64() {
+    let mut rng = ChaCha8Rng::seed_from_u64(32);
+    for (name, device) in devices(false) {
+        for (n, k) in [(1, 3), (8, 33), (64, 65), (191, 33)] {
+            let rays = 32;
+            let (t, w) = steps(&mut rng, rays, n);
+            // Jittered quantiles, from the backend's generator.
+            let u = vec(pdf_quantiles(rays, k, true, &device));
+            let host = sample_pdf_host(&t, &w, &u, rays);
+            let want: Vec<f32> = sample_pdf64(&t, &w, &u, rays)
+                .iter()
+                .map(|&x| x as f32)
+                .collect();
+            assert_close(&host, &want, 2e-5, 1e-4, &format!("{name}: n {n}, k {k}"));
+            for row in host.chunks(k) {
+                assert!(
+                    row.windows(2).all(|p| p[0] <= p[1]),
+                    "{name}: unsorted {row:?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn host_annealing_equals_the_tensor_form() {
+    let mut rng = ChaCha8Rng::seed_from_u64(33);
+    for (name, device) in devices(false) {
+        let (rays, n) = (16, 40);
+        let (t, w) = steps(&mut rng, rays, n);
+        for (exponent, padding) in [(0.0, 0.0), (0.37, 0.0), (1.0, 0.01), (1.0, 0.0)] {
+            let dense = vec(anneal_weights(
+                tensor(t.clone(), [rays, n + 1], &device),
+                tensor(w.clone(), [rays, n], &device),
+                exponent,
+                padding,
+            ));
+            let mut host = w.clone();
+            anneal_weights_host(&t, &mut host, rays, exponent, padding);
+            let what = format!("{name}: exponent {exponent}, padding {padding}");
+            assert_close(&host, &dense, 1e-7, 1e-5, &what);
+        }
+    }
+}
