@@ -11,13 +11,16 @@
 # knobs: the statue's box field with one setting changed per run (280 s);
 # box: the statue's box field with the box grown by --box-margin 0.05 (the
 #   default), 0.5 and 1.5, and with the distortion loss on the box field
-#   (losses.box_distortion_weight 0.01, 0.1, 1) (300 s).
+#   (losses.box_distortion_weight 0.01, 0.1, 1) (300 s);
+# fern: LLFF fern's box field with one setting changed per run (300 s);
+# fern-samples: fern with fewer samples a ray, fewer rays a batch, or the
+#   proposal sampler (300 s).
 # CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
 # two at a time on a 2-core machine.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box OUT [SECONDS]"
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples OUT [SECONDS]"
 set_name=${1:?$usage}
 out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
@@ -66,8 +69,36 @@ case "$set_name" in
       runs+=("distortion$w|--data $statue --field box --config $out/distortion$w.json")
     done
     ;;
+  fern)
+    budget=${3:-300}
+    echo '{"model": {"mlp": {"max_deg": 10}}}' > "$out/deg10.json"
+    echo '{"losses": {"box_distortion_weight": 0.01}}' > "$out/distortion.json"
+    runs=(
+      "base|--data $fern"
+      "grid|--data $fern --occupancy-grid"
+      "lr1e-2|--data $fern --lr 1e-2"
+      "samples32|--data $fern --samples 32"
+      "rays512|--data $fern --rays 512"
+      "width128|--data $fern --width 128"
+      "deg10|--data $fern --config $out/deg10.json"
+      "distortion|--data $fern --config $out/distortion.json"
+    )
+    ;;
+  fern-samples)
+    budget=${3:-300}
+    runs=(
+      "samples16|--data $fern --samples 16"
+      "samples24|--data $fern --samples 24"
+      "rays128|--data $fern --rays 128"
+      "samples24-rays128|--data $fern --samples 24 --rays 128"
+      "samples16-rays128|--data $fern --samples 16 --rays 128"
+      "proposal-samples32|--data $fern --sampler proposal --samples 32"
+      "samples24-width128|--data $fern --samples 24 --width 128"
+      "samples32-rays128|--data $fern --samples 32 --rays 128"
+    )
+    ;;
   *)
-    echo "unknown set $set_name: appearance, knobs or box" >&2
+    echo "unknown set $set_name: appearance, knobs, box, fern or fern-samples" >&2
     exit 2
     ;;
 esac

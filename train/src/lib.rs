@@ -12,6 +12,7 @@ pub mod accuracy;
 pub mod appearance;
 pub mod backend;
 pub mod batch;
+pub mod capture_defaults;
 pub mod checkpoint;
 // Flag help is written for `--help`, where `<out>` names a placeholder,
 // not an HTML tag.
@@ -115,6 +116,12 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     let mut base = TrainConfig::default_run(dim);
     let choice = field_choice::choose(cli.field, cli.sampler, &scene);
     eprintln!("{}", choice.message());
+    if let Some(d) = capture_defaults::for_scene(&scene)
+        && cli.preset.is_none()
+    {
+        d.apply(&mut base);
+        eprintln!("{}", d.message());
+    }
     if let Some(p) = cli.preset {
         apply_preset(p, &mut base, &scene, !choice.unbounded);
     }
