@@ -4,7 +4,7 @@
 # (RAYON_NUM_THREADS=2, taskset), so that a machine of 16 cores runs eight
 # at once and every run of a set gets the same seconds on the same CPU.
 #
-#   bash scripts/statue-sweep.sh appearance|knobs|box OUT [SECONDS]
+#   bash scripts/statue-sweep.sh SET OUT [SECONDS]
 #
 # appearance: the statue (box and unbounded field) and fern, with and
 #   without --appearance exposure (450 s in the docs);
@@ -14,13 +14,18 @@
 #   (losses.box_distortion_weight 0.01, 0.1, 1) (300 s);
 # fern: LLFF fern's box field with one setting changed per run (300 s);
 # fern-samples: fern with fewer samples a ray, fewer rays a batch, or the
-#   proposal sampler (300 s).
+#   proposal sampler (300 s);
+# fern-default: fern at the LLFF sampling default (16 samples, 128 rays)
+#   with one setting changed per run (300 s);
+# unbounded-near: the statue's box field beside the unbounded field whose
+#   rays start at the scene box's distance (model.unbounded.near 1, in
+#   multiples of the kept ball's radius) rather than next to the camera.
 # CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
 # two at a time on a 2-core machine.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples OUT [SECONDS]"
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near OUT [SECONDS]"
 set_name=${1:?$usage}
 out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
@@ -97,8 +102,30 @@ case "$set_name" in
       "samples32-rays128|--data $fern --samples 32 --rays 128"
     )
     ;;
+  fern-default)
+    budget=${3:-300}
+    echo '{"model": {"mlp": {"max_deg": 10}}}' > "$out/deg10.json"
+    runs=(
+      "default|--data $fern"
+      "lr1e-2|--data $fern --lr 1e-2"
+      "lr2e-3|--data $fern --lr 2e-3"
+      "samples12|--data $fern --samples 12"
+      "rays64|--data $fern --rays 64"
+      "width128|--data $fern --width 128"
+      "depth3|--data $fern --depth 3"
+      "deg10|--data $fern --config $out/deg10.json"
+    )
+    ;;
+  unbounded-near)
+    budget=${3:-300}
+    echo '{"model": {"unbounded": {"near": 1.0}}}' > "$out/near1.json"
+    runs=(
+      "box|--data $statue --field box"
+      "unbounded-near1|--data $statue --field unbounded --config $out/near1.json"
+    )
+    ;;
   *)
-    echo "unknown set $set_name: appearance, knobs, box, fern or fern-samples" >&2
+    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default or unbounded-near" >&2
     exit 2
     ;;
 esac

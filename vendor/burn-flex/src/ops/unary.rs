@@ -163,6 +163,18 @@ where
 
 /// Exponential: e^x
 pub fn exp(tensor: FlexTensor) -> FlexTensor {
+    #[cfg(feature = "simd")]
+    if tensor.dtype() == DType::F32
+        && tensor.is_unique()
+        && tensor.layout().is_contiguous()
+        && tensor.layout().start_offset() == 0
+    {
+        let n = tensor.layout().num_elements();
+        let mut tensor = tensor;
+        let storage: &mut [f32] = tensor.storage_mut();
+        crate::simd::exp_inplace_f32(&mut storage[..n]);
+        return tensor;
+    }
     unary_op(tensor, |x| x.exp(), |x| x.exp())
 }
 
@@ -236,6 +248,18 @@ pub fn cos(tensor: FlexTensor) -> FlexTensor {
 
 /// Sine
 pub fn sin(tensor: FlexTensor) -> FlexTensor {
+    #[cfg(feature = "simd")]
+    if tensor.dtype() == DType::F32
+        && tensor.is_unique()
+        && tensor.layout().is_contiguous()
+        && tensor.layout().start_offset() == 0
+    {
+        let n = tensor.layout().num_elements();
+        let mut tensor = tensor;
+        let storage: &mut [f32] = tensor.storage_mut();
+        crate::simd::sin_inplace_f32(&mut storage[..n]);
+        return tensor;
+    }
     unary_op(tensor, |x| x.sin(), |x| x.sin())
 }
 

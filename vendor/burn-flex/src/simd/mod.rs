@@ -30,6 +30,13 @@ pub use portable::{
     rdiv_inplace_f32, recip_inplace_f32, rsub_inplace_f32, sub_inplace_f32,
 };
 
+// Vectorised sine and exponential (VENDORED.md)
+#[cfg(feature = "simd")]
+mod math;
+
+#[cfg(feature = "simd")]
+pub use math::{exp_inplace_f32, sin_inplace_f32};
+
 // When simd feature disabled: use scalar fallback (bool ops + CmpOp only)
 #[cfg(not(feature = "simd"))]
 mod scalar;
