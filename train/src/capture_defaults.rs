@@ -1,5 +1,5 @@
 //! Sampling defaults that depend on the kind of capture, where they were
-//! measured to help (docs/unbounded.md, "Fern"): on an LLFF capture (a
+//! measured to help (docs/fern.md): on an LLFF capture (a
 //! forward-facing scene filling the frame, every ray ending on a surface
 //! inside its box) the default run's field is short of iterations, not of
 //! samples: 16 samples per ray and level and 128 rays a batch give it
@@ -51,7 +51,7 @@ impl SamplingDefault {
     pub fn message(&self) -> String {
         format!(
             "sampling: {} samples per ray and level, {} rays a batch (auto: {}: more \
-             iterations in the same seconds fit it better, docs/unbounded.md; \
+             iterations in the same seconds fit it better, docs/fern.md; \
              --samples and --rays set others)",
             self.samples, self.rays, self.capture
         )
