@@ -30,6 +30,7 @@ pub mod scannet;
 pub mod scene;
 pub mod synthetic;
 pub mod text;
+pub mod unseen;
 pub mod writer;
 
 pub use error::DatasetError;

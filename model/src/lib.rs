@@ -92,7 +92,9 @@ pub mod unbounded;
 pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
-pub use loss::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse, weighted_rgb_mse};
+pub use loss::{
+    FeatureSpace, depth_huber, depth_smoothness, open_set_cosine, rgb_mse, weighted_rgb_mse,
+};
 pub use nerf::{OpenNerf, OpenNerfConfig, Rays};
 pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};
 pub use pose::{PoseCorrection, PoseCorrectionConfig};

@@ -121,3 +121,27 @@ pub fn open_set_cosine(
         .sum()
         .div(count)
 }
+
+/// Depth smoothness over square patches of rays (RegNeRF, Niemeyer et al.
+/// 2022, eq. 5): the mean, over every pair of horizontally or vertically
+/// neighbouring rays of each patch, of their depths' squared difference.
+/// Rays of a patch are row-major, patch after patch. A patch of side 1 has
+/// no pairs; the loss is then zero.
+///
+/// # Shapes
+/// - `depth`: `[patches * side * side, 1]`; output: `[1]`.
+pub fn depth_smoothness(depth: Tensor<2>, side: usize) -> Tensor<1> {
+    let [n, _] = depth.dims();
+    let device = depth.device();
+    if side < 2 || n == 0 {
+        return Tensor::zeros([1], &device);
+    }
+    let patches = n / (side * side);
+    let grid = depth.reshape([patches, side, side]);
+    let across = grid.clone().slice([0..patches, 0..side, 1..side])
+        - grid.clone().slice([0..patches, 0..side, 0..side - 1]);
+    let down = grid.clone().slice([0..patches, 1..side, 0..side])
+        - grid.slice([0..patches, 0..side - 1, 0..side]);
+    let pairs = (2 * patches * side * (side - 1)) as f32;
+    (across.square().sum() + down.square().sum()).div_scalar(pairs)
+}

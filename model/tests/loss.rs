@@ -6,8 +6,8 @@
 mod common;
 
 use burn::tensor::Device;
-use common::{assert_close, devices, tensor, vec};
-use model::{FeatureSpace, depth_huber, open_set_cosine, rgb_mse};
+use common::{assert_close, devices, tensor, uniform, vec};
+use model::{FeatureSpace, depth_huber, depth_smoothness, open_set_cosine, rgb_mse};
 
 #[test]
 fn rgb_mse_matches_direct() {
@@ -203,5 +203,77 @@ fn cosine_loss_compares_lifted_features() {
         assert!(g.iter().all(|v| v.is_finite()), "{name}: {g:?}");
         assert!(g[..k].iter().any(|v| v.abs() > 1e-4), "{name}: {g:?}");
         assert_eq!(&g[3 * k..], &[0.0, 0.0, 0.0], "{name}: masked ray");
+    }
+}
+
+/// The depth smoothness of patches by float64 brute force: every ordered
+/// pair of 4-neighbours within a patch, each unordered pair once.
+fn smoothness64(depth: &[f64], side: usize) -> f64 {
+    let (mut sum, mut pairs) = (0.0, 0usize);
+    for patch in depth.chunks_exact(side * side) {
+        for y in 0..side {
+            for x in 0..side {
+                for (dx, dy) in [(1usize, 0usize), (0, 1)] {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < side && ny < side {
+                        sum += (patch[ny * side + nx] - patch[y * side + x]).powi(2);
+                        pairs += 1;
+                    }
+                }
+            }
+        }
+    }
+    sum / pairs as f64
+}
+
+/// Value against float64 brute force on random patches; zero on patches
+/// that are each constant, however far apart their constants (no pair
+/// crosses a patch); zero for a patch of side 1.
+#[test]
+fn depth_smoothness_matches_brute_force_and_ignores_patch_borders() {
+    let (patches, side) = (3, 5);
+    let d64 = uniform(patches * side * side, 21, 0.5, 4.0);
+    let want = smoothness64(&d64, side) as f32;
+    let constant: Vec<f32> = (0..patches * side * side)
+        .map(|i| [1.0, 9.0, 0.25][i / (side * side)])
+        .collect();
+    for (name, device) in devices(true) {
+        let d: Vec<f32> = d64.iter().map(|&x| x as f32).collect();
+        let n = d.len();
+        let got = vec(depth_smoothness(tensor(d, [n, 1], &device), side));
+        assert_close(&got, &[want], 1e-6, 1e-5, name);
+        let flat = vec(depth_smoothness(
+            tensor(constant.clone(), [n, 1], &device),
+            side,
+        ));
+        assert_eq!(flat, vec![0.0], "{name}: constant patches");
+        let single = vec(depth_smoothness(tensor(vec![1.0, 5.0], [2, 1], &device), 1));
+        assert_eq!(single, vec![0.0], "{name}: side 1");
+    }
+}
+
+/// Its gradient against central differences of the float64 form.
+#[test]
+fn depth_smoothness_gradient_matches_finite_differences() {
+    let (patches, side) = (2, 4);
+    let d64 = uniform(patches * side * side, 22, 0.0, 2.0);
+    let h = 1e-6;
+    let fd: Vec<f32> = (0..d64.len())
+        .map(|i| {
+            let mut up = d64.clone();
+            let mut down = d64.clone();
+            up[i] += h;
+            down[i] -= h;
+            ((smoothness64(&up, side) - smoothness64(&down, side)) / (2.0 * h)) as f32
+        })
+        .collect();
+    for (name, device) in devices(false) {
+        let device = device.autodiff();
+        let d: Vec<f32> = d64.iter().map(|&x| x as f32).collect();
+        let n = d.len();
+        let t = tensor(d, [n, 1], &device).require_grad();
+        let grads = depth_smoothness(t.clone(), side).backward();
+        let g = vec(t.grad(&grads).expect("gradient"));
+        assert_close(&g, &fd, 1e-5, 1e-3, name);
     }
 }

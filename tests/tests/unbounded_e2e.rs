@@ -3,7 +3,8 @@
 //! unbounded field `--field auto` chooses for it beats the box field on
 //! held-out views at the same iterations, and a resumed run of the
 //! unbounded field with the proposal sampler ends with the uninterrupted
-//! run's weights.
+//! run's weights, as does one with the unseen patches' depth smoothness
+//! (which moves the weights).
 
 use std::sync::OnceLock;
 
@@ -80,4 +81,42 @@ fn an_unbounded_proposal_run_resumes_to_the_same_weights() {
     let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
     assert_eq!(a.len(), b.len());
     assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
+}
+
+#[test]
+fn a_run_with_unseen_patches_resumes_to_the_same_weights_and_moves_them() {
+    let _guard = serial();
+    let scene = outdoor();
+    let n = 4;
+    let with_unseen = || {
+        let mut c = config(FieldArg::Box, SamplerArg::Auto, 2 * n);
+        c.logging.eval_every = 0;
+        c.logging.checkpoint_every = n;
+        c.losses.unseen_depth_weight = 10.0;
+        c.losses.unseen_patches = 2;
+        c.losses.unseen_patch_side = 4;
+        c
+    };
+    let whole = scratch_dir();
+    let session = tests::flex_session(None);
+    train::train_new(scene, with_unseen(), 8, whole.path(), &session).expect("uninterrupted");
+    let parts = scratch_dir();
+    let half = train::train_new(
+        scene,
+        with_unseen(),
+        8,
+        parts.path(),
+        &tests::flex_session(Some(n)),
+    )
+    .expect("first half");
+    assert_eq!(half.summary.iterations, n);
+    train::resume(parts.path(), None, &session).expect("resumed");
+    let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
+    assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
+    let mut plain = with_unseen();
+    plain.losses.unseen_depth_weight = 0.0;
+    let without = scratch_dir();
+    train::train_new(scene, plain, 8, without.path(), &session).expect("without");
+    let moved = max_abs_diff(&a, &run_weights(without.path()));
+    assert!(moved > 0.0, "the regulariser changes the weights");
 }

@@ -276,6 +276,14 @@ pub struct Cli {
     /// Override: initial learning rate (the final rate keeps its ratio to it).
     #[arg(long, allow_negative_numbers = true)]
     pub lr: Option<f64>,
+    /// Weight of a few-view prior: every step also renders small patches
+    /// seen from viewpoints between neighbouring training cameras, where no
+    /// photograph constrains the field, and asks their depth to be smooth
+    /// (RegNeRF's geometry regulariser; `losses.unseen_patches`,
+    /// `unseen_patch_side` and `unseen_patch_stride` in `--config` set the
+    /// patches). 0 (the default) renders none; docs/unbounded.md measures it.
+    #[arg(long, value_name = "WEIGHT", allow_negative_numbers = true)]
+    pub unseen_depth: Option<f32>,
     /// Override: evaluate the feature head only on the K samples of largest
     /// weight per ray (0: on every sample, the default configuration's choice).
     #[arg(long)]

@@ -39,6 +39,16 @@ pub struct LossConfig {
     /// (see `model::exposure`), which holds the field at the photographs'
     /// common exposure.
     pub exposure_penalty: f32,
+    /// Weight of the depth smoothness of patches rendered from viewpoints
+    /// between the training cameras (RegNeRF's geometry regulariser; 0:
+    /// off, no patches are rendered).
+    pub unseen_depth_weight: f32,
+    /// Patches a step renders for it, each from its own viewpoint.
+    pub unseen_patches: usize,
+    /// Rays along each side of a patch.
+    pub unseen_patch_side: usize,
+    /// Pixels between neighbouring rays of a patch.
+    pub unseen_patch_stride: usize,
 }
 
 impl Default for LossConfig {
@@ -52,6 +62,10 @@ impl Default for LossConfig {
             distortion_weight: 0.01,
             box_distortion_weight: 0.0,
             exposure_penalty: 1e-3,
+            unseen_depth_weight: 0.0,
+            unseen_patches: 4,
+            unseen_patch_side: 8,
+            unseen_patch_stride: 4,
         }
     }
 }
@@ -168,6 +182,8 @@ pub struct Overrides {
     pub lambda_depth: Option<f32>,
     /// Initial learning rate.
     pub lr: Option<f64>,
+    /// Weight of the unseen patches' depth smoothness.
+    pub unseen_depth: Option<f32>,
     /// Seed.
     pub seed: Option<u64>,
 }
@@ -306,6 +322,9 @@ impl TrainConfig {
         if let Some(v) = o.lambda_depth {
             self.losses.lambda_depth = v;
         }
+        if let Some(v) = o.unseen_depth {
+            self.losses.unseen_depth_weight = v;
+        }
         if let Some(v) = o.lr {
             let ratio = self.schedule.lr_final / self.schedule.lr_init;
             self.schedule.lr_init = v;
@@ -350,9 +369,25 @@ impl TrainConfig {
                 self.losses.box_distortion_weight,
             ),
             ("losses.exposure_penalty", self.losses.exposure_penalty),
+            (
+                "losses.unseen_depth_weight",
+                self.losses.unseen_depth_weight,
+            ),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(format!("{k} must be finite and non-negative, got {v}"));
+            }
+        }
+        for (k, v) in [
+            ("losses.unseen_patches", self.losses.unseen_patches),
+            ("losses.unseen_patch_side", self.losses.unseen_patch_side),
+            (
+                "losses.unseen_patch_stride",
+                self.losses.unseen_patch_stride,
+            ),
+        ] {
+            if v == 0 {
+                return bad(format!("{k} must be at least 1"));
             }
         }
         if !(self.optimiser.head_lr_scale.is_finite() && self.optimiser.head_lr_scale > 0.0) {

@@ -138,6 +138,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         lambda_open: cli.lambda_open,
         lambda_depth: cli.lambda_depth,
         lr: cli.lr,
+        unseen_depth: cli.unseen_depth,
         seed: cli.seed,
     });
     apply_novel_and_grid_flags(cli, &mut config);

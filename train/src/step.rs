@@ -6,6 +6,7 @@ use burn::optim::lr_scheduler::module_lr_scheduler::ModuleLrScheduler;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
 use model::exposure::{expose, exposure_penalty};
+use model::geometry::NormalizedRay;
 use model::unbounded::{distortion_loss, interlevel_loss};
 use model::{ClipStats, FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
 
@@ -237,6 +238,33 @@ pub fn train_step(
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
+    train_step_regularised(model, optim, batch, None, render, cfg, rates)
+}
+
+/// Rays of square patches seen from viewpoints no photograph was taken
+/// from (see `datasets::unseen`), row-major, patch after patch.
+#[derive(Debug, Clone)]
+pub struct UnseenPatches {
+    /// `patches * side * side` rays.
+    pub rays: Vec<NormalizedRay>,
+    /// Rays along each side of a patch.
+    pub side: usize,
+}
+
+/// [`train_step`] with, when `unseen` is given and
+/// `cfg.unseen_depth_weight` is positive, the depth smoothness of the
+/// unseen patches' rendered depth (RegNeRF's geometry regulariser,
+/// [`model::depth_smoothness`]) added to the loss at that weight. The
+/// patches are rendered as the batch is, without features.
+pub fn train_step_regularised(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    batch: &BatchTensors,
+    unseen: Option<&UnseenPatches>,
+    render: StepRender,
+    cfg: &LossConfig,
+    rates: StepRates,
+) -> (OpenNerf, StepReport) {
     let mode = if batch.feature.is_some() && cfg.lambda_open > 0.0 {
         FeatureMode::Composited
     } else {
@@ -248,7 +276,17 @@ pub fn train_step(
         .with_grid(render.grid)
         .with_progress(render.progress);
     let out = model.render(&request);
-    train_step_from(model, optim, out, batch, cfg, rates)
+    let smoothness = unseen
+        .filter(|u| cfg.unseen_depth_weight > 0.0 && !u.rays.is_empty())
+        .map(|u| {
+            let request = RenderRequest::train(&u.rays)
+                .with_background(render.background)
+                .with_grid(render.grid)
+                .with_progress(render.progress);
+            let depth = model.render(&request).fine.depth;
+            model::depth_smoothness(depth, u.side).mul_scalar(cfg.unseen_depth_weight)
+        });
+    finish_step(model, optim, out, batch, smoothness, cfg, rates)
 }
 
 /// [`train_step`] for outputs already rendered from `batch.rays` (e.g. with
@@ -259,6 +297,20 @@ pub fn train_step_from(
     optim: &mut ModuleOptimizer,
     out: RenderOutputs,
     batch: &BatchTensors,
+    cfg: &LossConfig,
+    rates: StepRates,
+) -> (OpenNerf, StepReport) {
+    finish_step(model, optim, out, batch, None, cfg, rates)
+}
+
+/// [`train_step_from`] with `extra` (a weighted regulariser, `[1]`) added
+/// to the loss.
+fn finish_step(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    out: RenderOutputs,
+    batch: &BatchTensors,
+    extra: Option<Tensor<1>>,
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
@@ -277,6 +329,9 @@ pub fn train_step_from(
         && cfg.exposure_penalty > 0.0
     {
         terms.total = terms.total + exposure_penalty(c).mul_scalar(cfg.exposure_penalty);
+    }
+    if let Some(extra) = extra {
+        terms.total = terms.total + extra;
     }
     let grads = terms.total.backward();
     let grads = GradientsParams::from_grads(grads, &model);

@@ -117,6 +117,7 @@ fn value_flags(cli: &Cli) -> Result<(), TrainError> {
     for (flag, value) in [
         ("lambda-open", cli.lambda_open),
         ("lambda-depth", cli.lambda_depth),
+        ("unseen-depth", cli.unseen_depth),
     ] {
         if let Some(v) = value
             && !(v.is_finite() && v >= 0.0)
@@ -275,6 +276,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("lambda-open", cli.lambda_open.is_some()),
         ("lambda-depth", cli.lambda_depth.is_some()),
         ("lr", cli.lr.is_some()),
+        ("unseen-depth", cli.unseen_depth.is_some()),
         ("seed", cli.seed.is_some()),
         ("novel-views", cli.novel_views.is_some()),
         ("novel-after", cli.novel_after.is_some()),
