@@ -19,13 +19,19 @@
 #   with one setting changed per run (300 s);
 # unbounded-near: the statue's box field beside the unbounded field whose
 #   rays start at the scene box's distance (model.unbounded.near 1, in
-#   multiples of the kept ball's radius) rather than next to the camera.
+#   multiples of the kept ball's radius) rather than next to the camera;
+# unseen: the statue's box field with the unseen patches' depth smoothness
+#   (--unseen-depth 0, 0.01, 0.1, 1, 10, 100; 0 and 1 also at seed 1);
+# ranges: the statue's box field with IPE degrees 0..4 and 0..6, and the
+#   unbounded field with other kept balls and ray ranges (radius 1.5 with
+#   rays from 3 radii; rays from 1 radius to 4 or to 10 radii).
 # CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
-# two at a time on a 2-core machine.
+# two at a time on a 2-core machine. ITERS=N trains N iterations a run
+# instead of SECONDS.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near OUT [SECONDS]"
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges OUT [SECONDS]"
 set_name=${1:?$usage}
 out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
@@ -124,11 +130,41 @@ case "$set_name" in
       "unbounded-near1|--data $statue --field unbounded --config $out/near1.json"
     )
     ;;
+  unseen)
+    budget=${3:-600}
+    runs=()
+    for w in 0 0.01 0.1 1 10 100; do
+      runs+=("unseen$w|--data $statue --field box --unseen-depth $w")
+    done
+    runs+=("unseen0-s1|--data $statue --field box --seed 1")
+    runs+=("unseen1-s1|--data $statue --field box --unseen-depth 1 --seed 1")
+    ;;
+  ranges)
+    budget=${3:-300}
+    for deg in 4 6; do
+      echo "{\"model\": {\"mlp\": {\"max_deg\": $deg}}}" > "$out/deg$deg.json"
+    done
+    echo '{"model": {"unbounded": {"radius": 1.5, "near": 3.0}}}' > "$out/radius1.5-near3.json"
+    echo '{"model": {"unbounded": {"near": 1.0, "far": 4.0}}}' > "$out/near1-far4.json"
+    echo '{"model": {"unbounded": {"near": 1.0, "far": 10.0}}}' > "$out/near1-far10.json"
+    runs=(
+      "box-deg4|--data $statue --field box --config $out/deg4.json"
+      "box-deg6|--data $statue --field box --config $out/deg6.json"
+      "unbounded-radius1.5-near3|--data $statue --field unbounded --config $out/radius1.5-near3.json"
+      "unbounded-near1-far4|--data $statue --field unbounded --config $out/near1-far4.json"
+      "unbounded-near1-far10|--data $statue --field unbounded --config $out/near1-far10.json"
+    )
+    ;;
   *)
-    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default or unbounded-near" >&2
+    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen or ranges" >&2
     exit 2
     ;;
 esac
+if [ -n "${ITERS:-}" ]; then
+  length="--iters $ITERS"
+else
+  length="--time-budget $budget"
+fi
 . "$(dirname "$0")/frozen-bins.sh"
 freeze_bins "$out"
 # CORES_PER_RUN cores a run (two by default): as many runs at once as the
@@ -145,7 +181,7 @@ for r in "${runs[@]}"; do
   fi
   # shellcheck disable=SC2086 # the flags are words
   RAYON_NUM_THREADS=$per taskset -c "$((per * slot))-$((per * slot + per - 1))" "$bin/train" ${r#*|} \
-    --time-budget "$budget" --no-final-render --out "$out/$name" > "$out/$name.log" 2>&1 &
+    $length --no-final-render --out "$out/$name" > "$out/$name.log" 2>&1 &
   i=$((i + 1))
 done
 wait

@@ -13,6 +13,7 @@ mod session;
 mod snapshot;
 mod start;
 mod train_loop;
+mod unseen;
 
 pub use live_viewer::ViewerSettings;
 pub use session::{RunOutcome, SessionOptions};

@@ -29,7 +29,7 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
 use crate::progress::say;
-use crate::step::{StepRates, StepRender, StepReport, UnseenPatches, train_step_regularised};
+use crate::step::{StepRates, StepRender, StepReport, train_step_regularised};
 use field_ops::json::write_json;
 use field_ops::novel::record::RecordedViews;
 
@@ -101,11 +101,6 @@ struct Step {
 /// uninterrupted one would.
 fn jitter_seed(seed: u64, it: usize) -> u64 {
     iteration_seed(seed ^ 0x6a09_e667_f3bc_c909, it)
-}
-
-/// The seed of iteration `it`'s unseen patches.
-fn unseen_seed(seed: u64, it: usize) -> u64 {
-    iteration_seed(seed ^ 0x3c6e_f372_fe94_f82b, it)
 }
 
 /// The seed of the occupancy grid's update at iteration `it`.
@@ -319,7 +314,13 @@ impl<'a> TrainLoop<'a> {
         let rays = drawn.len() as u64;
         let batch = to_tensors(&drawn, &self.space, self.device);
         let grid = GridUse::for_training(&self.config.occupancy, model.occupancy());
-        let unseen = self.unseen_patches(it);
+        let unseen = super::unseen::patches(
+            &self.scene,
+            &self.split.train,
+            &self.config,
+            self.state.seed,
+            it,
+        );
         let (next, report) = train_step_regularised(
             model,
             &mut self.optim,
@@ -339,31 +340,6 @@ impl<'a> TrainLoop<'a> {
         self.state.train_seconds += step_start.elapsed().as_secs_f64();
         self.state.iteration += 1;
         Ok((next, Step { report, lr, rays }))
-    }
-
-    /// The patches iteration `it` renders from viewpoints between the
-    /// training cameras, when the unseen depth smoothness is on.
-    fn unseen_patches(&self, it: usize) -> Option<UnseenPatches> {
-        let losses = &self.config.losses;
-        if losses.unseen_depth_weight <= 0.0 {
-            return None;
-        }
-        let layout = datasets::unseen::PatchLayout {
-            patches: losses.unseen_patches,
-            side: losses.unseen_patch_side,
-            stride: losses.unseen_patch_stride,
-        };
-        let rays = datasets::unseen::unseen_patch_rays(
-            &self.scene,
-            &self.split.train,
-            layout,
-            self.config.sampler.min_near,
-            unseen_seed(self.state.seed, it),
-        );
-        Some(UnseenPatches {
-            rays,
-            side: layout.side,
-        })
     }
 
     /// Counts the step of iteration `it`; a skipped one is logged, and too
