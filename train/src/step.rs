@@ -255,7 +255,9 @@ pub struct UnseenPatches {
 /// `cfg.unseen_depth_weight` is positive, the depth smoothness of the
 /// unseen patches' rendered depth (RegNeRF's geometry regulariser,
 /// [`model::depth_smoothness`]) added to the loss at that weight. The
-/// patches are rendered as the batch is, without features.
+/// patches are rendered as the batch is, without features, except that
+/// the occupancy grid never drops one of their rays (a ray that crosses
+/// no occupied cell is rendered whole), so that every patch stays whole.
 pub fn train_step_regularised(
     model: OpenNerf,
     optim: &mut ModuleOptimizer,
@@ -278,13 +280,23 @@ pub fn train_step_regularised(
     let out = model.render(&request);
     let smoothness = unseen
         .filter(|u| cfg.unseen_depth_weight > 0.0 && !u.rays.is_empty())
-        .map(|u| {
+        .and_then(|u| {
+            let grid = match render.grid {
+                GridUse::Model => GridUse::KeepEmpty,
+                other => other,
+            };
             let request = RenderRequest::train(&u.rays)
+                .with_features(FeatureMode::None)
                 .with_background(render.background)
-                .with_grid(render.grid)
+                .with_grid(grid)
                 .with_progress(render.progress);
-            let depth = model.render(&request).fine.depth;
-            model::depth_smoothness(depth, u.side).mul_scalar(cfg.unseen_depth_weight)
+            let patches = model.render(&request);
+            // Rows of a patch must be its rays, in order.
+            if patches.kept.is_some() {
+                return None;
+            }
+            let depth = patches.fine.depth;
+            Some(model::depth_smoothness(depth, u.side).mul_scalar(cfg.unseen_depth_weight))
         });
     finish_step(model, optim, out, batch, smoothness, cfg, rates)
 }
