@@ -1,6 +1,7 @@
 //! `--unseen-depth` and its patches' settings through the real `train`
-//! binary: bad values refused naming the flag or key (nothing written), and
-//! a run with it saves the weight and layout with its configuration.
+//! binary: bad values refused naming the flag or key (nothing written), a
+//! run with it saves the weight and layout with its configuration, and a
+//! resumed run refuses it.
 
 mod common;
 
@@ -65,4 +66,9 @@ fn a_run_with_unseen_patches_saves_their_settings() {
     assert_eq!(losses["unseen_patches"], 4);
     assert_eq!(losses["unseen_patch_side"], 8);
     assert_eq!(losses["unseen_patch_stride"], 4);
+    // A resumed run keeps its configuration: the flag is refused, not ignored.
+    assert_refused(
+        &["--resume", s(&run), "--unseen-depth", "1"],
+        &["--unseen-depth", "--resume"],
+    );
 }
