@@ -8,7 +8,7 @@ use std::process::Output;
 
 mod common;
 
-use common::{TINY, assert_refused, s, train};
+use common::{TINY, assert_config_refused, assert_refused, s, train};
 
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
@@ -50,24 +50,11 @@ fn saved_exposure(run: &Path) -> serde_json::Value {
 fn bad_appearance_values_are_refused() {
     assert_refused(&["--appearance", "grey"], &["grey", "none", "exposure"]);
     let tmp = tempfile::tempdir().expect("tmp");
-    let p = tmp.path().join("bad.json");
-    std::fs::write(&p, r#"{"losses": {"exposure_penalty": -1.0}}"#).expect("write");
-    let run = tmp.path().join("run");
-    assert_refused(
-        &[
-            "--config",
-            s(&p),
-            "--iters",
-            "2",
-            "--quiet",
-            "--out",
-            s(&run),
-        ],
-        &["losses.exposure_penalty", "-1", "bad.json"],
-    );
-    assert!(
-        !run.exists(),
-        "nothing is written for a refused configuration"
+    assert_config_refused(
+        tmp.path(),
+        "bad.json",
+        r#"{"losses": {"exposure_penalty": -1.0}}"#,
+        &["losses.exposure_penalty", "-1"],
     );
 }
 

@@ -7,9 +7,9 @@ use burn::optim::AdamConfig;
 use burn::tensor::{Device, Tensor, TensorData};
 use model::geometry::NormalizedRay;
 use model::{
-    FeatureHeadConfig, FeatureMode, GridUse, MipMlpConfig, OccupancyConfig, OccupancyGrid,
-    OpenNerf, OpenNerfConfig, RenderRequest, depth_smoothness,
+    FeatureMode, GridUse, OccupancyConfig, OccupancyGrid, OpenNerf, RenderRequest, depth_smoothness,
 };
+use train::TrainConfig;
 use train::batch::BatchTensors;
 use train::config::LossConfig;
 use train::step::{StepRates, StepRender, UnseenPatches, train_step_regularised};
@@ -18,16 +18,7 @@ use train::step::{StepRates, StepRender, UnseenPatches, train_step_regularised};
 /// occupied.
 fn field_behind_half_grid(device: &Device) -> OpenNerf {
     device.seed(5);
-    let model = OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(16)
-                .with_depth(2)
-                .with_skip_layer(1)
-                .with_max_deg(4),
-        )
-        .with_num_samples(8)
-        .init(device);
+    let model = TrainConfig::tiny(4).model.init(device);
     let config = OccupancyConfig::new()
         .with_resolution(2)
         .with_early_updates(0);

@@ -48,3 +48,26 @@ pub fn assert_refused(args: &[&str], words: &[&str]) -> String {
     eprintln!("refused {args:?}:\n{}", err.trim_end());
     err
 }
+
+/// Writes `json` to `dir/name` and asserts that a run with it as its
+/// `--config` is refused cleanly, naming every `words` and the file, and
+/// writes no run directory. Returns what it printed on stderr.
+pub fn assert_config_refused(dir: &Path, name: &str, json: &str, words: &[&str]) -> String {
+    let path = dir.join(name);
+    std::fs::write(&path, json).expect("write the configuration");
+    let run = dir.join(format!("{name}-run"));
+    let err = assert_refused(
+        &[
+            "--config",
+            s(&path),
+            "--iters",
+            "2",
+            "--quiet",
+            "--out",
+            s(&run),
+        ],
+        &[words, &[name]].concat(),
+    );
+    assert!(!run.exists(), "nothing is written for a refused {name}");
+    err
+}
