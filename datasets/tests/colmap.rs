@@ -325,3 +325,58 @@ fn truncated_images_bin_is_named() {
         "{msg}"
     );
 }
+
+#[test]
+fn sparse_points_reproject_onto_their_features_through_the_loaded_cameras() {
+    // The loaded cameras (scene frame, pixel-centre principal point, each
+    // image's own intrinsics) and the mapped points must reproduce COLMAP's
+    // own observations to about its reprojection error, and each
+    // observation's pixel ray must pass through its point.
+    let Some(dir) = statue() else {
+        return;
+    };
+    let s = load_colmap(&dir, &ColmapOptions::default()).expect("loads");
+    let model = read_model(&dir.join("sparse")).expect("model");
+    let ids: std::collections::HashMap<u64, usize> = model
+        .points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p.id, i))
+        .collect();
+    let pts = &s.points.as_ref().expect("points").positions;
+    let (mut errs, mut ray_errs) = (Vec::new(), Vec::new());
+    for f in &s.frames {
+        let image = model
+            .images
+            .iter()
+            .find(|im| im.name.starts_with(&f.name))
+            .expect("image of frame");
+        for p2 in &image.points2d {
+            let Some(i) = p2.point3d_id.and_then(|id| ids.get(&id)) else {
+                continue;
+            };
+            let p = pts[*i];
+            let q = f.camera.project(p).expect("in front");
+            let (u, v) = (p2.xy[0] - 0.5, p2.xy[1] - 0.5);
+            errs.push(((q.u - u).powi(2) + (q.v - v).powi(2)).sqrt());
+            let r = f.camera.ray(u, v);
+            let dir = r.direction.map(|c| c / model::geometry::norm(r.direction));
+            let d: [f64; 3] = std::array::from_fn(|k| p[k] - r.origin[k]);
+            let t = (0..3).map(|k| d[k] * dir[k]).sum::<f64>();
+            let miss = (0..3)
+                .map(|k| (d[k] - t * dir[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            ray_errs.push(miss / t * f.camera.intrinsics.fx);
+        }
+    }
+    let median = quantile(&mut errs.clone(), 0.5);
+    let p90 = quantile(&mut errs, 0.9);
+    let ray_median = quantile(&mut ray_errs, 0.5);
+    println!(
+        "statue: reprojection through the loaded cameras, median {median:.3} px, 90th percentile \
+         {p90:.3} px; ray miss median {ray_median:.3} px"
+    );
+    assert!(median < 1.0 && p90 < 2.0, "{median} {p90}");
+    assert!(ray_median < 1.0, "{ray_median}");
+}

@@ -267,3 +267,76 @@ fn dilation_shrinks_with_the_samples_before() {
     assert_eq!(c.dilation(1), 0.0025 + 0.5 / 64.0);
     assert_eq!(c.dilation(2), 0.0025 + 0.5 / 4096.0);
 }
+
+/// With `start_at_box`, a ray that crosses the scene box starts where it
+/// enters it, a ray that misses it where it passes closest to the box's
+/// centre, and a ray whose entry is nearer than `near` (a camera inside
+/// the box) at `near`; without it (`None`, as older runs load, or
+/// `Some(false)`) every ray starts at `near`. The coarse level's first post
+/// is that start and its last the far bound.
+#[test]
+fn rays_start_where_they_enter_the_scene_box() {
+    let at_box = UnboundedConfig::new(2.0).with_start_at_box(Some(true));
+    let len = |r: &NormalizedRay| {
+        let d = r.direction;
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    };
+    let rays = camera_rays(6, 2);
+    for r in &rays {
+        let near = 0.2 * 2.0 / len(r);
+        assert!(r.far > r.near && r.near > 2.0 * near, "{r:?}");
+        assert_eq!(at_box.bound(r).near, r.near);
+        assert!((at_box.bound(r).far - 1e4 * 2.0 / len(r)).abs() < 1e-2);
+        for plain in [
+            UnboundedConfig::new(2.0),
+            UnboundedConfig::new(2.0).with_start_at_box(Some(false)),
+        ] {
+            assert!((plain.bound(r).near - near).abs() < 1e-6);
+        }
+        // Entering nearer than `near`: from `near`.
+        let inside = NormalizedRay { near: 1e-3, ..*r };
+        assert!((at_box.bound(&inside).near - near).abs() < 1e-6);
+        // Missing the box: from the closest approach to the origin, where
+        // the ray is perpendicular to the line to the origin.
+        let miss = NormalizedRay {
+            origin: [r.origin[0] + 4.0, r.origin[1], r.origin[2]],
+            far: r.near,
+            ..*r
+        };
+        let t = at_box.bound(&miss).near;
+        let p: Vec<f32> = (0..3)
+            .map(|k| miss.origin[k] + t * miss.direction[k])
+            .collect();
+        let dot: f32 = (0..3).map(|k| p[k] * miss.direction[k]).sum();
+        assert!(t > near && dot.abs() < 1e-3 * len(r) * len(r), "{t} {dot}");
+        // Pointing away from the box: from `near`.
+        let away = NormalizedRay {
+            direction: miss.direction.map(|v| -v),
+            ..miss
+        };
+        assert!((at_box.bound(&away).near - near).abs() < 1e-6);
+    }
+    let device = Device::flex();
+    let _seeded = seeded();
+    device.seed(5);
+    let m = tiny_config()
+        .with_num_samples(8)
+        .with_unbounded(Some(at_box.clone()))
+        .init(&device);
+    let out = m.render(&RenderRequest::train(&rays).with_randomized(false));
+    let coarse = out.coarse.expect("a coarse level");
+    let t = vec(coarse.t_vals.clone());
+    for (i, r) in rays.iter().enumerate() {
+        let row = &t[i * 9..(i + 1) * 9];
+        assert!(
+            ((row[0] - r.near) / r.near).abs() < 1e-5,
+            "ray {i}: {row:?}"
+        );
+        assert!(((row[8] - at_box.bound(r).far) / row[8]).abs() < 1e-3);
+    }
+    // Older runs' configurations have no key and load without it.
+    let mut json = serde_json::to_value(&at_box).expect("serialises");
+    json.as_object_mut().expect("object").remove("start_at_box");
+    let old: UnboundedConfig = serde_json::from_value(json).expect("loads");
+    assert_eq!(old.start_at_box, None);
+}

@@ -3,9 +3,11 @@
 //! (docs/unbounded.md): Mip-NeRF 360's contraction where a scene's content
 //! reaches far past its box and its views constrain it (the synthetic
 //! outdoor scene), the box elsewhere, real captures included: on the
-//! statue (20 widely spaced photographs) the contracted field overfits
-//! its training views, and on fern it is no better than the box; the
-//! coarse and fine level everywhere. `train` prints the choice and why.
+//! statue (20 widely spaced photographs) the contracted field, its rays
+//! starting where they enter the scene box, ends level with the box at
+//! equal seconds (within two seeds' spread), and on fern it is no better
+//! than the box; the coarse and fine level everywhere. `train` prints the
+//! choice and why.
 
 use datasets::{Scene, SceneSource};
 use model::{OpenNerfConfig, ProposalConfig, UnboundedConfig};
@@ -23,8 +25,8 @@ pub enum FieldArg {
     /// The scene box mapped to `[-pi, pi]^3`; rays end where they leave it.
     Box,
     /// Mip-NeRF 360's contraction: the ball around the scene box kept as it
-    /// is, everything beyond it contracted, rays to effectively infinite
-    /// distance.
+    /// is, everything beyond it contracted, rays from where they enter the
+    /// scene box to effectively infinite distance.
     Unbounded,
 }
 
@@ -167,9 +169,12 @@ pub fn apply(
             if given.radius == 0.0 {
                 given.radius = contraction_radius(scene);
             }
+            given.start_at_box.get_or_insert(true);
             Some(given)
         }
-        _ if choice.unbounded => Some(UnboundedConfig::new(contraction_radius(scene))),
+        _ if choice.unbounded => {
+            Some(UnboundedConfig::new(contraction_radius(scene)).with_start_at_box(Some(true)))
+        }
         _ => None,
     };
     model.proposal = match model.proposal.take() {
@@ -178,6 +183,25 @@ pub fn apply(
         _ => None,
     };
     Ok(())
+}
+
+/// Where an unbounded field's rays start, in words (`None` for a box
+/// field), for `train` to print.
+pub fn ray_start(model: &OpenNerfConfig) -> Option<String> {
+    let u = model.unbounded.as_ref()?;
+    Some(if u.start_at_box == Some(true) {
+        format!(
+            "unbounded field: rays start where they enter the scene box, or {} radii of the kept \
+             ball from the camera where that is farther (model.unbounded.start_at_box)",
+            u.near
+        )
+    } else {
+        format!(
+            "unbounded field: rays start {} radii of the kept ball from the camera \
+             (model.unbounded.start_at_box false)",
+            u.near
+        )
+    })
 }
 
 /// Checks the unbounded field's and the proposal sampler's settings; the

@@ -578,6 +578,54 @@ fn field_and_sampler_flags_are_checked_and_the_choice_is_printed() {
             > 3.0
     );
     assert_eq!(saved["occupancy"]["enabled"], false);
+    // Its rays start where they enter the scene box, said so and saved.
+    assert!(
+        stderr.contains("rays start where they enter the scene box"),
+        "{stderr}"
+    );
+    assert_eq!(saved["model"]["unbounded"]["start_at_box"], true);
+    // A file may turn that off; a value that is not a boolean is refused
+    // with the file named.
+    for (value, ok) in [("false", true), ("\"yes\"", false)] {
+        let file = tmp.path().join(format!("start{ok}.json"));
+        std::fs::write(
+            &file,
+            format!("{{\"model\": {{\"unbounded\": {{\"start_at_box\": {value}}}}}}}"),
+        )
+        .expect("write");
+        let run = tmp.path().join(format!("outdoor-start{ok}"));
+        let r = train(&[
+            "--scene-size",
+            "outdoor",
+            "--config",
+            s(&file),
+            "--width",
+            "8",
+            "--depth",
+            "1",
+            "--samples",
+            "4",
+            "--rays",
+            "16",
+            "--iters",
+            "1",
+            "--out",
+            s(&run),
+            "--quiet",
+        ]);
+        let (_, stderr) = text(&r);
+        assert_eq!(r.status.success(), ok, "{value}: {stderr}");
+        if ok {
+            assert!(stderr.contains("start_at_box false"), "{stderr}");
+            let saved: serde_json::Value = serde_json::from_str(
+                &std::fs::read_to_string(run.join("config.json")).expect("config"),
+            )
+            .expect("json");
+            assert_eq!(saved["model"]["unbounded"]["start_at_box"], false);
+        } else {
+            assert!(stderr.contains(&*file.to_string_lossy()), "{stderr}");
+        }
+    }
     // The room stays a box.
     let room = tmp.path().join("room");
     let r = train(&[

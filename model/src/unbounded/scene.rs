@@ -38,18 +38,32 @@ pub struct UnboundedConfig {
     /// `1e-4` of the outer sphere).
     #[config(default = 1e4)]
     pub far: f32,
+    /// Whether a ray starts where it enters the scene box when that lies
+    /// beyond `near` (`Some(true)`): a capture walked around an object has
+    /// its cameras outside the box, and the space between a camera and the
+    /// box is seen by that camera alone, so that a field free to fill it
+    /// explains each photograph with colour there, which every other view
+    /// sees from elsewhere. A ray that misses the box starts where it passes
+    /// closest to the box's centre. Cameras inside the box (a room) are
+    /// unaffected. `None` (runs written before this key) is `false`, rays
+    /// from `near` as those runs were trained; `train` sets `Some(true)`.
+    pub start_at_box: Option<bool>,
 }
 
 impl UnboundedConfig {
     /// `ray` with the bounds an unbounded field renders it over: from
-    /// `near * radius` to `far * radius` normalised units from its origin.
-    /// The bounds a ray carries were made for the scene box and are not
-    /// used.
+    /// `near * radius` normalised units from its origin (or, with
+    /// [`Self::start_at_box`], from where it enters the scene box, given
+    /// by the bounds the ray carries, when that is farther) to
+    /// `far * radius` normalised units from its origin.
     pub fn bound(&self, ray: &NormalizedRay) -> NormalizedRay {
         let d = ray.direction;
         let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-20);
-        let near = (self.near * self.radius / len).max(1e-6);
+        let mut near = (self.near * self.radius / len).max(1e-6);
         let far = (self.far * self.radius / len).max(near);
+        if self.start_at_box == Some(true) {
+            near = near.max(box_entry(ray)).min(far);
+        }
         NormalizedRay { near, far, ..*ray }
     }
 
@@ -101,6 +115,20 @@ impl UnboundedConfig {
             cov_diag: cov_diagonal(cov).mul_scalar(CONTRACTED_SCALE * CONTRACTED_SCALE),
         }
     }
+}
+
+/// Where `ray` enters the scene box: its near bound when it crosses the
+/// box (`far > near`, as [`crate::geometry::SceneBox::normalize_ray`]
+/// makes them), else the `t` where it passes closest to the box's centre
+/// (the origin of the normalised frame), and 0 where that lies behind it.
+pub fn box_entry(ray: &NormalizedRay) -> f32 {
+    if ray.far > ray.near {
+        return ray.near;
+    }
+    let (o, d) = (ray.origin, ray.direction);
+    let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let od = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
+    if dd > 0.0 { (-od / dd).max(0.0) } else { 0.0 }
 }
 
 /// `s`, a ray's normalised coordinate, of metric `t` under `spacing`, and
