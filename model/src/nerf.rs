@@ -15,6 +15,7 @@ use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
 use crate::mip::{FrustumGaussians, cast_rays, integrated_pos_enc};
 use crate::occupancy::OccupancyGrid;
+use crate::pose::{PoseCorrection, PoseCorrectionConfig};
 use crate::proposal::{ProposalConfig, ProposalMlp};
 use crate::unbounded::{Spacing, UnboundedConfig};
 
@@ -50,6 +51,10 @@ pub struct OpenNerfConfig {
     /// A learned exposure per training photograph, applied to the training
     /// loss only (see [`crate::exposure`]); `None`: none.
     pub exposure: Option<ExposureConfig>,
+    /// A learned pose correction per training photograph, applied to its
+    /// rays in training only (see [`crate::pose`]); `None`: the poses as
+    /// given.
+    pub pose: Option<PoseCorrectionConfig>,
 }
 
 impl OpenNerfConfig {
@@ -68,6 +73,7 @@ impl OpenNerfConfig {
             proposal_config: self.proposal.clone(),
             unbounded: self.unbounded.clone(),
             exposure: self.exposure.as_ref().map(|e| e.init(device)),
+            pose: self.pose.as_ref().map(|p| p.init(device)),
             occupancy: None,
         }
     }
@@ -98,6 +104,8 @@ pub struct OpenNerf {
     pub unbounded: Option<UnboundedConfig>,
     /// The training photographs' exposure (training loss only).
     pub exposure: Option<Exposure>,
+    /// The training photographs' pose corrections (training rays only).
+    pub pose: Option<PoseCorrection>,
     /// Occupancy grid of the field's density, when empty-space skipping is
     /// on: [`OpenNerf::render`] clips its rays with it unless the request
     /// says otherwise (see [`crate::GridUse`]). Not part of the weights.

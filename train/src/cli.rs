@@ -400,6 +400,17 @@ pub struct Cli {
     /// sets `model.exposure` (docs/unbounded.md). `train` prints its choice.
     #[arg(long, value_enum, default_value_t = crate::appearance::AppearanceArg::Auto)]
     pub appearance: crate::appearance::AppearanceArg,
+    /// Refine the training photographs' camera poses with the field: `on`
+    /// learns a small rotation about each camera's centre and a shift of
+    /// that centre per training photograph (nerfstudio's camera optimiser,
+    /// BARF), applied to its rays in training only, at
+    /// `optimiser.pose_lr_scale` times the field's rate and held near zero
+    /// by `losses.pose_penalty`; held-out and novel views keep their poses.
+    /// `off` uses the poses as given; `auto` (the default) is `off` unless
+    /// the `--config` file sets `model.pose` (docs/unbounded.md). `train`
+    /// prints its choice.
+    #[arg(long, value_enum)]
+    pub pose_refine: Option<crate::pose_choice::PoseRefineArg>,
     /// Cells per axis of the occupancy grid, in 2..=256; a refresh costs one
     /// density query per cell [default: 32].
     #[arg(long)]

@@ -39,6 +39,10 @@ pub struct LossConfig {
     /// (see `model::exposure`), which holds the field at the photographs'
     /// common exposure.
     pub exposure_penalty: f32,
+    /// Weight of the penalty on the learned pose corrections' squares
+    /// (see `model::pose`: rotation in radians, shift in normalised units),
+    /// which holds the cameras near their given poses.
+    pub pose_penalty: f32,
     /// Weight of the depth smoothness of patches rendered from viewpoints
     /// between the training cameras (RegNeRF's geometry regulariser; 0:
     /// off, no patches are rendered).
@@ -62,6 +66,7 @@ impl Default for LossConfig {
             distortion_weight: 0.01,
             box_distortion_weight: 0.0,
             exposure_penalty: 1e-3,
+            pose_penalty: 1e-2,
             unseen_depth_weight: 0.0,
             unseen_patches: 4,
             unseen_patch_side: 8,
@@ -83,6 +88,9 @@ pub struct OptimiserConfig {
     /// The feature head's learning rate relative to the scheduled rate (the
     /// head only sees the detached trunk, so it can take larger steps).
     pub head_lr_scale: f64,
+    /// The pose corrections' learning rate relative to the scheduled rate
+    /// (`--pose-refine`).
+    pub pose_lr_scale: f64,
 }
 
 impl Default for OptimiserConfig {
@@ -92,6 +100,7 @@ impl Default for OptimiserConfig {
             beta_2: 0.999,
             epsilon: 1e-8,
             head_lr_scale: 1.0,
+            pose_lr_scale: 0.2,
         }
     }
 }
@@ -369,6 +378,7 @@ impl TrainConfig {
                 self.losses.box_distortion_weight,
             ),
             ("losses.exposure_penalty", self.losses.exposure_penalty),
+            ("losses.pose_penalty", self.losses.pose_penalty),
             (
                 "losses.unseen_depth_weight",
                 self.losses.unseen_depth_weight,
@@ -392,6 +402,12 @@ impl TrainConfig {
         }
         if !(self.optimiser.head_lr_scale.is_finite() && self.optimiser.head_lr_scale > 0.0) {
             return bad("optimiser.head_lr_scale must be positive".into());
+        }
+        let pose_scale = self.optimiser.pose_lr_scale;
+        if !(pose_scale.is_finite() && pose_scale > 0.0) {
+            return bad(format!(
+                "optimiser.pose_lr_scale must be positive and finite, got {pose_scale}"
+            ));
         }
         if self.logging.render_chunk == 0 {
             return bad("logging.render_chunk must be at least 1".into());
@@ -423,6 +439,10 @@ fn optional_defaults(
         (
             "exposure",
             serde_json::to_value(model::ExposureConfig::new(0))?,
+        ),
+        (
+            "pose",
+            serde_json::to_value(model::PoseCorrectionConfig::new(0))?,
         ),
     ];
     for (key, defaults) in parts {

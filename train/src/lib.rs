@@ -27,6 +27,7 @@ pub mod field_choice;
 pub mod interrupt;
 pub mod metrics_log;
 pub mod occupancy;
+pub mod pose_choice;
 pub mod preset;
 pub mod progress;
 pub mod report;
@@ -181,6 +182,9 @@ fn choose_appearance_and_check(
     let appearance = appearance::choose(cli.appearance, &config.model, scene);
     eprintln!("{}", appearance.message());
     appearance::apply(&appearance, &mut config.model, scene);
+    let pose = pose_choice::choose(cli.pose_refine, &config.model);
+    eprintln!("{}", pose.message());
+    pose_choice::apply(&pose, &mut config.model, scene);
     match (config.validate(), &cli.config) {
         (Err(TrainError::Config(msg)), Some(path)) => Err(TrainError::Config(format!(
             "{msg} (the configuration of {}, with the flags laid over it)",

@@ -159,6 +159,8 @@ pub struct StepRates {
     pub base: f64,
     /// Rate of the open-set head.
     pub head: f64,
+    /// Rate of the pose corrections (when the model learns them).
+    pub pose: f64,
 }
 
 /// What one step measured (host numbers).
@@ -209,6 +211,15 @@ impl ModuleVisitor for GradL1<'_> {
 /// survives saving and loading).
 pub fn head_group(model: &OpenNerf) -> ParamGroup {
     ParamGroup::ids_from_module(model.head.clone())
+}
+
+/// The mean over photographs of each correction's squared norm (rotation
+/// vector and shift), `[1]`: the penalty that holds the cameras near their
+/// given poses.
+pub fn pose_penalty(pose: &model::PoseCorrection) -> Tensor<1> {
+    let p = pose.params.val();
+    let [images, _] = p.dims();
+    p.square().sum().div_scalar(images.max(1) as f32)
 }
 
 /// How a step renders its batch.
@@ -277,7 +288,10 @@ pub fn train_step_regularised(
         .with_background(render.background)
         .with_grid(render.grid)
         .with_progress(render.progress);
-    let out = model.render(&request);
+    let out = match model.pose.as_ref() {
+        Some(pose) => model.render_train_corrected(&request, pose.per_ray(&batch.frames)),
+        None => model.render(&request),
+    };
     let smoothness = unseen
         .filter(|u| cfg.unseen_depth_weight > 0.0 && !u.rays.is_empty())
         .and_then(|u| {
@@ -342,6 +356,11 @@ fn finish_step(
     {
         terms.total = terms.total + exposure_penalty(c).mul_scalar(cfg.exposure_penalty);
     }
+    if let Some(pose) = model.pose.as_ref()
+        && cfg.pose_penalty > 0.0
+    {
+        terms.total = terms.total + pose_penalty(pose).mul_scalar(cfg.pose_penalty);
+    }
     if let Some(extra) = extra {
         terms.total = terms.total + extra;
     }
@@ -380,9 +399,12 @@ fn finish_step(
     if !v.iter().all(|x| x.is_finite()) {
         return (model, report);
     }
-    let lr = ModuleLrScheduler::new(rates.base)
-        .with_group(head_group(&model), rates.head)
-        .step();
+    let mut scheduler =
+        ModuleLrScheduler::new(rates.base).with_group(head_group(&model), rates.head);
+    if let Some(pose) = model.pose.as_ref() {
+        scheduler = scheduler.with_group(ParamGroup::ids_from_module(pose.clone()), rates.pose);
+    }
+    let lr = scheduler.step();
     let model = optim.step(lr, model, grads);
     report.applied = true;
     (model, report)
@@ -476,6 +498,7 @@ mod tests {
         let rates = StepRates {
             base: 1e-2,
             head: 1e-2,
+            pose: 1e-2,
         };
         let cfg = LossConfig::default();
         let (model, report) = train_step(
@@ -511,6 +534,7 @@ mod tests {
         let rates = StepRates {
             base: 1e-4,
             head: 1e-2,
+            pose: 1e-2,
         };
         let (model, report) = train_step(
             model,

@@ -74,6 +74,7 @@ fn train(exposure: bool) -> (f64, Option<Vec<f32>>) {
     let rates = StepRates {
         base: 1e-2,
         head: 1e-2,
+        pose: 1e-2,
     };
     let mut optim = AdamConfig::new().init();
     let mut tail = Vec::new();

@@ -80,6 +80,7 @@ fn patches_behind_a_grid_stay_whole() {
     let rates = StepRates {
         base: 1e-3,
         head: 1e-3,
+        pose: 1e-3,
     };
     let step = |unseen: Option<&UnseenPatches>| {
         let mut optim = AdamConfig::new().init();

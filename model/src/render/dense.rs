@@ -74,10 +74,51 @@ impl RenderPass for Train {
     type Output = RenderOutputs;
 
     fn run(model: &OpenNerf, request: &RenderRequest<'_, Self>, _: Token) -> RenderOutputs {
+        model.render_train(request, None)
+    }
+}
+
+impl OpenNerf {
+    /// The training pass of `request` with each ray first moved as its
+    /// camera's learned pose correction says ([`crate::pose::correct_rays`]:
+    /// origin shifted, direction turned, bounds as they were), so that the
+    /// loss reaches the corrections.
+    ///
+    /// # Shapes
+    /// - `correction`: `[request.rays.len(), 6]`, one row per input ray, as
+    ///   [`crate::pose::PoseCorrection::per_ray`] gives them.
+    pub fn render_train_corrected(
+        &self,
+        request: &RenderRequest<'_, Train>,
+        correction: Tensor<2>,
+    ) -> RenderOutputs {
+        self.render_train(request, Some(correction))
+    }
+
+    fn render_train(
+        &self,
+        request: &RenderRequest<'_, Train>,
+        correction: Option<Tensor<2>>,
+    ) -> RenderOutputs {
+        let model = self;
         let bounded = model.bound_rays(request.rays);
         let clipped = clip_for_training(model.sampler_grid(), request.grid, &bounded);
         let rays = clipped.rays.as_deref().unwrap_or(&bounded);
-        let rays = Rays::from_normalized(rays, &model.device());
+        let mut rays = Rays::from_normalized(rays, &model.device());
+        if let Some(c) = correction {
+            let c = match &clipped.kept {
+                Some(kept) => {
+                    let ids: Vec<i64> = kept.iter().map(|&i| i as i64).collect();
+                    let ids = Tensor::<1, Int>::from_data(
+                        burn::tensor::TensorData::new(ids, [kept.len()]),
+                        &c.device(),
+                    );
+                    c.select(0, ids)
+                }
+                None => c,
+            };
+            rays = crate::pose::correct_rays(rays, c);
+        }
         let mut out = match model.proposal_sampler() {
             Some(sampler) => model.render_proposed(sampler, &rays, request),
             None => model.render_levels(

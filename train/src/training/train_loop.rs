@@ -299,6 +299,7 @@ impl<'a> TrainLoop<'a> {
         let rates = StepRates {
             base: lr,
             head: lr * self.config.optimiser.head_lr_scale,
+            pose: lr * self.config.optimiser.pose_lr_scale,
         };
         let step_start = Instant::now();
         self.device.seed(jitter_seed(self.state.seed, it));

@@ -167,6 +167,7 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
     let rates = StepRates {
         base: 1e-4,
         head: 1e-4,
+        pose: 1e-4,
     };
     let mut times = Vec::new();
     for step in 0..=steps {
