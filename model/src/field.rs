@@ -64,6 +64,13 @@ impl MipMlpConfig {
 
     /// Builds the MLP. A `depth` of 0 is treated as 1, `width` 0 as 1.
     pub fn init(&self, device: &Device) -> MipMlp {
+        self.init_with_appearance(0, device)
+    }
+
+    /// [`Self::init`] with the view branch also taking a per-photograph
+    /// appearance code of `appearance_dim` numbers after the view encoding
+    /// (see [`crate::appearance`]; 0: none).
+    pub fn init_with_appearance(&self, appearance_dim: usize, device: &Device) -> MipMlp {
         let depth = self.depth.max(1);
         let width = self.width.max(1);
         let input = self.input_dim();
@@ -80,7 +87,8 @@ impl MipMlpConfig {
             }
         }
         let half = (width / 2).max(1);
-        let view_fan = width + self.view_dim();
+        let view_in = self.view_dim() + appearance_dim;
+        let view_fan = width + view_in;
         MipMlp {
             trunk,
             skip,
@@ -88,11 +96,12 @@ impl MipMlpConfig {
             density: LinearConfig::new(width, 1).init(device),
             bottleneck: LinearConfig::new(width, width).init(device),
             view_bottleneck: split_linear(width, half, view_fan, true, device),
-            view_dir: split_linear(self.view_dim(), half, view_fan, false, device),
+            view_dir: split_linear(view_in, half, view_fan, false, device),
             rgb: LinearConfig::new(half, 3).init(device),
             min_deg: self.min_deg,
             max_deg: self.max_deg,
             viewdir_deg: self.viewdir_deg,
+            appearance_dim,
         }
     }
 }
@@ -124,6 +133,9 @@ pub struct MipMlp {
     pub max_deg: usize,
     /// View encoding degrees.
     pub viewdir_deg: usize,
+    /// Length of the appearance code the view branch takes after the view
+    /// encoding (0: none).
+    pub appearance_dim: usize,
 }
 
 /// Per-sample outputs of the field.
@@ -160,7 +172,7 @@ impl MipMlp {
     ///
     /// # Shapes
     /// - `trunk`: `[rays * samples, width]`, ray-major.
-    /// - `view_enc`: `[rays, view_dim]`.
+    /// - `view_enc`: `[rays, view_dim + appearance_dim]`.
     /// - output: `[rays * samples, 3]`.
     pub fn color(&self, trunk: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> Tensor<2> {
         let [n, _] = trunk.dims();

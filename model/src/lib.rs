@@ -74,6 +74,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod appearance;
 pub mod clip;
 pub mod composite;
 pub mod exposure;
@@ -89,6 +90,7 @@ pub mod render;
 pub mod sampling;
 pub mod unbounded;
 
+pub use appearance::{AppearanceCodes, AppearanceCodesConfig};
 pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
@@ -100,8 +102,8 @@ pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid
 pub use pose::{PoseCorrection, PoseCorrectionConfig};
 pub use proposal::{ProposalConfig, ProposalMlp};
 pub use render::{
-    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, ProposalLevel,
-    RenderOutputs, RenderPass, RenderRequest, RenderedRays, Termination, Train,
+    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, PerPhotograph,
+    ProposalLevel, RenderOutputs, RenderPass, RenderRequest, RenderedRays, Termination, Train,
 };
 pub use unbounded::UnboundedConfig;
 

@@ -10,6 +10,7 @@ use burn::config::Config;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor, TensorData};
 
+use crate::appearance::{AppearanceCodes, AppearanceCodesConfig};
 use crate::exposure::{Exposure, ExposureConfig};
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
@@ -55,12 +56,16 @@ pub struct OpenNerfConfig {
     /// rays in training only (see [`crate::pose`]); `None`: the poses as
     /// given.
     pub pose: Option<PoseCorrectionConfig>,
+    /// A learned appearance code per training photograph, given to the
+    /// colour branch (see [`crate::appearance`]); `None`: none.
+    pub appearance: Option<AppearanceCodesConfig>,
 }
 
 impl OpenNerfConfig {
     /// Builds the model on `device`.
     pub fn init(&self, device: &Device) -> OpenNerf {
-        let mlp = self.mlp.init(device);
+        let appearance_dim = self.appearance.as_ref().map_or(0, |a| a.dim.max(1));
+        let mlp = self.mlp.init_with_appearance(appearance_dim, device);
         let head = self.head.init(self.mlp.width.max(1), device);
         OpenNerf {
             mlp,
@@ -74,6 +79,7 @@ impl OpenNerfConfig {
             unbounded: self.unbounded.clone(),
             exposure: self.exposure.as_ref().map(|e| e.init(device)),
             pose: self.pose.as_ref().map(|p| p.init(device)),
+            appearance: self.appearance.as_ref().map(|a| a.init(device)),
             occupancy: None,
         }
     }
@@ -106,6 +112,8 @@ pub struct OpenNerf {
     pub exposure: Option<Exposure>,
     /// The training photographs' pose corrections (training rays only).
     pub pose: Option<PoseCorrection>,
+    /// The training photographs' appearance codes (training rays only).
+    pub appearance: Option<AppearanceCodes>,
     /// Occupancy grid of the field's density, when empty-space skipping is
     /// on: [`OpenNerf::render`] clips its rays with it unless the request
     /// says otherwise (see [`crate::GridUse`]). Not part of the weights.
@@ -127,6 +135,10 @@ pub struct Rays {
     pub near: Tensor<2>,
     /// Far bounds, `[n, 1]`.
     pub far: Tensor<2>,
+    /// Each ray's photograph's appearance code, `[n, appearance_dim]`, for
+    /// a field with codes; `None`: the zero code (every view but a
+    /// training photograph's).
+    pub appearance: Option<Tensor<2>>,
 }
 
 impl Rays {
@@ -147,6 +159,7 @@ impl Rays {
             radii: scalar(&|r: &NormalizedRay| r.radius),
             near: scalar(&|r: &NormalizedRay| r.near),
             far: scalar(&|r: &NormalizedRay| r.far.max(r.near)),
+            appearance: None,
         }
     }
 

@@ -153,6 +153,7 @@ fn rays(origins: Vec<f32>, directions: Vec<f32>, device: &Device) -> Rays {
             device,
         ),
         near: tensor(vec![0.5; n], [n, 1], device),
+        appearance: None,
         far: tensor(vec![4.0; n], [n, 1], device),
     }
 }

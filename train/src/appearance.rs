@@ -1,14 +1,16 @@
 //! Whether a run learns each training photograph's exposure
-//! (`--appearance`, see `model::exposure`), and why. `train` prints the
-//! choice and why.
+//! (`--appearance exposure`, see `model::exposure`) or appearance code
+//! (`--appearance embedding`, see `model::appearance`), and why. `train`
+//! prints the choice and why.
 
 use datasets::{Scene, SceneSource};
-use model::{ExposureConfig, OpenNerfConfig};
+use model::{AppearanceCodesConfig, ExposureConfig, OpenNerfConfig};
 
 /// How the photographs' appearance is modelled (`--appearance`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum AppearanceArg {
-    /// `none`, unless the `--config` file asks for `model.exposure`.
+    /// `none`, unless the `--config` file asks for `model.exposure` or
+    /// `model.appearance`.
     #[default]
     Auto,
     /// Every photograph is taken at the same exposure.
@@ -16,6 +18,9 @@ pub enum AppearanceArg {
     /// A gain and an offset per colour channel for each training
     /// photograph, applied to its rays' colours in the training loss only.
     Exposure,
+    /// A learned code per training photograph given to the colour branch
+    /// (nerfacto's appearance embedding); every render uses the zero code.
+    Embedding,
 }
 
 /// What a run models appearance with, and why.
@@ -23,6 +28,8 @@ pub enum AppearanceArg {
 pub struct AppearanceChoice {
     /// A learned exposure per training photograph.
     pub exposure: bool,
+    /// A learned appearance code per training photograph.
+    pub embedding: bool,
     /// Why, in words.
     pub reason: String,
 }
@@ -30,10 +37,12 @@ pub struct AppearanceChoice {
 impl AppearanceChoice {
     /// The one-line message `train` prints.
     pub fn message(&self) -> String {
-        let what = if self.exposure {
-            "a learned exposure per photograph"
-        } else {
-            "none"
+        let what = match (self.exposure, self.embedding) {
+            (true, _) => "a learned exposure per photograph",
+            (_, true) => {
+                "a learned appearance code per photograph (held-out and novel views: the zero code)"
+            }
+            _ => "none",
         };
         format!("appearance: {what} ({})", self.reason)
     }
@@ -51,21 +60,40 @@ fn capture(scene: &Scene) -> String {
 /// Chooses from the flag and the configuration (`model` as `--config` and
 /// the presets left it).
 pub fn choose(arg: AppearanceArg, model: &OpenNerfConfig, scene: &Scene) -> AppearanceChoice {
-    let (exposure, reason) = match arg {
-        AppearanceArg::Auto if model.exposure.is_some() => {
-            (true, "auto: the configuration's model.exposure".to_string())
-        }
-        AppearanceArg::Auto => (false, format!("auto: {}", capture(scene))),
-        AppearanceArg::None => (false, "--appearance none".into()),
-        AppearanceArg::Exposure => (true, "--appearance exposure".into()),
+    let ((exposure, embedding), reason) = match arg {
+        AppearanceArg::Auto if model.exposure.is_some() => (
+            (true, false),
+            "auto: the configuration's model.exposure".to_string(),
+        ),
+        AppearanceArg::Auto if model.appearance.is_some() => (
+            (false, true),
+            "auto: the configuration's model.appearance".to_string(),
+        ),
+        AppearanceArg::Auto => ((false, false), format!("auto: {}", capture(scene))),
+        AppearanceArg::None => ((false, false), "--appearance none".into()),
+        AppearanceArg::Exposure => ((true, false), "--appearance exposure".into()),
+        AppearanceArg::Embedding => ((false, true), "--appearance embedding".into()),
     };
-    AppearanceChoice { exposure, reason }
+    AppearanceChoice {
+        exposure,
+        embedding,
+        reason,
+    }
 }
 
-/// Sets `model.exposure` as `choice` says, with a correction for each of
-/// `scene`'s frames (the frames a run adds later, novel views, get none).
+/// Sets `model.exposure` and `model.appearance` as `choice` says, with a
+/// correction or code for each of `scene`'s frames (the frames a run adds
+/// later, novel views, get none); a code length the configuration gave is
+/// kept.
 pub fn apply(choice: &AppearanceChoice, model: &mut OpenNerfConfig, scene: &Scene) {
-    model.exposure = choice
-        .exposure
-        .then(|| ExposureConfig::new(scene.frames.len()));
+    let frames = scene.frames.len();
+    model.exposure = choice.exposure.then(|| ExposureConfig::new(frames));
+    let dim = model.appearance.as_ref().map(|a| a.dim);
+    model.appearance = choice.embedding.then(|| {
+        let codes = AppearanceCodesConfig::new(frames);
+        match dim {
+            Some(d) => codes.with_dim(d),
+            None => codes,
+        }
+    });
 }

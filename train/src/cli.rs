@@ -395,9 +395,13 @@ pub struct Cli {
     /// per colour channel for each training photograph (captures whose
     /// photographs differ in exposure or white balance), applied to its
     /// rays' colours in the training loss only, so that the field renders
-    /// the photographs' common exposure; `none` takes every photograph as
-    /// taken at one exposure; `auto` is `none` unless the `--config` file
-    /// sets `model.exposure` (docs/unbounded.md). `train` prints its choice.
+    /// the photographs' common exposure; `embedding` learns a code per
+    /// training photograph that the colour branch takes beside the view
+    /// direction (nerfacto's appearance embedding, `model.appearance.dim`
+    /// numbers, 16 by default), and renders every other view with the zero
+    /// code; `none` takes every photograph as taken at one exposure; `auto`
+    /// is `none` unless the `--config` file sets `model.exposure` or
+    /// `model.appearance` (docs/unbounded.md). `train` prints its choice.
     #[arg(long, value_enum, default_value_t = crate::appearance::AppearanceArg::Auto)]
     pub appearance: crate::appearance::AppearanceArg,
     /// Refine the training photographs' camera poses with the field: `on`

@@ -43,6 +43,10 @@ pub struct LossConfig {
     /// (see `model::pose`: rotation in radians, shift in normalised units),
     /// which holds the cameras near their given poses.
     pub pose_penalty: f32,
+    /// Weight of the penalty on the appearance codes' squares (see
+    /// `model::appearance`), which keeps the zero code, the one every
+    /// render uses, at the photographs' common appearance.
+    pub appearance_penalty: f32,
     /// Weight of the depth smoothness of patches rendered from viewpoints
     /// between the training cameras (RegNeRF's geometry regulariser; 0:
     /// off, no patches are rendered).
@@ -67,6 +71,7 @@ impl Default for LossConfig {
             box_distortion_weight: 0.0,
             exposure_penalty: 1e-3,
             pose_penalty: 1e-2,
+            appearance_penalty: 1e-3,
             unseen_depth_weight: 0.0,
             unseen_patches: 4,
             unseen_patch_side: 8,
@@ -364,6 +369,14 @@ impl TrainConfig {
         }
         crate::occupancy::validate(&self.occupancy).map_err(TrainError::Config)?;
         crate::field_choice::validate(&self.model).map_err(TrainError::Config)?;
+        if let Some(a) = &self.model.appearance
+            && !(1..=1024).contains(&a.dim)
+        {
+            return bad(format!(
+                "model.appearance.dim must be in 1..=1024, got {}",
+                a.dim
+            ));
+        }
         if self.model.mlp.width == 0 || self.model.mlp.depth == 0 {
             return bad("model.mlp.width and model.mlp.depth must be at least 1".into());
         }
@@ -379,6 +392,7 @@ impl TrainConfig {
             ),
             ("losses.exposure_penalty", self.losses.exposure_penalty),
             ("losses.pose_penalty", self.losses.pose_penalty),
+            ("losses.appearance_penalty", self.losses.appearance_penalty),
             (
                 "losses.unseen_depth_weight",
                 self.losses.unseen_depth_weight,
@@ -443,6 +457,10 @@ fn optional_defaults(
         (
             "pose",
             serde_json::to_value(model::PoseCorrectionConfig::new(0))?,
+        ),
+        (
+            "appearance",
+            serde_json::to_value(model::AppearanceCodesConfig::new(0))?,
         ),
     ];
     for (key, defaults) in parts {

@@ -288,9 +288,14 @@ pub fn train_step_regularised(
         .with_background(render.background)
         .with_grid(render.grid)
         .with_progress(render.progress);
-    let out = match model.pose.as_ref() {
-        Some(pose) => model.render_train_corrected(&request, pose.per_ray(&batch.frames)),
-        None => model.render(&request),
+    let out = if model.pose.is_some() || model.appearance.is_some() {
+        let photographs = model::PerPhotograph {
+            pose_correction: model.pose.as_ref().map(|p| p.per_ray(&batch.frames)),
+            appearance: model.appearance.as_ref().map(|a| a.per_ray(&batch.frames)),
+        };
+        model.render_train_with(&request, photographs)
+    } else {
+        model.render(&request)
     };
     let smoothness = unseen
         .filter(|u| cfg.unseen_depth_weight > 0.0 && !u.rays.is_empty())
@@ -360,6 +365,11 @@ fn finish_step(
         && cfg.pose_penalty > 0.0
     {
         terms.total = terms.total + pose_penalty(pose).mul_scalar(cfg.pose_penalty);
+    }
+    if let Some(codes) = model.appearance.as_ref()
+        && cfg.appearance_penalty > 0.0
+    {
+        terms.total = terms.total + codes.penalty().mul_scalar(cfg.appearance_penalty);
     }
     if let Some(extra) = extra {
         terms.total = terms.total + extra;

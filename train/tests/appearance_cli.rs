@@ -48,13 +48,22 @@ fn saved_exposure(run: &Path) -> serde_json::Value {
 
 #[test]
 fn bad_appearance_values_are_refused() {
-    assert_refused(&["--appearance", "grey"], &["grey", "none", "exposure"]);
+    assert_refused(
+        &["--appearance", "grey"],
+        &["grey", "none", "exposure", "embedding"],
+    );
     let tmp = tempfile::tempdir().expect("tmp");
     assert_config_refused(
         tmp.path(),
         "bad.json",
         r#"{"losses": {"exposure_penalty": -1.0}}"#,
         &["losses.exposure_penalty", "-1"],
+    );
+    assert_config_refused(
+        tmp.path(),
+        "dim.json",
+        r#"{"model": {"appearance": {"dim": 0}}}"#,
+        &["model.appearance.dim", "0"],
     );
 }
 
@@ -118,4 +127,32 @@ fn the_choice_is_printed_and_the_exposure_saved_and_loaded_with_the_run() {
         "{err}"
     );
     assert!(saved_exposure(&overridden).is_null());
+    // Appearance codes: one per frame of the scene, of the default length,
+    // loaded with the run; a training photograph's code moved in two steps.
+    let coded = tmp.path().join("coded");
+    let err = tiny_run(tmp.path(), &coded, TINY, &["--appearance", "embedding"]);
+    assert!(
+        err.contains("appearance: a learned appearance code per photograph")
+            && err.contains("(--appearance embedding)"),
+        "{err}"
+    );
+    let saved: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(coded.join("config.json")).expect("config"))
+            .expect("json");
+    assert!(saved["model"]["exposure"].is_null());
+    assert_eq!(saved["model"]["appearance"]["images"], frames);
+    assert_eq!(saved["model"]["appearance"]["dim"], 16);
+    let loaded = field_ops::run_dir::load_run(&coded, &device).expect("the run loads");
+    assert_eq!(loaded.model.mlp.appearance_dim, 16);
+    let codes: Vec<f32> = loaded
+        .model
+        .appearance
+        .as_ref()
+        .expect("codes loaded")
+        .codes
+        .val()
+        .try_into_vec_as::<f32>()
+        .expect("f32");
+    assert_eq!(codes.len(), 16 * frames);
+    assert!(codes.iter().any(|&v| v != 0.0));
 }

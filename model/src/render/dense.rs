@@ -25,6 +25,20 @@ pub struct Train {
     pub progress: f32,
 }
 
+/// What a training ray's photograph has learned, one row per input ray of
+/// the request (`None`: nothing of that kind).
+#[derive(Debug, Clone, Default)]
+pub struct PerPhotograph {
+    /// Pose corrections, `[n, 6]`, as
+    /// [`crate::pose::PoseCorrection::per_ray`] gives them: each ray's
+    /// origin shifted and direction turned ([`crate::pose::correct_rays`]).
+    pub pose_correction: Option<Tensor<2>>,
+    /// Appearance codes, `[n, dim]`, as
+    /// [`crate::appearance::AppearanceCodes::per_ray`] gives them, for the
+    /// colour branch.
+    pub appearance: Option<Tensor<2>>,
+}
+
 /// Outputs of one level.
 #[derive(Debug, Clone)]
 pub struct LevelOutputs {
@@ -74,51 +88,48 @@ impl RenderPass for Train {
     type Output = RenderOutputs;
 
     fn run(model: &OpenNerf, request: &RenderRequest<'_, Self>, _: Token) -> RenderOutputs {
-        model.render_train(request, None)
+        model.render_train(request, PerPhotograph::default())
     }
 }
 
 impl OpenNerf {
-    /// The training pass of `request` with each ray first moved as its
-    /// camera's learned pose correction says ([`crate::pose::correct_rays`]:
-    /// origin shifted, direction turned, bounds as they were), so that the
-    /// loss reaches the corrections.
-    ///
-    /// # Shapes
-    /// - `correction`: `[request.rays.len(), 6]`, one row per input ray, as
-    ///   [`crate::pose::PoseCorrection::per_ray`] gives them.
-    pub fn render_train_corrected(
+    /// The training pass of `request` with what each ray's photograph has
+    /// learned applied to it (see [`PerPhotograph`]), so that the loss
+    /// reaches those parameters.
+    pub fn render_train_with(
         &self,
         request: &RenderRequest<'_, Train>,
-        correction: Tensor<2>,
+        photographs: PerPhotograph,
     ) -> RenderOutputs {
-        self.render_train(request, Some(correction))
+        self.render_train(request, photographs)
     }
 
     fn render_train(
         &self,
         request: &RenderRequest<'_, Train>,
-        correction: Option<Tensor<2>>,
+        photographs: PerPhotograph,
     ) -> RenderOutputs {
         let model = self;
         let bounded = model.bound_rays(request.rays);
         let clipped = clip_for_training(model.sampler_grid(), request.grid, &bounded);
         let rays = clipped.rays.as_deref().unwrap_or(&bounded);
         let mut rays = Rays::from_normalized(rays, &model.device());
-        if let Some(c) = correction {
-            let c = match &clipped.kept {
-                Some(kept) => {
-                    let ids: Vec<i64> = kept.iter().map(|&i| i as i64).collect();
-                    let ids = Tensor::<1, Int>::from_data(
-                        burn::tensor::TensorData::new(ids, [kept.len()]),
-                        &c.device(),
-                    );
-                    c.select(0, ids)
-                }
-                None => c,
-            };
-            rays = crate::pose::correct_rays(rays, c);
+        // Rows of the rays the grid kept.
+        let kept = |t: Tensor<2>| match &clipped.kept {
+            Some(kept) => {
+                let ids: Vec<i64> = kept.iter().map(|&i| i as i64).collect();
+                let ids = Tensor::<1, Int>::from_data(
+                    burn::tensor::TensorData::new(ids, [kept.len()]),
+                    &t.device(),
+                );
+                t.select(0, ids)
+            }
+            None => t,
+        };
+        if let Some(c) = photographs.pose_correction {
+            rays = crate::pose::correct_rays(rays, kept(c));
         }
+        rays.appearance = photographs.appearance.map(kept);
         let mut out = match model.proposal_sampler() {
             Some(sampler) => model.render_proposed(sampler, &rays, request),
             None => model.render_levels(
@@ -267,7 +278,17 @@ impl OpenNerf {
             .directions
             .clone()
             .div(dir_norm.clone().clamp_min(1e-20));
-        (dir_norm, pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true))
+        let enc = pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true);
+        let dim = self.mlp.appearance_dim;
+        if dim == 0 {
+            return (dir_norm, enc);
+        }
+        let [n, _] = enc.dims();
+        let code = match &rays.appearance {
+            Some(code) => code.clone(),
+            None => Tensor::zeros([n, dim], &enc.device()),
+        };
+        (dir_norm, Tensor::cat(vec![enc, code], 1))
     }
 
     /// The integrated positional encoding of the frustums between

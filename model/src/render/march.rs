@@ -131,6 +131,7 @@ impl Alive {
                 radii: s(self.rays.radii),
                 near: s(self.rays.near),
                 far: s(self.rays.far),
+                appearance: self.rays.appearance.map(s),
             },
             dir_norm: s(self.dir_norm),
             view_enc: s(self.view_enc),

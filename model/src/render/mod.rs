@@ -48,7 +48,7 @@ use crate::geometry::NormalizedRay;
 use crate::nerf::OpenNerf;
 use crate::occupancy::{OccupancyConfig, OccupancyGrid};
 
-pub use dense::{LevelOutputs, RenderOutputs, Train};
+pub use dense::{LevelOutputs, PerPhotograph, RenderOutputs, Train};
 pub use grid::ClipStats;
 pub use inference::{Cancelled, Inference};
 pub use march::{RenderedRays, Termination};
