@@ -25,13 +25,19 @@
 # ranges: the statue's box field with IPE degrees 0..4 and 0..6, and the
 #   unbounded field with other kept balls and ray ranges (radius 1.5 with
 #   rays from 3 radii; rays from 1 radius to 4 or to 10 radii).
+# ray-start: the statue's unbounded field with rays from the scene box
+#   (the default) and from next to the camera (start_at_box false);
+# unbounded-knobs: the unbounded field with one setting changed per run
+#   (--unseen-depth 1, --appearance exposure, --lr 2e-3, distortion 0.1);
+# photographs: the box and the unbounded field, each plain, with
+#   --pose-refine on and with --appearance embedding; then fern the same.
 # CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
 # two at a time on a 2-core machine. ITERS=N trains N iterations a run
 # instead of SECONDS.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges OUT [SECONDS]"
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges|ray-start|unbounded-knobs|photographs OUT [SECONDS]"
 set_name=${1:?$usage}
 out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
@@ -155,8 +161,39 @@ case "$set_name" in
       "unbounded-near1-far10|--data $statue --field unbounded --config $out/near1-far10.json"
     )
     ;;
+  ray-start)
+    budget=${3:-300}
+    echo '{"model": {"unbounded": {"start_at_box": false}}}' > "$out/start-near.json"
+    runs=(
+      "unbounded-start-at-box|--data $statue --field unbounded"
+      "unbounded-start-near|--data $statue --field unbounded --config $out/start-near.json"
+    )
+    ;;
+  unbounded-knobs)
+    budget=${3:-300}
+    echo '{"losses": {"distortion_weight": 0.1}}' > "$out/distortion0.1.json"
+    runs=(
+      "unseen1|--data $statue --field unbounded --unseen-depth 1"
+      "exposure|--data $statue --field unbounded --appearance exposure"
+      "lr2e-3|--data $statue --field unbounded --lr 2e-3"
+      "distortion0.1|--data $statue --field unbounded --config $out/distortion0.1.json"
+    )
+    ;;
+  photographs)
+    budget=${3:-300}
+    runs=()
+    for field in box unbounded; do
+      runs+=("statue-$field-plain|--data $statue --field $field")
+      runs+=("statue-$field-pose|--data $statue --field $field --pose-refine on")
+      runs+=("statue-$field-embedding|--data $statue --field $field --appearance embedding")
+    done
+    runs+=("fern-plain|--data $fern")
+    runs+=("fern-pose|--data $fern --pose-refine on")
+    runs+=("fern-embedding|--data $fern --appearance embedding")
+    runs+=("fern-unbounded|--data $fern --field unbounded")
+    ;;
   *)
-    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen or ranges" >&2
+    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen, ranges, ray-start, unbounded-knobs or photographs" >&2
     exit 2
     ;;
 esac
