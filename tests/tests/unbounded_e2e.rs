@@ -3,8 +3,9 @@
 //! unbounded field `--field auto` chooses for it beats the box field on
 //! held-out views at the same iterations, and a resumed run of the
 //! unbounded field with the proposal sampler ends with the uninterrupted
-//! run's weights, as does one with the unseen patches' depth smoothness
-//! (which moves the weights).
+//! run's weights, as do one with the unseen patches' depth smoothness
+//! (which moves the weights) and one that learns pose corrections and
+//! appearance codes (which move).
 
 use std::sync::OnceLock;
 
@@ -119,4 +120,52 @@ fn a_run_with_unseen_patches_resumes_to_the_same_weights_and_moves_them() {
     train::train_new(scene, plain, 8, without.path(), &session).expect("without");
     let moved = max_abs_diff(&a, &run_weights(without.path()));
     assert!(moved > 0.0, "the regulariser changes the weights");
+}
+
+#[test]
+fn a_run_with_pose_corrections_and_appearance_codes_resumes_to_the_same_weights() {
+    let _guard = serial();
+    let scene = outdoor();
+    let n = 4;
+    let frames = scene.frames.len();
+    let with_both = || {
+        let mut c = config(FieldArg::Unbounded, SamplerArg::Auto, 2 * n);
+        c.logging.eval_every = 0;
+        c.logging.checkpoint_every = n;
+        c.model.pose = Some(model::PoseCorrectionConfig::new(frames));
+        c.model.appearance = Some(model::AppearanceCodesConfig::new(frames).with_dim(4));
+        c
+    };
+    let whole = scratch_dir();
+    let session = tests::flex_session(None);
+    train::train_new(scene, with_both(), 8, whole.path(), &session).expect("uninterrupted");
+    let parts = scratch_dir();
+    let half = train::train_new(
+        scene,
+        with_both(),
+        8,
+        parts.path(),
+        &tests::flex_session(Some(n)),
+    )
+    .expect("first half");
+    assert_eq!(half.summary.iterations, n);
+    train::resume(parts.path(), None, &session).expect("resumed");
+    let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
+    assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
+    // The corrections and codes are among the weights, and they moved.
+    let device = burn::tensor::Device::flex();
+    let loaded = field_ops::run_dir::load_run(whole.path(), &device).expect("loads");
+    for (name, values) in [
+        ("pose", loaded.model.pose.as_ref().map(|p| p.params.val())),
+        (
+            "appearance",
+            loaded.model.appearance.as_ref().map(|a| a.codes.val()),
+        ),
+    ] {
+        let v: Vec<f32> = values
+            .unwrap_or_else(|| panic!("{name} loaded"))
+            .try_into_vec_as::<f32>()
+            .expect("f32");
+        assert!(v.iter().any(|&x| x != 0.0), "{name} moved");
+    }
 }
