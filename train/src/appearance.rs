@@ -9,8 +9,9 @@ use model::{AppearanceCodesConfig, ExposureConfig, OpenNerfConfig};
 /// How the photographs' appearance is modelled (`--appearance`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum AppearanceArg {
-    /// `none`, unless the `--config` file asks for `model.exposure` or
-    /// `model.appearance`.
+    /// `embedding` for a COLMAP capture with the unbounded field (measured
+    /// to lift its held-out views), else `none`, unless the `--config` file
+    /// asks for `model.exposure` or `model.appearance`.
     #[default]
     Auto,
     /// Every photograph is taken at the same exposure.
@@ -57,6 +58,11 @@ fn capture(scene: &Scene) -> String {
     }
 }
 
+/// Whether `scene` was loaded from a COLMAP reconstruction.
+fn is_colmap(scene: &Scene) -> bool {
+    matches!(scene.source.base(), SceneSource::Disk { loader, .. } if loader.format() == "colmap")
+}
+
 /// Chooses from the flag and the configuration (`model` as `--config` and
 /// the presets left it).
 pub fn choose(arg: AppearanceArg, model: &OpenNerfConfig, scene: &Scene) -> AppearanceChoice {
@@ -68,6 +74,12 @@ pub fn choose(arg: AppearanceArg, model: &OpenNerfConfig, scene: &Scene) -> Appe
         AppearanceArg::Auto if model.appearance.is_some() => (
             (false, true),
             "auto: the configuration's model.appearance".to_string(),
+        ),
+        AppearanceArg::Auto if model.unbounded.is_some() && is_colmap(scene) => (
+            (false, true),
+            "auto: a colmap capture with the unbounded field, where codes were measured to lift \
+             the held-out views (docs/unbounded.md)"
+                .to_string(),
         ),
         AppearanceArg::Auto => ((false, false), format!("auto: {}", capture(scene))),
         AppearanceArg::None => ((false, false), "--appearance none".into()),

@@ -377,11 +377,11 @@ pub struct Cli {
     pub occupancy_grid: bool,
     /// The field's extent: `box` (the scene box mapped to [-pi, pi]^3),
     /// `unbounded` (Mip-NeRF 360's contraction: the ball around the scene
-    /// box kept, everything beyond contracted, rays to effectively
-    /// infinite distance; no occupancy grid) or `auto` (unbounded for the
-    /// synthetic outdoor scene, box otherwise: on the real captures measured
-    /// the box generalises better, docs/unbounded.md). `train` prints its
-    /// choice and why.
+    /// box kept, everything beyond contracted, rays from where they enter
+    /// the scene box to effectively infinite distance; no occupancy grid)
+    /// or `auto` (unbounded for the synthetic outdoor scene and COLMAP
+    /// captures, where it was measured better, box otherwise,
+    /// docs/unbounded.md). `train` prints its choice and why.
     #[arg(long, value_enum, default_value_t = crate::field_choice::FieldArg::Auto)]
     pub field: crate::field_choice::FieldArg,
     /// Where the MLP samples: `coarse-fine` (Mip-NeRF's two levels of the
@@ -400,7 +400,8 @@ pub struct Cli {
     /// direction (nerfacto's appearance embedding, `model.appearance.dim`
     /// numbers, 16 by default), and renders every other view with the zero
     /// code; `none` takes every photograph as taken at one exposure; `auto`
-    /// is `none` unless the `--config` file sets `model.exposure` or
+    /// is `embedding` for a COLMAP capture with the unbounded field, else
+    /// `none`, unless the `--config` file sets `model.exposure` or
     /// `model.appearance` (docs/unbounded.md). `train` prints its choice.
     #[arg(long, value_enum, default_value_t = crate::appearance::AppearanceArg::Auto)]
     pub appearance: crate::appearance::AppearanceArg,

@@ -1,13 +1,12 @@
 //! Which field and sampler a run models its scene with (`--field`,
 //! `--sampler`), and why. `auto` takes what was measured better
-//! (docs/unbounded.md): Mip-NeRF 360's contraction where a scene's content
-//! reaches far past its box and its views constrain it (the synthetic
-//! outdoor scene), the box elsewhere, real captures included: on the
-//! statue (20 widely spaced photographs) the contracted field, its rays
-//! starting where they enter the scene box, ends level with the box at
-//! equal seconds (within two seeds' spread), and on fern it is no better
-//! than the box; the coarse and fine level everywhere. `train` prints the
-//! choice and why.
+//! (docs/unbounded.md): Mip-NeRF 360's contraction, its rays starting
+//! where they enter the scene box, where a scene's content reaches far
+//! past its box (the synthetic outdoor scene, and COLMAP captures, walked
+//! around what they look at: on the statue it ends above the box at equal
+//! seconds, with appearance codes), the box elsewhere (fern's LLFF capture
+//! and the phone and nerfstudio captures, not measured better); the coarse
+//! and fine level everywhere. `train` prints the choice and why.
 
 use datasets::{Scene, SceneSource};
 use model::{OpenNerfConfig, ProposalConfig, UnboundedConfig};
@@ -17,9 +16,9 @@ use crate::error::TrainError;
 /// The field's extent (`--field`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum FieldArg {
-    /// Chosen from the scene: `unbounded` for the synthetic outdoor scene,
-    /// `box` otherwise (on the real captures measured so far the box field
-    /// generalises better: docs/unbounded.md).
+    /// Chosen from the scene: `unbounded` for the synthetic outdoor scene
+    /// and COLMAP captures, `box` otherwise (where the unbounded field was
+    /// not measured better: docs/unbounded.md).
     #[default]
     Auto,
     /// The scene box mapped to `[-pi, pi]^3`; rays end where they leave it.
@@ -84,23 +83,24 @@ fn capture(scene: &Scene) -> (String, bool) {
         ),
         SceneSource::Synthetic { .. } => ("the synthetic room, a box".into(), false),
         SceneSource::Disk { loader, .. } => match loader.format() {
-            "colmap" | "llff" => (
-                format!(
-                    "a {} capture: on the real captures measured the box generalises better",
-                    loader.format()
-                ),
+            "colmap" => (
+                "a colmap capture, walked around what it looks at: the unbounded field, its rays \
+                 from the scene box, measured above the box (docs/unbounded.md)"
+                    .into(),
+                true,
+            ),
+            "llff" => (
+                "an llff capture: the unbounded field measured level with the box".into(),
                 false,
             ),
             "blender" if scene.world.as_ref().is_some_and(|w| w.name == "nerfstudio") => (
-                "a nerfstudio capture: on the real captures measured the box generalises better"
-                    .into(),
+                "a nerfstudio capture: the unbounded field not measured better on one".into(),
                 false,
             ),
             "blender" => ("a Blender object with its known box".into(), false),
             "scanner_app" | "record3d" | "polycam" => (
                 format!(
-                    "a phone capture ({}): on the real captures measured the box generalises \
-                     better",
+                    "a phone capture ({}): the unbounded field not measured better on one",
                     loader.format()
                 ),
                 false,

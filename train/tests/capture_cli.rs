@@ -103,6 +103,26 @@ fn a_colmap_text_model_trains_and_records_its_frame() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("is a colmap scene"), "{err}");
     assert!(err.contains("--frame colmap"), "{err}");
+    // Auto: the unbounded field with appearance codes, each said so.
+    assert!(
+        err.contains("field: unbounded (auto: a colmap capture"),
+        "{err}"
+    );
+    assert!(
+        err.contains("appearance: a learned appearance code per photograph")
+            && err.contains("(auto: a colmap capture with the unbounded field"),
+        "{err}"
+    );
+    // With the box field asked for, no codes.
+    let boxed = tmp.path().join("boxed");
+    let o = run(tmp.path(), &data, &boxed, &["--field", "box"]);
+    let box_err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{box_err}");
+    assert!(
+        box_err.contains("field: box (--field box)")
+            && box_err.contains("appearance: none (auto: a colmap capture)"),
+        "{box_err}"
+    );
     let meta: datasets::SceneMeta =
         serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
             .expect("scene.json parses");
@@ -262,7 +282,7 @@ fn a_scannet_export_skips_lost_poses_and_refuses_bad_depth() {
 
 /// `--preset` reads where the cameras stand: the rig looks at its points
 /// from outside their box (an object: 256 rays a batch, the lego
-/// settings), the synthetic room's cameras stand inside it (128 rays a
+/// settings, with the grid when the field is the box), the synthetic room's cameras stand inside it (128 rays a
 /// batch and more iterations); explicit flags still win over the preset.
 #[test]
 fn presets_follow_where_the_cameras_stand() {
@@ -291,12 +311,20 @@ fn presets_follow_where_the_cameras_stand() {
         )
     };
     let rig = ["--data", s(&data), "--holdout-every", "4"];
-    let (err, c) = run("object", &rig, &["--preset", "fast"]);
+    let (err, c) = run("object", &rig, &["--preset", "fast", "--field", "box"]);
     assert!(
         err.contains("preset fast with the object settings"),
         "{err}"
     );
     assert_eq!(knobs(&c), (Some(16), Some(256), Some(1600), Some(true)));
+    // A COLMAP capture's auto field is unbounded: the preset's grid stays
+    // off, said so.
+    let (err, c) = run("object-auto", &rig, &["--preset", "fast"]);
+    assert!(
+        err.contains("no occupancy grid (the field is unbounded)"),
+        "{err}"
+    );
+    assert_eq!(knobs(&c), (Some(16), Some(256), Some(1600), Some(false)));
     let room = ["--scene-size", "ci"];
     let (err, c) = run("room", &room, &["--preset", "balanced"]);
     assert!(
