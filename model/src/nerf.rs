@@ -163,6 +163,24 @@ impl Rays {
         }
     }
 
+    /// The rays as their corrected cameras see them: origins shifted by
+    /// each ray's `t`, directions turned by its `w` (see
+    /// [`crate::pose::rotate`]); radii, bounds and codes as they were.
+    ///
+    /// # Shapes
+    /// - `correction`: `[self.len(), 6]`, `[w | t]` as
+    ///   [`PoseCorrection::per_ray`] gives it.
+    pub fn corrected(self, correction: Tensor<2>) -> Rays {
+        let [n, _] = correction.dims();
+        let w = correction.clone().slice([0..n, 0..3]);
+        let t = correction.slice([0..n, 3..6]);
+        Rays {
+            origins: self.origins + t,
+            directions: crate::pose::rotate(self.directions, w),
+            ..self
+        }
+    }
+
     /// Number of rays.
     pub fn len(&self) -> usize {
         self.origins.dims()[0]

@@ -9,7 +9,7 @@
 //! nerfstudio's camera optimiser and BARF do.
 //!
 //! The correction is applied to a ray on the device (so that the loss
-//! reaches it): the origin moves by `t`, the direction turns by the
+//! reaches it, [`crate::Rays::corrected`]): the origin moves by `t`, the direction turns by the
 //! rotation `exp([w]x)` (Rodrigues' formula), both in the scene's axes.
 //! Radii and bounds stay. A frame without a correction (a novel view, a
 //! photograph past the table) gets none.
@@ -19,7 +19,6 @@ use burn::module::{Module, Param};
 use burn::tensor::{Bool, Device, Tensor};
 
 use crate::exposure::frame_rows;
-use crate::nerf::Rays;
 
 /// Configuration of [`PoseCorrection`].
 #[derive(Config, Debug)]
@@ -113,22 +112,4 @@ pub fn rotate(v: Tensor<2>, w: Tensor<2>) -> Tensor<2> {
     let wv = cross(w.clone(), v.clone());
     let wwv = cross(w, wv.clone());
     v + wv * sinc + wwv * versine
-}
-
-/// `rays` as their corrected cameras see them: origins shifted by each
-/// ray's `t`, directions turned by its `w` (see [`rotate`]); radii and
-/// bounds as they were.
-///
-/// # Shapes
-/// - `correction`: `[rays.len(), 6]`, `[w | t]` as
-///   [`PoseCorrection::per_ray`] gives it.
-pub fn correct_rays(rays: Rays, correction: Tensor<2>) -> Rays {
-    let [n, _] = correction.dims();
-    let w = correction.clone().slice([0..n, 0..3]);
-    let t = correction.slice([0..n, 3..6]);
-    Rays {
-        origins: rays.origins + t,
-        directions: rotate(rays.directions, w),
-        ..rays
-    }
 }

@@ -9,7 +9,7 @@ mod common;
 use burn::module::Param;
 use burn::tensor::{Device, Tensor};
 use common::{assert_close, devices, tensor, uniform, vec};
-use model::pose::{correct_rays, rotate};
+use model::pose::rotate;
 use model::{PoseCorrectionConfig, Rays};
 
 type M3 = [[f64; 3]; 3];
@@ -172,14 +172,15 @@ fn corrected_rays_move_their_origin_and_turn_their_direction() {
         .collect();
     let before = rays(o.clone(), d.clone(), &device);
     // No correction: the rays as they were, bit for bit.
-    let same = correct_rays(before.clone(), Tensor::zeros([n, 6], &device));
+    let same = before.clone().corrected(Tensor::zeros([n, 6], &device));
     assert_eq!(vec(same.origins), o);
     assert_eq!(vec(same.directions), d);
     let corr: Vec<f64> = values(6 * n, 11, -0.2, 0.2);
-    let out = correct_rays(
-        before.clone(),
-        tensor(corr.iter().map(|&x| x as f32).collect(), [n, 6], &device),
-    );
+    let out = before.clone().corrected(tensor(
+        corr.iter().map(|&x| x as f32).collect(),
+        [n, 6],
+        &device,
+    ));
     let mut eo = Vec::new();
     let mut ed = Vec::new();
     for i in 0..n {
@@ -225,7 +226,7 @@ fn a_perturbed_camera_is_recovered_by_descent_on_its_correction() {
     let lr = 0.5;
     for _ in 0..400 {
         let given = rays(o_given.clone(), flat(&d_given), &device);
-        let out = correct_rays(given, table.per_ray(&frames));
+        let out = given.corrected(table.per_ray(&frames));
         let loss = (out.origins - target_o.clone()).square().sum_dim(1).mean()
             + (out.directions - target_d.clone())
                 .square()

@@ -145,9 +145,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     apply_novel_and_grid_flags(cli, &mut config);
     let grid = config.occupancy.enabled;
     field_choice::apply(&choice, &mut config.model, grid, &scene)?;
-    if let Some(start) = field_choice::ray_start(&config.model) {
-        eprintln!("{start}");
-    }
+    field_choice::ray_start(&config.model).inspect(|m| eprintln!("{m}"));
     choose_appearance_and_check(cli, &mut config, &scene)?;
     eprintln!(
         "scene {}: {} frames, features: {}; training {} iterations on {} into {}",

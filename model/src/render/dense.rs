@@ -31,7 +31,7 @@ pub struct Train {
 pub struct PerPhotograph {
     /// Pose corrections, `[n, 6]`, as
     /// [`crate::pose::PoseCorrection::per_ray`] gives them: each ray's
-    /// origin shifted and direction turned ([`crate::pose::correct_rays`]).
+    /// origin shifted and direction turned ([`crate::Rays::corrected`]).
     pub pose_correction: Option<Tensor<2>>,
     /// Appearance codes, `[n, dim]`, as
     /// [`crate::appearance::AppearanceCodes::per_ray`] gives them, for the
@@ -127,7 +127,7 @@ impl OpenNerf {
             None => t,
         };
         if let Some(c) = photographs.pose_correction {
-            rays = crate::pose::correct_rays(rays, kept(c));
+            rays = rays.corrected(kept(c));
         }
         rays.appearance = photographs.appearance.map(kept);
         let mut out = match model.proposal_sampler() {
