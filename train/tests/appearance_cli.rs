@@ -4,40 +4,10 @@
 //! per frame of the scene) and loaded back as `eval` loads a run.
 
 use std::path::Path;
-use std::process::Output;
 
 mod common;
 
-use common::{TINY, assert_config_refused, assert_refused, s, train};
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// Trains 2 iterations of the tiny model on the synthetic room into `run`
-/// with `extra` flags; returns what `train` printed.
-fn tiny_run(dir: &Path, run: &Path, config: &str, extra: &[&str]) -> String {
-    let path = dir.join("config.json");
-    std::fs::write(&path, config).expect("write config");
-    let args = [
-        &[
-            "--config",
-            s(&path),
-            "--iters",
-            "2",
-            "--quiet",
-            "--no-final-render",
-            "--out",
-            s(run),
-        ][..],
-        extra,
-    ]
-    .concat();
-    let out = train(&args);
-    let err = stderr(&out);
-    assert!(out.status.success(), "{args:?}: {err}");
-    err
-}
+use common::{TINY, assert_config_refused, assert_refused, tiny_run};
 
 fn saved_exposure(run: &Path) -> serde_json::Value {
     let saved: serde_json::Value =

@@ -6,16 +6,14 @@
 //! form; with codes the steps fit both, and the zero code every other view
 //! renders with lies between the two photographs.
 
+mod common;
+
 use burn::module::Module;
-use burn::optim::AdamConfig;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
+use common::steps::{fit, small_field};
 use model::geometry::NormalizedRay;
-use model::{
-    AppearanceCodesConfig, FeatureHeadConfig, GridUse, MipMlpConfig, OpenNerfConfig, RenderRequest,
-};
-use train::batch::BatchTensors;
-use train::config::LossConfig;
-use train::step::{StepRates, StepRender, train_step};
+use model::{AppearanceCodesConfig, RenderRequest};
+use train::step::StepRates;
 
 const RAYS: usize = 16;
 const STEPS: usize = 1000;
@@ -47,54 +45,20 @@ fn ray(i: usize) -> NormalizedRay {
 fn train(codes: bool) -> (f64, Vec<f32>) {
     let device = Device::flex().autodiff();
     device.seed(7);
-    let mut config = OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(32)
-                .with_depth(2)
-                .with_skip_layer(1)
-                .with_max_deg(4),
-        )
-        .with_num_samples(8);
+    let mut config = small_field();
     config.appearance = codes.then(|| AppearanceCodesConfig::new(2).with_dim(4));
-    let mut model = config.init(&device);
+    let model = config.init(&device);
     let rays: Vec<NormalizedRay> = (0..2 * RAYS).map(|i| ray(i % RAYS)).collect();
     let rgb: Vec<f32> = (0..2 * RAYS)
         .flat_map(|i| colour(i % RAYS, i / RAYS))
         .collect();
-    let batch = BatchTensors {
-        rays,
-        frames: (0..2 * RAYS).map(|i| i / RAYS).collect(),
-        rgb: Tensor::from_data(TensorData::new(rgb, [2 * RAYS, 3]), &device),
-        rgb_weight: None,
-        depth: None,
-        feature: None,
-    };
-    let render = StepRender {
-        background: None,
-        grid: GridUse::Model,
-        progress: 1.0,
-    };
-    let cfg = LossConfig {
-        lambda_open: 0.0,
-        lambda_depth: 0.0,
-        ..LossConfig::default()
-    };
+    let frames = (0..2 * RAYS).map(|i| i / RAYS).collect();
     let rates = StepRates {
         base: 1e-2,
         head: 1e-2,
         pose: 1e-2,
     };
-    let mut optim = AdamConfig::new().init();
-    let mut tail = Vec::new();
-    for step in 0..STEPS {
-        let (next, report) = train_step(model, &mut optim, &batch, render, &cfg, rates);
-        model = next;
-        assert!(report.applied, "step {step} was not applied");
-        if step >= STEPS - 50 {
-            tail.push(report.rgb_mse);
-        }
-    }
+    let (tail, model) = fit(model, &device, rays, frames, rgb, rates, STEPS);
     // Any render but a training photograph's: the zero code.
     let plain: Vec<NormalizedRay> = (0..RAYS).map(ray).collect();
     let out = model.valid().render(
@@ -108,7 +72,7 @@ fn train(codes: bool) -> (f64, Vec<f32>) {
         .into_data()
         .try_into_vec_as::<f32>()
         .expect("f32");
-    (tail.iter().sum::<f64>() / tail.len() as f64, zero_code)
+    (tail, zero_code)
 }
 
 #[test]

@@ -4,13 +4,13 @@
 //! known in closed form; with it the steps learn how one photograph's
 //! colours map to the other's (halved, per channel) and fit both.
 
-use burn::optim::AdamConfig;
-use burn::tensor::{Device, Tensor, TensorData};
+mod common;
+
+use burn::tensor::Device;
+use common::steps::{fit, small_field};
+use model::ExposureConfig;
 use model::geometry::NormalizedRay;
-use model::{ExposureConfig, FeatureHeadConfig, GridUse, MipMlpConfig, OpenNerfConfig};
-use train::batch::BatchTensors;
-use train::config::LossConfig;
-use train::step::{StepRates, StepRender, train_step};
+use train::step::StepRates;
 
 const RAYS: usize = 16;
 const STEPS: usize = 1000;
@@ -28,17 +28,9 @@ fn colour(i: usize) -> [f32; 3] {
 fn train(exposure: bool) -> (f64, Option<Vec<f32>>) {
     let device = Device::flex().autodiff();
     device.seed(5);
-    let mut config = OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
-        .with_mlp(
-            MipMlpConfig::new()
-                .with_width(32)
-                .with_depth(2)
-                .with_skip_layer(1)
-                .with_max_deg(4),
-        )
-        .with_num_samples(8);
+    let mut config = small_field();
     config.exposure = exposure.then(|| ExposureConfig::new(2));
-    let mut model = config.init(&device);
+    let model = config.init(&device);
     let ray = |i: usize| NormalizedRay {
         origin: [0.3 * i as f32 / RAYS as f32 - 0.15, 0.0, -2.0],
         direction: [0.0, 0.0, 1.0],
@@ -53,44 +45,18 @@ fn train(exposure: bool) -> (f64, Option<Vec<f32>>) {
             colour(i % RAYS).map(|c| c * scale)
         })
         .collect();
-    let batch = BatchTensors {
-        rays,
-        frames: (0..2 * RAYS).map(|i| i / RAYS).collect(),
-        rgb: Tensor::from_data(TensorData::new(rgb, [2 * RAYS, 3]), &device),
-        rgb_weight: None,
-        depth: None,
-        feature: None,
-    };
-    let render = StepRender {
-        background: None,
-        grid: GridUse::Model,
-        progress: 1.0,
-    };
-    let cfg = LossConfig {
-        lambda_open: 0.0,
-        lambda_depth: 0.0,
-        ..LossConfig::default()
-    };
+    let frames = (0..2 * RAYS).map(|i| i / RAYS).collect();
     let rates = StepRates {
         base: 1e-2,
         head: 1e-2,
         pose: 1e-2,
     };
-    let mut optim = AdamConfig::new().init();
-    let mut tail = Vec::new();
-    for step in 0..STEPS {
-        let (next, report) = train_step(model, &mut optim, &batch, render, &cfg, rates);
-        model = next;
-        assert!(report.applied, "step {step} was not applied");
-        if step >= STEPS - 50 {
-            tail.push(report.rgb_mse);
-        }
-    }
+    let (tail, model) = fit(model, &device, rays, frames, rgb, rates, STEPS);
     let corrections = model
         .exposure
         .as_ref()
         .map(|e| e.params.val().try_into_vec_as::<f32>().expect("f32"));
-    (tail.iter().sum::<f64>() / tail.len() as f64, corrections)
+    (tail, corrections)
 }
 
 #[test]

@@ -8,32 +8,7 @@ use std::path::Path;
 
 mod common;
 
-use common::{TINY, assert_config_refused, assert_refused, s, train};
-
-/// Trains 2 iterations of the model `config` describes on the synthetic
-/// room into `run` with `extra` flags; returns what `train` printed.
-fn tiny_run(dir: &Path, run: &Path, config: &str, extra: &[&str]) -> String {
-    let path = dir.join("config.json");
-    std::fs::write(&path, config).expect("write config");
-    let args = [
-        &[
-            "--config",
-            s(&path),
-            "--iters",
-            "2",
-            "--quiet",
-            "--no-final-render",
-            "--out",
-            s(run),
-        ][..],
-        extra,
-    ]
-    .concat();
-    let out = train(&args);
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "{args:?}: {err}");
-    err
-}
+use common::{TINY, assert_config_refused, assert_refused, s, tiny_run};
 
 fn json(path: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")

@@ -88,7 +88,7 @@ impl RenderPass for Train {
     type Output = RenderOutputs;
 
     fn run(model: &OpenNerf, request: &RenderRequest<'_, Self>, _: Token) -> RenderOutputs {
-        model.render_train(request, PerPhotograph::default())
+        model.render_train_with(request, PerPhotograph::default())
     }
 }
 
@@ -97,14 +97,6 @@ impl OpenNerf {
     /// learned applied to it (see [`PerPhotograph`]), so that the loss
     /// reaches those parameters.
     pub fn render_train_with(
-        &self,
-        request: &RenderRequest<'_, Train>,
-        photographs: PerPhotograph,
-    ) -> RenderOutputs {
-        self.render_train(request, photographs)
-    }
-
-    fn render_train(
         &self,
         request: &RenderRequest<'_, Train>,
         photographs: PerPhotograph,

@@ -71,3 +71,31 @@ pub fn assert_config_refused(dir: &Path, name: &str, json: &str, words: &[&str])
     assert!(!run.exists(), "nothing is written for a refused {name}");
     err
 }
+
+/// Trains 2 iterations of the model `config` describes on the synthetic
+/// room into `run` with `extra` flags (the configuration written into
+/// `dir`); returns what `train` printed, asserting it succeeded.
+pub fn tiny_run(dir: &Path, run: &Path, config: &str, extra: &[&str]) -> String {
+    let path = dir.join("config.json");
+    std::fs::write(&path, config).expect("write config");
+    let args = [
+        &[
+            "--config",
+            s(&path),
+            "--iters",
+            "2",
+            "--quiet",
+            "--no-final-render",
+            "--out",
+            s(run),
+        ][..],
+        extra,
+    ]
+    .concat();
+    let out = train(&args);
+    let (_, err) = text(&out);
+    assert!(out.status.success(), "{args:?}: {err}");
+    err
+}
+
+pub mod steps;
