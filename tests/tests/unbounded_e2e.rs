@@ -98,22 +98,8 @@ fn a_run_with_unseen_patches_resumes_to_the_same_weights_and_moves_them() {
         c.losses.unseen_patch_side = 4;
         c
     };
-    let whole = scratch_dir();
     let session = tests::flex_session(None);
-    train::train_new(scene, with_unseen(), 8, whole.path(), &session).expect("uninterrupted");
-    let parts = scratch_dir();
-    let half = train::train_new(
-        scene,
-        with_unseen(),
-        8,
-        parts.path(),
-        &tests::flex_session(Some(n)),
-    )
-    .expect("first half");
-    assert_eq!(half.summary.iterations, n);
-    train::resume(parts.path(), None, &session).expect("resumed");
-    let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
-    assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
+    let (_whole, a) = resumes_bit_for_bit(scene, with_unseen, n);
     let mut plain = with_unseen();
     plain.losses.unseen_depth_weight = 0.0;
     let without = scratch_dir();
@@ -136,22 +122,7 @@ fn a_run_with_pose_corrections_and_appearance_codes_resumes_to_the_same_weights(
         c.model.appearance = Some(model::AppearanceCodesConfig::new(frames).with_dim(4));
         c
     };
-    let whole = scratch_dir();
-    let session = tests::flex_session(None);
-    train::train_new(scene, with_both(), 8, whole.path(), &session).expect("uninterrupted");
-    let parts = scratch_dir();
-    let half = train::train_new(
-        scene,
-        with_both(),
-        8,
-        parts.path(),
-        &tests::flex_session(Some(n)),
-    )
-    .expect("first half");
-    assert_eq!(half.summary.iterations, n);
-    train::resume(parts.path(), None, &session).expect("resumed");
-    let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
-    assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
+    let (whole, _) = resumes_bit_for_bit(scene, with_both, n);
     // The corrections and codes are among the weights, and they moved.
     let device = burn::tensor::Device::flex();
     let loaded = field_ops::run_dir::load_run(whole.path(), &device).expect("loads");
@@ -168,4 +139,31 @@ fn a_run_with_pose_corrections_and_appearance_codes_resumes_to_the_same_weights(
             .expect("f32");
         assert!(v.iter().any(|&x| x != 0.0), "{name} moved");
     }
+}
+
+/// Trains `make()` for its iterations in one go, and again stopped after
+/// `n` and resumed; asserts both end with the same weights, bit for bit.
+/// Returns the uninterrupted run's directory and weights.
+fn resumes_bit_for_bit(
+    scene: &Scene,
+    make: impl Fn() -> TrainConfig,
+    n: usize,
+) -> (tempfile::TempDir, Vec<f32>) {
+    let whole = scratch_dir();
+    let session = tests::flex_session(None);
+    train::train_new(scene, make(), 8, whole.path(), &session).expect("uninterrupted");
+    let parts = scratch_dir();
+    let half = train::train_new(
+        scene,
+        make(),
+        8,
+        parts.path(),
+        &tests::flex_session(Some(n)),
+    )
+    .expect("first half");
+    assert_eq!(half.summary.iterations, n);
+    train::resume(parts.path(), None, &session).expect("resumed");
+    let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
+    assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
+    (whole, a)
 }
