@@ -180,6 +180,10 @@ pub struct ColmapOptions {
     /// Use COLMAP's dense depth maps (`stereo/depth_maps/*.geometric.bin`)
     /// as depth targets (zero and NaN depths are no target).
     pub depth: bool,
+    /// Use the sparse points as depth targets: each point's z-depth at the
+    /// pixels of the features that observe it, no target elsewhere
+    /// ([`crate::colmap::sparse_depth`]). Ignored with [`Self::depth`].
+    pub sparse_depth: bool,
     /// Keep every `stride`-th image (in name order).
     pub stride: usize,
     /// Keep at most this many images (after the stride).
@@ -205,6 +209,7 @@ impl Default for ColmapOptions {
         Self {
             images: "images".into(),
             depth: false,
+            sparse_depth: false,
             stride: 1,
             max_frames: None,
             box_margin: 0.05,

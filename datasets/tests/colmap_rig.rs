@@ -432,3 +432,5 @@ fn stride_and_max_frames_apply_in_name_order() {
 mod bad;
 #[path = "colmap_rig/depth.rs"]
 mod depth;
+#[path = "colmap_rig/sparse_depth.rs"]
+mod sparse_depth;

@@ -8,7 +8,7 @@
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use datasets::Scene;
 use datasets::balance::{BalanceConfig, BalancedSampler};
-use datasets::sampler::{RayBatch, SamplerConfig, sample_batch_from};
+use datasets::sampler::{RayBatch, SamplerConfig, depth_pixels, sample_batch_from, sample_listed};
 use model::FeatureSpace;
 use model::geometry::NormalizedRay;
 
@@ -141,10 +141,17 @@ pub struct TrainSampler {
     novel: Vec<usize>,
     novel_rays: usize,
     balanced: Option<BalancedSampler>,
+    /// The training pixels with a depth target, when `config.depth_rays`
+    /// draws from them.
+    depth_pixels: Vec<(usize, u32, u32)>,
+    depth_rays: usize,
 }
 
 /// Salt of the novel views' draws (a stream apart from the captured one).
 const NOVEL_STREAM: u64 = 0x6e6f_7665_6c21;
+
+/// Salt of the draws among the pixels with a depth target.
+const DEPTH_STREAM: u64 = 0x6465_7074_6821;
 
 impl TrainSampler {
     /// Builds the sampler of `frames` of `scene` (clustering the feature
@@ -173,20 +180,37 @@ impl TrainSampler {
             }
             None => None,
         };
+        let novel_rays = novel_rays(scene, frames, novel, config.rays_per_batch);
+        let (depth_pixels, depth_rays) = if config.depth_rays > 0 {
+            let pixels = depth_pixels(scene, frames, config.border_margin);
+            if pixels.is_empty() {
+                return Err(TrainError::Config(format!(
+                    "sampler.depth_rays is {} but no training pixel has a depth target \
+                     (COLMAP: --sparse-depth or --colmap-depth)",
+                    config.depth_rays
+                )));
+            }
+            let room = config.rays_per_batch.saturating_sub(novel_rays + 1);
+            (pixels, config.depth_rays.min(room))
+        } else {
+            (Vec::new(), 0)
+        };
         Ok(Self {
             config: *config,
             seed,
             frames: frames.to_vec(),
             novel: novel.to_vec(),
-            novel_rays: novel_rays(scene, frames, novel, config.rays_per_batch),
+            novel_rays,
             balanced,
+            depth_pixels,
+            depth_rays,
         })
     }
 
     /// The batch of `iteration`.
     pub fn batch(&self, scene: &Scene, iteration: usize) -> Result<RayBatch, TrainError> {
         let captured = SamplerConfig {
-            rays_per_batch: self.config.rays_per_batch - self.novel_rays,
+            rays_per_batch: self.config.rays_per_batch - self.novel_rays - self.depth_rays,
             ..self.config
         };
         let mut batch = match &self.balanced {
@@ -206,6 +230,17 @@ impl TrainSampler {
                 &self.novel,
                 iteration as u64,
             )?)?;
+        }
+        if self.depth_rays > 0 {
+            batch.append(sample_listed(
+                &self.config,
+                self.seed ^ DEPTH_STREAM,
+                scene,
+                &self.frames,
+                &self.depth_pixels,
+                self.depth_rays,
+                iteration as u64,
+            ))?;
         }
         Ok(batch)
     }
@@ -396,5 +431,64 @@ mod tests {
         for c in per_view {
             assert!((c as f64 / total - 0.25).abs() < 0.05, "{per_view:?}");
         }
+    }
+
+    #[test]
+    fn depth_rays_come_from_the_depth_pixels_and_leave_the_rest_alone() {
+        let mut scene = generate(5, SceneSize::Ci).expect("scene");
+        // Sparse depth: only every 97th pixel keeps its target.
+        for f in &mut scene.frames {
+            let d = f.depth.as_mut().expect("synthetic depth");
+            for (i, v) in d.data.iter_mut().enumerate() {
+                if i % 97 != 0 {
+                    *v = 0.0;
+                }
+            }
+        }
+        let train: Vec<usize> = (0..14).collect();
+        let plain = SamplerConfig {
+            feature_balance: 0.0,
+            ..SamplerConfig::default()
+        };
+        let config = SamplerConfig {
+            depth_rays: 40,
+            ..plain
+        };
+        let rays = config.rays_per_batch;
+        let sampler = TrainSampler::new(&scene, &train, &config, 9).expect("sampler");
+        let rest = SamplerConfig {
+            rays_per_batch: rays - 40,
+            ..plain
+        };
+        let uniform = TrainSampler::new(&scene, &train, &rest, 9).expect("sampler");
+        let mut with_target = 0;
+        for it in 0..20 {
+            let b = sampler.batch(&scene, it).expect("batch");
+            assert_eq!(b.len(), rays);
+            assert_eq!(b, sampler.batch(&scene, it).expect("again"));
+            // The uniform part is the uniform sampler's batch, ray for ray.
+            assert_eq!(
+                b.pixels[..rays - 40],
+                uniform.batch(&scene, it).expect("b").pixels[..]
+            );
+            let depth = b.depth.as_ref().expect("depth");
+            for (p, d) in b.pixels[rays - 40..].iter().zip(&depth[rays - 40..]) {
+                assert!(train.contains(&(p[0] as usize)), "{p:?}");
+                assert!(*d > 0.0, "a depth ray without a target at {p:?}");
+            }
+            with_target += depth[..rays - 40].iter().filter(|&&d| d > 0.0).count();
+        }
+        // Uniform rays hit a target about once in 97 draws.
+        assert!(with_target < 20 * (rays - 40) / 30, "{with_target}");
+        for f in &mut scene.frames {
+            f.depth = None;
+        }
+        let err = TrainSampler::new(&scene, &train, &config, 9)
+            .expect_err("no depth")
+            .to_string();
+        assert!(
+            err.contains("sampler.depth_rays") && err.contains("--sparse-depth"),
+            "{err}"
+        );
     }
 }

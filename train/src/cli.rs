@@ -228,6 +228,15 @@ pub struct Cli {
     /// as depth targets; zero and NaN depths are no target.
     #[arg(long)]
     pub colmap_depth: bool,
+    /// COLMAP: the sparse points as depth targets, each point's z-depth at
+    /// the pixels of the features that observe it (as DS-NeRF supervises
+    /// few views); `sampler.depth_rays` (64) rays of each batch are drawn
+    /// from those pixels. `auto` (the default): on for COLMAP captures with
+    /// sparse points, unless --colmap-depth gives dense depth
+    /// (docs/unbounded.md); `on` elsewhere is an error. `train` prints its
+    /// choice.
+    #[arg(long, value_enum)]
+    pub sparse_depth: Option<crate::depth_choice::SparseDepthArg>,
     /// Scenes on disk: grow the scene box by this fraction of its largest
     /// side on every side (0.5: a box twice as large). The field models
     /// only what lies in the box; what lies past it is painted on its

@@ -355,6 +355,13 @@ impl TrainConfig {
         if self.sampler.rays_per_batch == 0 {
             return bad("sampler.rays_per_batch must be at least 1".into());
         }
+        if self.sampler.depth_rays >= self.sampler.rays_per_batch {
+            return bad(format!(
+                "sampler.depth_rays ({}) must be less than sampler.rays_per_batch ({}): the \
+                 rest of each batch is drawn from every pixel",
+                self.sampler.depth_rays, self.sampler.rays_per_batch
+            ));
+        }
         if !(self.sampler.feature_balance.is_finite() && self.sampler.feature_balance >= 0.0) {
             return bad(format!(
                 "sampler.feature_balance must be finite and non-negative, got {}",
@@ -533,11 +540,24 @@ mod tests {
         );
     }
 
+    #[test]
+    fn depth_rays_must_leave_rays_drawn_from_every_pixel() {
+        let c = TrainConfig::default_run(0);
+        let with = |n: usize| {
+            TrainConfig::merged(&c, serde_json::json!({"sampler": {"depth_rays": n}}))
+                .expect("merges")
+                .validate()
+        };
+        assert!(with(255).is_ok());
+        let err = with(256).expect_err("no uniform ray left").to_string();
+        assert!(err.contains("sampler.depth_rays (256)"), "{err}");
+    }
+
     /// The `sampler` section of a run's `config.json` keeps its keys and
     /// the training defaults (256 rays, balanced over 32 clusters).
     #[test]
     fn sampler_section_keeps_its_keys_and_defaults() {
-        let want = r#"{"rays_per_batch":256,"border_margin":10,"min_near":0.05,"feature_balance":1.0,"balance_clusters":32}"#;
+        let want = r#"{"rays_per_batch":256,"border_margin":10,"min_near":0.05,"feature_balance":1.0,"balance_clusters":32,"depth_rays":0}"#;
         for c in [TrainConfig::tiny(16), TrainConfig::default_run(0)] {
             assert_eq!(serde_json::to_string(&c.sampler).unwrap(), want);
         }

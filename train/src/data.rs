@@ -13,6 +13,7 @@ use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
+use crate::depth_choice::{self, SparseDepthArg};
 use crate::error::TrainError;
 
 /// How to build the scene of a new run, from the command-line options.
@@ -82,6 +83,9 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
     };
     if format != Format::Colmap && cli.colmap_depth {
         return unsupported("colmap-depth");
+    }
+    if format != Format::Colmap && cli.sparse_depth == Some(SparseDepthArg::On) {
+        return unsupported("sparse-depth on");
     }
     if !format.is_phone()
         && let Some(flag) = first_given(&[
@@ -194,6 +198,7 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
             _ => defaults.images.clone(),
         },
         depth: cli.colmap_depth,
+        sparse_depth: depth_choice::loader_flag(cli.sparse_depth, cli.colmap_depth)?,
         stride: cli.stride.unwrap_or(defaults.stride),
         ..defaults
     }))

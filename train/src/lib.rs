@@ -21,6 +21,7 @@ pub mod cli;
 pub mod config;
 pub mod curve;
 pub mod data;
+pub mod depth_choice;
 pub mod error;
 pub mod evaluate;
 pub mod field_choice;
@@ -115,6 +116,10 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     }
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
+    if let Some(sparse) = depth_choice::choose(cli.sparse_depth, &scene)? {
+        base.sampler.depth_rays = depth_choice::SPARSE_DEPTH_RAYS;
+        eprintln!("{}", sparse.message());
+    }
     let choice = field_choice::choose(cli.field, cli.sampler, &scene);
     eprintln!("{}", choice.message());
     if let Some(d) = capture_defaults::for_scene(&scene)

@@ -239,6 +239,7 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
             ("resolution", cli.resolution.is_some()),
             ("downscale", cli.downscale.is_some()),
             ("colmap-depth", cli.colmap_depth),
+            ("sparse-depth", cli.sparse_depth.is_some()),
             ("min-depth-confidence", cli.min_depth_confidence.is_some()),
             ("max-depth", cli.max_depth.is_some()),
             ("box-margin", cli.box_margin.is_some()),
@@ -261,6 +262,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
     let ignored = [
         ("dataset", cli.dataset.is_some()),
         ("colmap-depth", cli.colmap_depth),
+        ("sparse-depth", cli.sparse_depth.is_some()),
         ("min-depth-confidence", cli.min_depth_confidence.is_some()),
         ("max-depth", cli.max_depth.is_some()),
         ("box-margin", cli.box_margin.is_some()),

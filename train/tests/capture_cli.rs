@@ -339,3 +339,6 @@ fn presets_follow_where_the_cameras_stand() {
     );
     assert_eq!(knobs(&c), (Some(24), Some(64), Some(9), Some(true)));
 }
+
+#[path = "capture_cli/sparse_depth.rs"]
+mod sparse_depth;

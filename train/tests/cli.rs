@@ -367,6 +367,10 @@ fn resume_checks_before_writing_and_survives_a_damaged_checkpoint() {
         &["--resume", s(&run), "--box-margin", "0.5"],
         &["--box-margin", "--resume"],
     );
+    assert_refused(
+        &["--resume", s(&run), "--sparse-depth", "off"],
+        &["--sparse-depth", "--resume"],
+    );
     assert_eq!(
         std::fs::read(run.join("config.json")).expect("config.json"),
         config_json,

@@ -4,7 +4,9 @@
 //! `images.bin`, `points3D.bin`) or text (`.txt`), as COLMAP writes them
 //! ([`read_model`] detects which). With [`ColmapOptions::depth`], COLMAP's
 //! dense depth maps `stereo/depth_maps/<image>.geometric.bin` are the
-//! depth targets.
+//! depth targets; with [`ColmapOptions::sparse_depth`], the sparse points'
+//! depths at the pixels of the features that observe them
+//! ([`sparse_depth`]).
 //!
 //! Cameras: `SIMPLE_PINHOLE`, `PINHOLE`, `SIMPLE_RADIAL`, `RADIAL` and
 //! `OPENCV` are read (with their radial-tangential distortion); other
@@ -37,8 +39,10 @@ pub mod camera;
 pub mod depth;
 pub mod frame;
 pub mod model;
+pub mod sparse_depth;
 pub mod text;
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use ::model::geometry::{Camera, Intrinsics, Pose, Vec3};
@@ -176,6 +180,7 @@ fn load_frame(
     view: &View<'_>,
     options: &ColmapOptions,
     to_scene: &::model::geometry::Similarity,
+    points: &HashMap<u64, (Vec3, f64)>,
 ) -> Result<Frame, DatasetError> {
     let name = &view.image.name;
     let path = dir.join(&options.images).join(name);
@@ -196,6 +201,12 @@ fn load_frame(
         let dpath = depth::depth_path(dir, name);
         let raw = depth::read_depth_map(&dpath)?;
         Some(depth::depth_target(&dpath, &raw, size, to_scene.scale)?)
+    } else if options.sparse_depth {
+        let pose = to_scene.apply_pose(&view.pose);
+        let width = view.intrinsics.width;
+        let d = sparse_depth::sparse_depth_target(view.image, &pose, points, width, size);
+        // An image that observes no point has no depth at all.
+        d.data.iter().any(|&v| v > 0.0).then_some(d)
     } else {
         None
     };
@@ -242,13 +253,14 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
     let to_scene = frame::to_scene(&cameras, &positions)
         .map_err(|m| DatasetError::invalid(model.file("points3D"), m))?;
     views.sort_by(|a, b| a.image.name.cmp(&b.image.name));
+    let mapped: Vec<Vec3> = positions.iter().map(|&p| to_scene.apply_point(p)).collect();
+    let by_id = sparse_depth::points_by_id(&model.points, &mapped);
     let frames = views
         .iter()
         .step_by(options.stride)
         .take(options.max_frames.unwrap_or(usize::MAX))
-        .map(|v| load_frame(dir, &model, v, options, &to_scene))
+        .map(|v| load_frame(dir, &model, v, options, &to_scene, &by_id))
         .collect::<Result<Vec<_>, _>>()?;
-    let mapped: Vec<Vec3> = positions.iter().map(|&p| to_scene.apply_point(p)).collect();
     let mapped_cameras: Vec<Camera> = cameras
         .iter()
         .map(|c| Camera {

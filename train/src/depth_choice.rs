@@ -1,0 +1,109 @@
+//! Whether a COLMAP capture's sparse points supervise the field's depth
+//! (`--sparse-depth`, see `datasets::colmap::sparse_depth`), and why.
+//! `train` prints the choice.
+
+use datasets::options::LoaderOptions;
+use datasets::{Scene, SceneSource};
+
+use crate::error::TrainError;
+
+/// Rays of each batch drawn from the pixels with a sparse depth target.
+pub const SPARSE_DEPTH_RAYS: usize = 64;
+
+/// Whether the sparse points are depth targets (`--sparse-depth`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum SparseDepthArg {
+    /// `on` for COLMAP captures whose model has sparse points (unless
+    /// `--colmap-depth` gives dense depth), where it was measured to lift
+    /// the held-out views (docs/unbounded.md); `off` elsewhere.
+    #[default]
+    Auto,
+    /// No depth from the sparse points.
+    Off,
+    /// The sparse points' depths at the pixels of their features (COLMAP
+    /// captures only).
+    On,
+}
+
+/// Whether the loader makes sparse depth targets: a COLMAP capture under
+/// `auto` or `on`, unless its dense depth maps are the targets. Errors
+/// for `on` with `--colmap-depth`.
+pub fn loader_flag(arg: Option<SparseDepthArg>, colmap_depth: bool) -> Result<bool, TrainError> {
+    match arg.unwrap_or_default() {
+        SparseDepthArg::On if colmap_depth => Err(TrainError::Config(
+            "--sparse-depth on and --colmap-depth both give depth targets; choose one".into(),
+        )),
+        SparseDepthArg::On => Ok(true),
+        SparseDepthArg::Auto => Ok(!colmap_depth),
+        SparseDepthArg::Off => Ok(false),
+    }
+}
+
+/// The pixels with a sparse depth target in a loaded scene, and the
+/// photographs they are in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SparseDepthChoice {
+    /// Pixels with a target, over every frame.
+    pub pixels: usize,
+    /// Frames with at least one.
+    pub frames: usize,
+    /// Whether the flag was `on` (else `auto`).
+    pub asked: bool,
+}
+
+impl SparseDepthChoice {
+    /// The one-line message `train` prints.
+    pub fn message(&self) -> String {
+        let why = if self.asked {
+            "--sparse-depth on"
+        } else {
+            "auto: a COLMAP capture with sparse points, where they were measured to lift the \
+             held-out views (docs/unbounded.md)"
+        };
+        format!(
+            "depth: the sparse points' depths at {} pixels of {} photographs, {} rays a batch \
+             drawn from them (sampler.depth_rays) ({why})",
+            self.pixels, self.frames, SPARSE_DEPTH_RAYS
+        )
+    }
+}
+
+/// What the loaded `scene` gives: `None` when its loader made no sparse
+/// depth (another format, `off`, dense depth). Errors for `on` when no
+/// image observes a point (an empty `points3D`).
+pub fn choose(
+    arg: Option<SparseDepthArg>,
+    scene: &Scene,
+) -> Result<Option<SparseDepthChoice>, TrainError> {
+    let sparse = matches!(
+        scene.source.base(),
+        SceneSource::Disk { loader: LoaderOptions::Colmap(o), .. } if o.sparse_depth && !o.depth
+    );
+    if !sparse {
+        return Ok(None);
+    }
+    let counts: Vec<usize> = scene
+        .frames
+        .iter()
+        .filter_map(|f| f.depth.as_ref())
+        .map(|d| d.data.iter().filter(|&&v| v > 0.0).count())
+        .filter(|&n| n > 0)
+        .collect();
+    let asked = arg == Some(SparseDepthArg::On);
+    if counts.is_empty() {
+        return if asked {
+            Err(TrainError::Config(format!(
+                "--sparse-depth on: no image of {} observes a sparse point (its points3D is \
+                 empty or no feature is linked to a point); leave --sparse-depth out",
+                scene.name
+            )))
+        } else {
+            Ok(None)
+        };
+    }
+    Ok(Some(SparseDepthChoice {
+        pixels: counts.iter().sum(),
+        frames: counts.len(),
+        asked,
+    }))
+}
