@@ -95,7 +95,8 @@ pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use loss::{
-    FeatureSpace, depth_huber, depth_smoothness, open_set_cosine, rgb_mse, weighted_rgb_mse,
+    FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse,
+    weighted_rgb_mse,
 };
 pub use nerf::{OpenNerf, OpenNerfConfig, Rays};
 pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};

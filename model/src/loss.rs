@@ -51,6 +51,55 @@ pub fn depth_huber(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>, delta:
     huber.mul(weight.mask_fill(invalid, 0.0)).sum().div(count)
 }
 
+/// The compositing weight of each ray that lies away from its depth target,
+/// averaged over the rays with a valid target (`target > 0`): each
+/// sample's weight times its distance from the target in units of `width`
+/// times the target, capped at 1. Zero when every ray's weight lies within
+/// that window of its target; a ray's whole weight when it all lies beyond
+/// it. Where the expected depth ([`depth_huber`]) can be met by weight in
+/// front of the surface balanced by weight behind it, this asks the weight
+/// to be at the surface (DS-NeRF's ray-termination loss, without its log).
+/// The posts are fixed: only the weights receive gradients.
+///
+/// # Shapes
+/// - `t_vals`: `[n, k + 1]` posts; `weights`: `[n, k]`; `target`: `[n, 1]`;
+///   output: `[1]`.
+pub fn depth_window(
+    t_vals: Tensor<2>,
+    weights: Tensor<2>,
+    target: Tensor<2>,
+    width: f32,
+) -> Tensor<1> {
+    let [n, posts] = t_vals.dims();
+    let k = posts.saturating_sub(1);
+    if n == 0 || k == 0 {
+        return Tensor::zeros([1], &weights.device());
+    }
+    let t = t_vals.detach();
+    let mid = t
+        .clone()
+        .slice([0..n, 0..k])
+        .add(t.slice([0..n, 1..posts]))
+        .mul_scalar(0.5);
+    let valid = target.clone().greater_elem(0.0);
+    let count = valid.clone().float().sum().clamp_min(1.0);
+    let scale = target
+        .clone()
+        .mul_scalar(width.max(f32::MIN_POSITIVE))
+        .mask_fill(valid.clone().bool_not(), 1.0);
+    let away = mid
+        .sub(target.repeat_dim(1, k))
+        .abs()
+        .div(scale.repeat_dim(1, k))
+        .clamp_max(1.0);
+    weights
+        .mul(away)
+        .sum_dim(1)
+        .mask_fill(valid.bool_not(), 0.0)
+        .sum()
+        .div(count)
+}
+
 /// The space feature predictions and targets live in, as the loss needs it.
 ///
 /// With PCA the field predicts coefficients `c` of the lifted feature

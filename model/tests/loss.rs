@@ -7,7 +7,7 @@ mod common;
 
 use burn::tensor::Device;
 use common::{assert_close, devices, tensor, uniform, vec};
-use model::{FeatureSpace, depth_huber, depth_smoothness, open_set_cosine, rgb_mse};
+use model::{FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse};
 
 #[test]
 fn rgb_mse_matches_direct() {
@@ -59,6 +59,88 @@ fn depth_huber_masks_and_weights() {
             delta,
         ));
         assert_eq!(none, vec![0.0], "{name}: no valid depth");
+    }
+}
+
+/// The weight away from each ray's depth target against a float64 loop
+/// over random posts, weights and targets (some invalid); zero with the
+/// weight inside the window, the whole weight beyond it; gradients only
+/// through the weights, equal to the capped distances.
+#[test]
+fn depth_window_matches_float64_and_bounds() {
+    let (n, k, width) = (7usize, 9usize, 0.1f32);
+    let gaps = uniform(n * (k + 1), 3, 0.05, 0.6);
+    let w = uniform(n * k, 4, 0.0, 0.2);
+    let mut t = vec![0.0f64; n * (k + 1)];
+    for r in 0..n {
+        let mut acc = 0.5;
+        for j in 0..=k {
+            acc += gaps[r * (k + 1) + j];
+            t[r * (k + 1) + j] = acc;
+        }
+    }
+    let mut target: Vec<f64> = uniform(n, 5, 1.0, 4.0);
+    target[2] = 0.0;
+    target[5] = -1.0;
+    let mut sum = 0.0f64;
+    let mut valid = 0.0f64;
+    let mut grad = vec![0.0f64; n * k];
+    for r in 0..n {
+        if target[r] <= 0.0 {
+            continue;
+        }
+        valid += 1.0;
+        for j in 0..k {
+            let mid = 0.5 * (t[r * (k + 1) + j] + t[r * (k + 1) + j + 1]);
+            let away = ((mid - target[r]).abs() / (width as f64 * target[r])).min(1.0);
+            sum += w[r * k + j] * away;
+            grad[r * k + j] = away;
+        }
+    }
+    let want = (sum / valid) as f32;
+    let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    for (name, device) in devices(false) {
+        let device: Device = device.autodiff();
+        let weights = tensor(f(&w), [n, k], &device).require_grad();
+        let posts = tensor(f(&t), [n, k + 1], &device).require_grad();
+        let loss = depth_window(
+            posts.clone(),
+            weights.clone(),
+            tensor(f(&target), [n, 1], &device),
+            width,
+        );
+        assert_close(&vec(loss.clone()), &[want], 1e-6, 1e-5, name);
+        let g = loss.backward();
+        let gw = weights.grad(&g).expect("weights' gradient");
+        let gw: Vec<f32> = gw.into_data().to_vec().expect("f32");
+        let want_g: Vec<f32> = grad.iter().map(|&x| (x / valid) as f32).collect();
+        assert_close(&gw, &want_g, 1e-6, 1e-5, name);
+        assert!(posts.grad(&g).is_none_or(|p| {
+            p.into_data()
+                .to_vec::<f32>()
+                .expect("f32")
+                .iter()
+                .all(|&x| x == 0.0)
+        }));
+    }
+    for (name, device) in devices(true) {
+        // One ray: posts 1..=5, target 2.5 (the middle sample, at 2.5).
+        let posts = tensor(vec![1.0, 2.0, 3.0, 4.0, 5.0], [1, 5], &device);
+        let target = || tensor(vec![2.5], [1, 1], &device);
+        let inside = depth_window(
+            posts.clone(),
+            tensor(vec![0.0, 0.9, 0.0, 0.0], [1, 4], &device),
+            target(),
+            0.1,
+        );
+        assert_eq!(vec(inside), vec![0.0], "{name}");
+        let beyond = depth_window(
+            posts.clone(),
+            tensor(vec![0.3, 0.0, 0.4, 0.2], [1, 4], &device),
+            target(),
+            0.1,
+        );
+        assert_close(&vec(beyond), &[0.9], 1e-6, 1e-5, name);
     }
 }
 

@@ -27,6 +27,12 @@ pub struct LossConfig {
     /// Weight of the interlevel loss that trains the proposal sampler
     /// (Mip-NeRF 360: 1).
     pub interlevel_weight: f32,
+    /// Weight of the compositing weight that lies away from each ray's depth
+    /// target (`model::depth_window`; 0: off), beside the expected depth's
+    /// Huber loss: the weight at the surface rather than spread around it.
+    pub depth_window_weight: f32,
+    /// Half-width of that window, as a fraction of the target depth.
+    pub depth_window_width: f32,
     /// Weight of the distortion loss on the fine level, in `s`
     /// (Mip-NeRF 360: 0.01).
     pub distortion_weight: f32,
@@ -67,6 +73,8 @@ impl Default for LossConfig {
             coarse_weight: 0.1,
             huber_delta: 0.2,
             interlevel_weight: 1.0,
+            depth_window_weight: 0.0,
+            depth_window_width: 0.05,
             distortion_weight: 0.01,
             box_distortion_weight: 0.0,
             exposure_penalty: 1e-3,

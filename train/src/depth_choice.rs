@@ -61,8 +61,9 @@ impl SparseDepthChoice {
              held-out views (docs/unbounded.md)"
         };
         format!(
-            "depth: the sparse points' depths at {} pixels of {} photographs, {} rays a batch \
-             drawn from them (sampler.depth_rays) ({why})",
+            "depth: the sparse points give depth targets at {} pixels of {} photographs; {} rays \
+             of each batch are drawn from those of the training photographs \
+             (sampler.depth_rays) ({why})",
             self.pixels, self.frames, SPARSE_DEPTH_RAYS
         )
     }

@@ -72,6 +72,25 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
             let coarse = d(coarse.depth.clone());
             total = total + coarse.mul_scalar(cfg.lambda_depth * cfg.coarse_weight);
         }
+        if cfg.depth_window_weight > 0.0 {
+            // A ray whose target weighs nothing has no target here either.
+            let target = target
+                .clone()
+                .mask_fill(weight.clone().lower_equal_elem(0.0), 0.0);
+            let window = |level: &model::LevelOutputs| {
+                model::depth_window(
+                    level.t_vals.clone(),
+                    level.weights.clone(),
+                    target.clone(),
+                    cfg.depth_window_width,
+                )
+            };
+            total = total + window(&out.fine).mul_scalar(cfg.depth_window_weight);
+            if let Some(coarse) = &out.coarse {
+                total =
+                    total + window(coarse).mul_scalar(cfg.depth_window_weight * cfg.coarse_weight);
+            }
+        }
     }
     let mut interlevel = zero();
     let mut distortion = zero();
@@ -587,8 +606,31 @@ mod tests {
             + 0.7 * s(t.open.clone())
             + 0.2 * s(t.depth.clone())
             + 0.02 * coarse_depth;
-        assert!((s(t.total) - expected).abs() < 1e-5 * expected.max(1.0));
+        assert!((s(t.total.clone()) - expected).abs() < 1e-5 * expected.max(1.0));
         assert!(s(t.open) > 0.0);
+        // The depth window adds its weight times the fine level's term and
+        // the coarse weight times the coarse level's.
+        let windowed = losses(
+            &out,
+            &b,
+            &LossConfig {
+                depth_window_weight: 0.5,
+                ..cfg
+            },
+        );
+        let (target, _) = b.depth.clone().unwrap();
+        let window = |l: &model::LevelOutputs| {
+            s(model::depth_window(
+                l.t_vals.clone(),
+                l.weights.clone(),
+                target.clone(),
+                cfg.depth_window_width,
+            ))
+        };
+        let want = 0.5 * window(&out.fine) + 0.05 * window(out.coarse.as_ref().unwrap());
+        assert!(want > 1e-3, "{want}");
+        let added = s(windowed.total) - s(t.total);
+        assert!((added - want).abs() < 1e-5, "{added} vs {want}");
     }
 
     /// The box field's distortion term: off by default; with a weight, the

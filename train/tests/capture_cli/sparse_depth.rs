@@ -56,8 +56,8 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(
-        err.contains("depth: the sparse points' depths at")
-            && err.contains("of 4 photographs, 64 rays a batch")
+        err.contains("depth: the sparse points give depth targets at")
+            && err.contains("pixels of 4 photographs; 64 rays of each batch")
             && err.contains("(auto: a COLMAP capture with sparse points"),
         "{err}"
     );
@@ -73,7 +73,7 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
     let o = run(tmp.path(), &data, &off, &["--sparse-depth", "off"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(!err.contains("sparse points' depths"), "{err}");
+    assert!(!err.contains("sparse points give depth"), "{err}");
     assert_eq!(depth_rays(&off), 0);
     // A model whose images link no feature to a point: auto is silent.
     let bare = capture(&tmp.path().join("bare"), &model_text());
@@ -81,7 +81,7 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
     let o = run(tmp.path(), &bare, &plain, &[]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
-    assert!(!err.contains("sparse points' depths"), "{err}");
+    assert!(!err.contains("sparse points give depth"), "{err}");
     assert_eq!(depth_rays(&plain), 0);
 }
 
