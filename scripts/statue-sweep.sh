@@ -31,13 +31,16 @@
 #   (--unseen-depth 1, --appearance exposure, --lr 2e-3, distortion 0.1);
 # photographs: the box and the unbounded field, each plain, with
 #   --pose-refine on and with --appearance embedding; then fern the same.
+# sparse-depth: the statue's default field (unbounded, appearance codes)
+#   without and with --sparse-depth, then one setting changed per run
+#   (the codes' penalty at 1e-3, the default, unless the run changes it).
 # CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
 # two at a time on a 2-core machine. ITERS=N trains N iterations a run
 # instead of SECONDS.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges|ray-start|unbounded-knobs|photographs OUT [SECONDS]"
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges|ray-start|unbounded-knobs|photographs|sparse-depth OUT [SECONDS]"
 set_name=${1:?$usage}
 out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
@@ -192,8 +195,47 @@ case "$set_name" in
     runs+=("fern-embedding|--data $fern --appearance embedding")
     runs+=("fern-unbounded|--data $fern --field unbounded")
     ;;
+  sparse-depth)
+    budget=${3:-300}
+    # Each run's --config: the codes' penalty (1e-3, the default) and the
+    # setting the run changes.
+    cfg() { echo "{\"losses\": {\"appearance_penalty\": 0.001$2}$3}" > "$out/$1.json"; }
+    cfg codes1e-3 "" ""
+    cfg rays32 "" ', "sampler": {"depth_rays": 32}'
+    cfg rays128 "" ', "sampler": {"depth_rays": 128}'
+    cfg huber0.05 ', "huber_delta": 0.05' ""
+    cfg distortion0 ', "distortion_weight": 0' ""
+    cfg window0.1 ', "depth_window_weight": 0.1' ""
+    cfg window1 ', "depth_window_weight": 1' ""
+    cfg deg10 "" ', "model": {"mlp": {"max_deg": 10}}'
+    echo '{"losses": {"appearance_penalty": 0.03}}' > "$out/codes3e-2.json"
+    echo '{"losses": {"appearance_penalty": 0.1}}' > "$out/codes1e-1.json"
+    base="--data $statue --config $out/codes1e-3.json"
+    runs=(
+      "off-s0|$base --sparse-depth off"
+      "on-s0|$base"
+      "on-s1|$base --seed 1"
+      "lambda0.03|$base --lambda-depth 0.03"
+      "lambda0.3|$base --lambda-depth 0.3"
+      "lambda1|$base --lambda-depth 1"
+      "lr2e-3|$base --lr 2e-3"
+      "lr8e-3|$base --lr 8e-3"
+      "unseen1|$base --unseen-depth 1"
+      "width128|$base --width 128"
+      "proposal|$base --sampler proposal"
+    )
+    for c in rays32 rays128 huber0.05 distortion0 deg10 window0.1 window1; do
+      runs+=("$c|--data $statue --config $out/$c.json")
+    done
+    runs+=("huber0.05-s1|--data $statue --config $out/huber0.05.json --seed 1")
+    echo '{"losses": {"appearance_penalty": 0.01}}' > "$out/codes1e-2.json"
+    runs+=("codes1e-2-s0|--data $statue --config $out/codes1e-2.json")
+    runs+=("codes1e-2-s1|--data $statue --config $out/codes1e-2.json --seed 1")
+    runs+=("codes3e-2|--data $statue --config $out/codes3e-2.json")
+    runs+=("codes1e-1|--data $statue --config $out/codes1e-1.json")
+    ;;
   *)
-    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen, ranges, ray-start, unbounded-knobs or photographs" >&2
+    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen, ranges, ray-start, unbounded-knobs, photographs or sparse-depth" >&2
     exit 2
     ;;
 esac

@@ -112,12 +112,12 @@ fn depth_window_matches_float64_and_bounds() {
         assert_close(&vec(loss.clone()), &[want], 1e-6, 1e-5, name);
         let g = loss.backward();
         let gw = weights.grad(&g).expect("weights' gradient");
-        let gw: Vec<f32> = gw.into_data().to_vec().expect("f32");
+        let gw: Vec<f32> = gw.into_data().try_to_vec().expect("f32");
         let want_g: Vec<f32> = grad.iter().map(|&x| (x / valid) as f32).collect();
         assert_close(&gw, &want_g, 1e-6, 1e-5, name);
         assert!(posts.grad(&g).is_none_or(|p| {
             p.into_data()
-                .to_vec::<f32>()
+                .try_to_vec::<f32>()
                 .expect("f32")
                 .iter()
                 .all(|&x| x == 0.0)

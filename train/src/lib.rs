@@ -26,6 +26,7 @@ pub mod error;
 pub mod evaluate;
 pub mod field_choice;
 pub mod interrupt;
+pub mod loss_config;
 pub mod metrics_log;
 pub mod occupancy;
 pub mod pose_choice;
@@ -116,10 +117,6 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     }
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
-    if let Some(sparse) = depth_choice::choose(cli.sparse_depth, &scene)? {
-        base.sampler.depth_rays = depth_choice::SPARSE_DEPTH_RAYS;
-        eprintln!("{}", sparse.message());
-    }
     let choice = field_choice::choose(cli.field, cli.sampler, &scene);
     eprintln!("{}", choice.message());
     if let Some(d) = capture_defaults::for_scene(&scene)
@@ -148,6 +145,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         seed: cli.seed,
     });
     apply_novel_and_grid_flags(cli, &mut config);
+    depth_choice::apply(cli.sparse_depth, &scene, &mut config)?;
     let grid = config.occupancy.enabled;
     field_choice::apply(&choice, &mut config.model, grid, &scene)?;
     field_choice::ray_start(&config.model).inspect(|m| eprintln!("{m}"));

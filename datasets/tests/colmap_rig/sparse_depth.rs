@@ -14,7 +14,7 @@ fn rig_with_features(cams: &[RigCam]) -> [String; 3] {
     let [cameras, images, points] = rig_text(cams, &rig_points());
     let mut lines = images.lines();
     let mut out = format!("{}\n", lines.next().expect("header"));
-    for (i, cam) in cams.iter().enumerate() {
+    for cam in cams {
         out += &format!("{}\n", lines.next().expect("pose line"));
         lines.next();
         let k = &cam.camera.intrinsics;

@@ -57,11 +57,12 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
     assert!(o.status.success(), "{err}");
     assert!(
         err.contains("depth: the sparse points give depth targets at")
-            && err.contains("pixels of 4 photographs; 64 rays of each batch")
+            && err.contains("pixels of 4 photographs; 8 rays of each batch")
             && err.contains("(auto: a COLMAP capture with sparse points"),
         "{err}"
     );
-    assert_eq!(depth_rays(&out), 64);
+    // A quarter of the tiny configuration's 32 rays.
+    assert_eq!(depth_rays(&out), 8);
     // The rebuilt scene has the targets: the run records the choice.
     let meta: datasets::SceneMeta =
         serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
