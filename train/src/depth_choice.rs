@@ -53,6 +53,8 @@ pub struct SparseDepthChoice {
     pub asked: bool,
     /// Rays of each batch drawn from those pixels.
     pub rays: usize,
+    /// Rays of each batch.
+    pub batch: usize,
 }
 
 impl SparseDepthChoice {
@@ -65,10 +67,10 @@ impl SparseDepthChoice {
              held-out views (docs/unbounded.md)"
         };
         format!(
-            "depth: the sparse points give depth targets at {} pixels of {} photographs; {} rays \
-             of each batch are drawn from those of the training photographs \
+            "depth: the sparse points give depth targets at {} pixels of {} photographs; {} of \
+             the {} rays of each batch are drawn from those of the training photographs \
              (sampler.depth_rays) ({why})",
-            self.pixels, self.frames, self.rays
+            self.pixels, self.frames, self.rays, self.batch
         )
     }
 }
@@ -76,7 +78,8 @@ impl SparseDepthChoice {
 /// What the loaded `scene` gives to batches of `rays`: `None` when its
 /// loader made no sparse depth (another format, `off`, dense depth).
 /// `depth_rays` of them are drawn from the targets when given (a
-/// `--config` file's), else a quarter ([`SPARSE_DEPTH_SHARE`]). Errors
+/// `--config` file's), else a quarter ([`SPARSE_DEPTH_SHARE`], at least
+/// one when the batch has two rays or more). Errors
 /// for `on` when no image observes a point (an empty `points3D`).
 pub fn choose(
     arg: Option<SparseDepthArg>,
@@ -110,19 +113,22 @@ pub fn choose(
             Ok(None)
         };
     }
+    // At least one, and one ray of each batch left to draw from every
+    // pixel (none of a batch of one).
+    let batch = rays;
     let rays = if depth_rays > 0 {
         depth_rays
     } else {
-        rays / SPARSE_DEPTH_SHARE
+        (batch / SPARSE_DEPTH_SHARE)
+            .max(1)
+            .min(batch.saturating_sub(1))
     };
-    if rays == 0 {
-        return Ok(None);
-    }
     Ok(Some(SparseDepthChoice {
         pixels: counts.iter().sum(),
         frames: counts.len(),
         asked,
         rays,
+        batch,
     }))
 }
 
@@ -139,4 +145,27 @@ pub fn apply(
         eprintln!("{}", sparse.message());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn on_with_dense_depth_is_refused_and_auto_yields_to_it() {
+        assert!(loader_flag(Some(SparseDepthArg::On), true).is_err());
+        assert_eq!(
+            loader_flag(Some(SparseDepthArg::On), false).ok(),
+            Some(true)
+        );
+        assert_eq!(loader_flag(None, false).ok(), Some(true));
+        assert_eq!(
+            loader_flag(Some(SparseDepthArg::Auto), true).ok(),
+            Some(false)
+        );
+        assert_eq!(
+            loader_flag(Some(SparseDepthArg::Off), false).ok(),
+            Some(false)
+        );
+    }
 }

@@ -57,7 +57,7 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
     assert!(o.status.success(), "{err}");
     assert!(
         err.contains("depth: the sparse points give depth targets at")
-            && err.contains("pixels of 4 photographs; 8 rays of each batch")
+            && err.contains("pixels of 4 photographs; 8 of the 32 rays of each batch")
             && err.contains("(auto: a COLMAP capture with sparse points"),
         "{err}"
     );
@@ -69,6 +69,13 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
             .expect("scene.json parses");
     let scene = datasets::load_scene(&meta.source).expect("scene rebuilds");
     assert!(scene.frames.iter().all(|f| f.depth.is_some()));
+    // A batch of three rays: one of them.
+    let small = tmp.path().join("small");
+    let o = run(tmp.path(), &data, &small, &["--rays", "3"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("1 of the 3 rays of each batch"), "{err}");
+    assert_eq!(depth_rays(&small), 1);
     // Off: no targets, no depth rays, nothing said.
     let off = tmp.path().join("off");
     let o = run(tmp.path(), &data, &off, &["--sparse-depth", "off"]);
