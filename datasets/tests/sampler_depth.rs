@@ -5,11 +5,10 @@
 mod common;
 
 use datasets::sampler::{SamplerConfig, depth_pixels, sample_listed};
-use datasets::{DepthImage, Frame, RgbImage, Scene};
-use model::geometry::{Camera, Intrinsics, look_at};
+use datasets::{DepthImage, Frame, Scene};
 
-/// A 40x30 frame whose depth is set at `targets` (`(x, y, depth)`) only,
-/// with pixel (20, 20) masked out.
+/// A 40x30 grey frame (`common::grey_frame`) whose depth is set at
+/// `targets` (`(x, y, depth)`) only, with pixel (20, 20) masked out.
 fn frame(i: usize, targets: &[(u32, u32, f32)]) -> Frame {
     let (w, h) = (40u32, 30u32);
     let mut depth = vec![0.0; (w * h) as usize];
@@ -18,27 +17,14 @@ fn frame(i: usize, targets: &[(u32, u32, f32)]) -> Frame {
     }
     let mut mask = vec![true; (w * h) as usize];
     mask[(20 * w + 20) as usize] = false;
-    let pose = look_at([3.0, i as f64, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]).expect("pose");
     Frame {
-        name: format!("f{i}"),
-        camera: Camera {
-            intrinsics: Intrinsics::from_fov_x(w, h, 1.0),
-            pose,
-        },
-        rgb: RgbImage {
-            width: w,
-            height: h,
-            data: vec![0.5; (w * h * 3) as usize],
-        },
         depth: Some(DepthImage {
             width: w,
             height: h,
             data: depth,
         }),
         depth_weight: 1.0,
-        color_weight: 1.0,
-        labels: None,
-        mask: Some(mask),
+        ..common::grey_frame(i, w, h, Some(mask))
     }
 }
 

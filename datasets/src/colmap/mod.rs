@@ -254,7 +254,12 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         .map_err(|m| DatasetError::invalid(model.file("points3D"), m))?;
     views.sort_by(|a, b| a.image.name.cmp(&b.image.name));
     let mapped: Vec<Vec3> = positions.iter().map(|&p| to_scene.apply_point(p)).collect();
-    let by_id = sparse_depth::points_by_id(&model.points, &mapped);
+    // Only the sparse depth targets look points up by id.
+    let by_id = if options.sparse_depth && !options.depth {
+        sparse_depth::points_by_id(&model.points, &mapped)
+    } else {
+        HashMap::new()
+    };
     let frames = views
         .iter()
         .step_by(options.stride)
