@@ -34,13 +34,15 @@
 # sparse-depth: the statue's default field (unbounded, appearance codes)
 #   without and with --sparse-depth, then one setting changed per run
 #   (the codes' penalty at 1e-3, the default, unless the run changes it).
+# hash-grid: the statue's default field without and with the hash encoding
+#   (--hash-grid off / on), and with 2^17 rows a level.
 # CORES_PER_RUN (default 2) sets the cores and threads of each run: 1 runs
 # two at a time on a 2-core machine. ITERS=N trains N iterations a run
 # instead of SECONDS.
 # Without feature maps: the colour and density do not depend on them.
 # OUT/RUN/ is each run directory, OUT/RUN.log what it printed.
 set -euo pipefail
-usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges|ray-start|unbounded-knobs|photographs|sparse-depth OUT [SECONDS]"
+usage="usage: bash scripts/statue-sweep.sh appearance|knobs|box|fern|fern-samples|fern-default|unbounded-near|unseen|ranges|ray-start|unbounded-knobs|photographs|sparse-depth|hash-grid OUT [SECONDS]"
 set_name=${1:?$usage}
 out=${2:?$usage}
 data=${OPENNERF_DATA:-../shared/data}
@@ -234,8 +236,17 @@ case "$set_name" in
     runs+=("codes3e-2|--data $statue --config $out/codes3e-2.json")
     runs+=("codes1e-1|--data $statue --config $out/codes1e-1.json")
     ;;
+  hash-grid)
+    budget=${3:-600}
+    echo '{"model": {"hash": {"log2_table": 17}}}' > "$out/rows17.json"
+    runs=(
+      "off|--data $statue --hash-grid off"
+      "on|--data $statue --hash-grid on"
+      "rows17|--data $statue --config $out/rows17.json"
+    )
+    ;;
   *)
-    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen, ranges, ray-start, unbounded-knobs, photographs or sparse-depth" >&2
+    echo "unknown set $set_name: appearance, knobs, box, fern, fern-samples, fern-default, unbounded-near, unseen, ranges, ray-start, unbounded-knobs, photographs, sparse-depth or hash-grid" >&2
     exit 2
     ;;
 esac

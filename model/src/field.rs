@@ -71,9 +71,20 @@ impl MipMlpConfig {
     /// appearance code of `appearance_dim` numbers after the view encoding
     /// (see [`crate::appearance`]; 0: none).
     pub fn init_with_appearance(&self, appearance_dim: usize, device: &Device) -> MipMlp {
+        self.init_with_inputs(appearance_dim, 0, device)
+    }
+
+    /// [`Self::init_with_appearance`] with `extra_input` more numbers per
+    /// sample after the IPE (a hash encoding's features; 0: none).
+    pub fn init_with_inputs(
+        &self,
+        appearance_dim: usize,
+        extra_input: usize,
+        device: &Device,
+    ) -> MipMlp {
         let depth = self.depth.max(1);
         let width = self.width.max(1);
-        let input = self.input_dim();
+        let input = self.input_dim() + extra_input;
         let mut trunk = Vec::with_capacity(depth);
         let mut skip = None;
         for i in 0..depth {

@@ -80,6 +80,7 @@ pub mod composite;
 pub mod exposure;
 pub mod field;
 pub mod geometry;
+pub mod hashgrid;
 pub mod loss;
 pub mod mip;
 pub mod nerf;
@@ -94,6 +95,7 @@ pub use appearance::{AppearanceCodes, AppearanceCodesConfig};
 pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
+pub use hashgrid::{HashGrid, HashGridConfig};
 pub use loss::{
     FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse,
     weighted_rgb_mse,

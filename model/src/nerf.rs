@@ -14,6 +14,7 @@ use crate::appearance::{AppearanceCodes, AppearanceCodesConfig};
 use crate::exposure::{Exposure, ExposureConfig};
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
+use crate::hashgrid::{HashGrid, HashGridConfig};
 use crate::mip::{FrustumGaussians, cast_rays, integrated_pos_enc};
 use crate::occupancy::OccupancyGrid;
 use crate::pose::{PoseCorrection, PoseCorrectionConfig};
@@ -59,13 +60,17 @@ pub struct OpenNerfConfig {
     /// A learned appearance code per training photograph, given to the
     /// colour branch (see [`crate::appearance`]); `None`: none.
     pub appearance: Option<AppearanceCodesConfig>,
+    /// A multiresolution hash encoding whose features the MLP takes beside
+    /// the IPE (see [`crate::hashgrid`]); `None`: the IPE alone.
+    pub hash: Option<HashGridConfig>,
 }
 
 impl OpenNerfConfig {
     /// Builds the model on `device`.
     pub fn init(&self, device: &Device) -> OpenNerf {
         let appearance_dim = self.appearance.as_ref().map_or(0, |a| a.dim.max(1));
-        let mlp = self.mlp.init_with_appearance(appearance_dim, device);
+        let extra = self.hash.as_ref().map_or(0, HashGridConfig::output_dim);
+        let mlp = self.mlp.init_with_inputs(appearance_dim, extra, device);
         let head = self.head.init(self.mlp.width.max(1), device);
         OpenNerf {
             mlp,
@@ -80,6 +85,7 @@ impl OpenNerfConfig {
             exposure: self.exposure.as_ref().map(|e| e.init(device)),
             pose: self.pose.as_ref().map(|p| p.init(device)),
             appearance: self.appearance.as_ref().map(|a| a.init(device)),
+            hash: self.hash.as_ref().map(|h| h.init(device)),
             occupancy: None,
         }
     }
@@ -114,6 +120,8 @@ pub struct OpenNerf {
     pub pose: Option<PoseCorrection>,
     /// The training photographs' appearance codes (training rays only).
     pub appearance: Option<AppearanceCodes>,
+    /// The hash encoding the MLP takes beside the IPE.
+    pub hash: Option<HashGrid>,
     /// Occupancy grid of the field's density, when empty-space skipping is
     /// on: [`OpenNerf::render`] clips its rays with it unless the request
     /// says otherwise (see [`crate::GridUse`]). Not part of the weights.
@@ -243,17 +251,27 @@ impl OpenNerf {
             Some(u) => {
                 let g = u.points(points, radius);
                 let [n, _, _] = g.mean.dims();
-                let ipe =
-                    integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
-                let [_, _, dim] = ipe.dims();
-                ipe.reshape([n, dim])
+                self.encode_gaussians(g.mean.reshape([n, 3]), g.cov_diag.reshape([n, 3]))
             }
             None => {
                 let cov = points.zeros_like().add_scalar(radius * radius);
-                integrated_pos_enc(points, cov, self.mlp.min_deg, self.mlp.max_deg)
+                self.encode_gaussians(points, cov)
             }
         };
         self.mlp.trunk_density(ipe)
+    }
+
+    /// What the MLP takes for each Gaussian: its IPE, then its mean's hash
+    /// encoding when the field has one.
+    ///
+    /// # Shapes
+    /// - `mean`, `cov_diag`: `[m, 3]`; output: `[m, input]`.
+    pub fn encode_gaussians(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
+        let ipe = integrated_pos_enc(mean.clone(), cov_diag, self.mlp.min_deg, self.mlp.max_deg);
+        match &self.hash {
+            Some(h) => Tensor::cat(vec![ipe, h.forward(mean.detach())], 1),
+            None => ipe,
+        }
     }
 
     /// The proposal sampler's configuration and MLP, when the field has one.

@@ -4,8 +4,9 @@
 //! held-out views at the same iterations, and a resumed run of the
 //! unbounded field with the proposal sampler ends with the uninterrupted
 //! run's weights, as do one with the unseen patches' depth smoothness
-//! (which moves the weights) and one that learns pose corrections and
-//! appearance codes (which move).
+//! (which moves the weights), one that learns pose corrections and
+//! appearance codes (which move) and one with the hash encoding (whose
+//! tables learn).
 
 use std::sync::OnceLock;
 
@@ -166,4 +167,34 @@ fn resumes_bit_for_bit(
     let (a, b) = (run_weights(whole.path()), run_weights(parts.path()));
     assert_eq!(max_abs_diff(&a, &b), 0.0, "the same weights, bit for bit");
     (whole, a)
+}
+
+#[test]
+fn a_hash_grid_run_resumes_to_the_same_weights_and_learns_its_table() {
+    let _guard = serial();
+    let scene = outdoor();
+    let n = 4;
+    let with_hash = || {
+        let mut c = config(FieldArg::Unbounded, SamplerArg::Auto, 2 * n);
+        c.logging.eval_every = 0;
+        c.logging.checkpoint_every = n;
+        c.model.hash = Some(
+            model::HashGridConfig::new()
+                .with_levels(4)
+                .with_log2_table(10)
+                .with_max_resolution(128),
+        );
+        c
+    };
+    let (whole, _) = resumes_bit_for_bit(scene, with_hash, n);
+    // The tables are among the weights and left their start (uniform in
+    // +-1e-4): Adam's first steps move an entry by about the rate, 5e-3.
+    let device = burn::tensor::Device::flex();
+    let loaded = field_ops::run_dir::load_run(whole.path(), &device).expect("loads");
+    let hash = loaded.model.hash.as_ref().expect("the hash grid loaded");
+    assert_eq!(hash.resolutions.len(), 4);
+    let table: Vec<f32> = hash.table.val().try_into_vec_as::<f32>().expect("f32");
+    assert_eq!(table.len(), 4 * 1024 * 2);
+    assert!(table.iter().all(|v| v.is_finite()));
+    assert!(table.iter().any(|v| v.abs() > 1e-3), "the table learned");
 }

@@ -425,6 +425,18 @@ pub struct Cli {
     /// prints its choice.
     #[arg(long, value_enum)]
     pub pose_refine: Option<crate::pose_choice::PoseRefineArg>,
+    /// Give the field's MLP a multiresolution hash encoding of each
+    /// sample beside its IPE (Instant-NGP's, as nerfacto uses it: 16
+    /// levels from 16 to 2048 cells across the field's domain, 2^15 rows of
+    /// 2 learned features each; `model.hash` in a `--config` file sets
+    /// others): fine detail is learned in far fewer iterations, at about
+    /// twice the seconds per iteration on the CPU. `auto` (the default) is
+    /// `on` for a COLMAP capture with the unbounded field, where it was
+    /// measured to lift the held-out views at equal seconds, else `off`
+    /// unless the `--config` file sets `model.hash` (docs/unbounded.md).
+    /// `train` prints its choice.
+    #[arg(long, value_enum)]
+    pub hash_grid: Option<crate::hash_choice::HashGridArg>,
     /// Cells per axis of the occupancy grid, in 2..=256; a refresh costs one
     /// density query per cell [default: 32].
     #[arg(long)]

@@ -310,6 +310,7 @@ impl TrainConfig {
         }
         crate::occupancy::validate(&self.occupancy).map_err(TrainError::Config)?;
         crate::field_choice::validate(&self.model).map_err(TrainError::Config)?;
+        crate::hash_choice::validate(&self.model).map_err(TrainError::Config)?;
         if let Some(a) = &self.model.appearance
             && !(1..=1024).contains(&a.dim)
         {
@@ -403,6 +404,7 @@ fn optional_defaults(
             "appearance",
             serde_json::to_value(model::AppearanceCodesConfig::new(0))?,
         ),
+        ("hash", serde_json::to_value(model::HashGridConfig::new())?),
     ];
     for (key, defaults) in parts {
         if patch["model"][key].is_object() && base["model"][key].is_null() {

@@ -25,6 +25,7 @@ pub mod depth_choice;
 pub mod error;
 pub mod evaluate;
 pub mod field_choice;
+pub mod hash_choice;
 pub mod interrupt;
 pub mod loss_config;
 pub mod metrics_log;
@@ -186,6 +187,9 @@ fn choose_appearance_and_check(
     let pose = pose_choice::choose(cli.pose_refine, &config.model);
     eprintln!("{}", pose.message());
     pose_choice::apply(&pose, &mut config.model, scene);
+    let hash = hash_choice::choose(cli.hash_grid, &config.model, scene);
+    hash_choice::apply(&hash, &mut config.model);
+    eprintln!("{}", hash.message(&config.model));
     match (config.validate(), &cli.config) {
         (Err(TrainError::Config(msg)), Some(path)) => Err(TrainError::Config(format!(
             "{msg} (the configuration of {}, with the flags laid over it)",

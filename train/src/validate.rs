@@ -280,6 +280,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("lr", cli.lr.is_some()),
         ("unseen-depth", cli.unseen_depth.is_some()),
         ("pose-refine", cli.pose_refine.is_some()),
+        ("hash-grid", cli.hash_grid.is_some()),
         ("seed", cli.seed.is_some()),
         ("novel-views", cli.novel_views.is_some()),
         ("novel-after", cli.novel_after.is_some()),

@@ -9,7 +9,7 @@ use super::posts::ProposalLevel;
 use super::sealed::{Sealed, Token};
 use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::composite::{composite, composite_features_mean};
-use crate::mip::{integrated_pos_enc, pos_enc};
+use crate::mip::pos_enc;
 use crate::nerf::{OpenNerf, Rays};
 use crate::proposal::{ProposalConfig, ProposalMlp};
 
@@ -291,9 +291,8 @@ impl OpenNerf {
     pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
         let g = self.frustums(t_vals, rays);
-        let ipe = integrated_pos_enc(g.mean, g.cov_diag, self.mlp.min_deg, self.mlp.max_deg);
-        let [_, _, dim] = ipe.dims();
-        ipe.reshape([n * (posts - 1), dim])
+        let m = n * (posts - 1);
+        self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
     }
 
     /// Feature by averaging the head's hidden activations with the (detached)
