@@ -171,7 +171,7 @@ impl HashGrid {
             .into_data()
             .convert::<f32>()
             .try_to_vec::<f32>()
-            .unwrap_or_default();
+            .expect("converted to f32 above");
         let (rows, weights) = self.corners(&host);
         let levels = self.resolutions.len();
         let table = self.table.val();

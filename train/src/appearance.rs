@@ -59,7 +59,7 @@ fn capture(scene: &Scene) -> String {
 }
 
 /// Whether `scene` was loaded from a COLMAP reconstruction.
-fn is_colmap(scene: &Scene) -> bool {
+pub(crate) fn is_colmap(scene: &Scene) -> bool {
     matches!(scene.source.base(), SceneSource::Disk { loader, .. } if loader.format() == "colmap")
 }
 

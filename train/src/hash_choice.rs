@@ -2,7 +2,9 @@
 //! its IPE (`--hash-grid`, see `model::hashgrid`), and why. `train`
 //! prints the choice and why.
 
-use datasets::{Scene, SceneSource};
+use datasets::Scene;
+
+use crate::appearance::is_colmap;
 use model::{HashGridConfig, OpenNerfConfig};
 
 /// Whether the MLP takes a hash encoding (`--hash-grid`).
@@ -45,11 +47,6 @@ impl HashChoice {
             _ => format!("hash grid: none, the IPE alone ({})", self.reason),
         }
     }
-}
-
-/// Whether `scene` was loaded from a COLMAP reconstruction.
-fn is_colmap(scene: &Scene) -> bool {
-    matches!(scene.source.base(), SceneSource::Disk { loader, .. } if loader.format() == "colmap")
 }
 
 /// Chooses from the flag (`None`: not given, `auto`) and the configuration
