@@ -27,8 +27,10 @@ pub struct HashGridConfig {
     /// Cells across the domain at the coarsest level.
     #[config(default = 16)]
     pub base_resolution: usize,
-    /// Cells across the domain at the finest level.
-    #[config(default = 2048)]
+    /// Cells across the domain at the finest level (512: on a capture of
+    /// 20 photographs, finer grids fit detail the training views alone
+    /// show; docs/unbounded.md).
+    #[config(default = 512)]
     pub max_resolution: usize,
     /// Half the side of the cube the grids cover, centred at the origin:
     /// the encoded coordinates' range (`pi`: the box field's `[-pi, pi]^3`

@@ -427,7 +427,7 @@ pub struct Cli {
     pub pose_refine: Option<crate::pose_choice::PoseRefineArg>,
     /// Give the field's MLP a multiresolution hash encoding of each
     /// sample beside its IPE (Instant-NGP's, as nerfacto uses it: 16
-    /// levels from 16 to 2048 cells across the field's domain, 2^15 rows of
+    /// levels from 16 to 512 cells across the field's domain, 2^15 rows of
     /// 2 learned features each; `model.hash` in a `--config` file sets
     /// others): fine detail is learned in far fewer iterations, at about
     /// twice the seconds per iteration on the CPU. `auto` (the default) is

@@ -54,7 +54,7 @@ fn the_choice_is_printed_and_the_tables_saved_and_loaded_with_the_run() {
     let hashed = tmp.path().join("hashed");
     let err = tiny_run(tmp.path(), &hashed, TINY, &["--hash-grid", "on"]);
     assert!(
-        err.contains("hash grid: 16 levels of 2^15 rows x 2 features, 16 to 2048 cells across")
+        err.contains("hash grid: 16 levels of 2^15 rows x 2 features, 16 to 512 cells across")
             && err.contains("(--hash-grid on)"),
         "{err}"
     );
