@@ -24,6 +24,21 @@ struct Served {
     _dir: tempfile::TempDir,
 }
 
+/// The backend's random generator is one for the process, shared by the
+/// tests running beside each other: seeding and drawing under one lock keeps
+/// another test's seed from landing between them.
+static DRAW: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// A tiny field drawn from `seed`: the served field takes 1 and the field
+/// a test publishes 2, so that they differ on every run.
+fn seeded_tiny_model(dim: usize, device: &Device, seed: u64) -> model::OpenNerf {
+    let _held = DRAW
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    device.seed(seed);
+    common::tiny_model(dim, device)
+}
+
 /// An untrained tiny field on the CI scene, served on a free port; `chunk`
 /// rays a forward pass (small: renders take many chunks).
 fn serve(chunk: usize) -> Served {
@@ -31,10 +46,7 @@ fn serve(chunk: usize) -> Served {
     let scene = generate(0, SceneSize::Ci).expect("CI scene");
     let features = scene.features.as_ref().expect("features");
     let device = Device::flex();
-    // Seeded, so that every run serves the same field (the test that
-    // publishes another seeds that one differently).
-    device.seed(1);
-    let model = common::tiny_model(features.dim(), &device);
+    let model = seeded_tiny_model(features.dim(), &device, 1);
     let meta = SceneMeta {
         source: scene.source.clone(),
         scene_box: scene.scene_box,
@@ -508,9 +520,8 @@ fn publishing_a_field_changes_the_version_and_the_predictions() {
     let (_, a) = json(addr, "GET", "/api/summary", "");
     let (_, _, before) = call(addr, "GET", "/api/points", b"");
     let dim = s.scene.features.as_ref().expect("features").dim();
-    s.viewer.device.seed(2);
     s.viewer
-        .publish(common::tiny_model(dim, &s.viewer.device), 42);
+        .publish(seeded_tiny_model(dim, &s.viewer.device, 2), 42);
     let (_, b) = json(addr, "GET", "/api/summary", "");
     assert_eq!(
         b["field_version"].as_u64(),
