@@ -230,8 +230,8 @@ pub struct Cli {
     pub colmap_depth: bool,
     /// COLMAP: the sparse points as depth targets, each point's z-depth at
     /// the pixels of the features that observe it (as DS-NeRF supervises
-    /// few views); a quarter of each batch (`sampler.depth_rays`, 64 of the
-    /// default 256 rays) is drawn from those pixels. `auto` (the default):
+    /// few views); a quarter of each batch (`sampler.depth_rays`, 16 of a
+    /// COLMAP capture's default 64 rays) is drawn from those pixels. `auto` (the default):
     /// on for COLMAP captures with sparse points, unless --colmap-depth
     /// gives dense depth (docs/unbounded.md); `on` elsewhere is an error.
     /// `train` prints its choice.
@@ -264,10 +264,11 @@ pub struct Cli {
     /// Override: total training iterations (the schedule's length).
     #[arg(long)]
     pub iters: Option<usize>,
-    /// Override: rays per batch.
+    /// Override: rays per batch [default: 256; 128 for LLFF captures, 64
+    /// for COLMAP captures, which `train` says when it starts].
     #[arg(long)]
     pub rays: Option<usize>,
-    /// Override: samples per ray at each level (coarse and fine).
+    /// Override: samples per ray and level [default: 48; LLFF: 16].
     #[arg(long)]
     pub samples: Option<usize>,
     /// Override: width of the MLP trunk.

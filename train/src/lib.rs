@@ -120,12 +120,8 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     let mut base = TrainConfig::default_run(dim);
     let choice = field_choice::choose(cli.field, cli.sampler, &scene);
     eprintln!("{}", choice.message());
-    if let Some(d) = capture_defaults::for_scene(&scene)
-        && cli.preset.is_none()
-    {
-        d.apply(&mut base);
-        eprintln!("{}", d.message());
-    }
+    let sampling = capture_defaults::for_scene(&scene).filter(|_| cli.preset.is_none());
+    sampling.inspect(|d| d.apply(&mut base));
     if let Some(p) = cli.preset {
         apply_preset(p, &mut base, &scene, !choice.unbounded);
     }
@@ -145,6 +141,10 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         unseen_depth: cli.unseen_depth,
         seed: cli.seed,
     });
+    // Said only where the file and the flags keep what the default chose.
+    sampling
+        .filter(|d| d.kept_by(&config))
+        .inspect(|d| eprintln!("{}", d.message()));
     apply_novel_and_grid_flags(cli, &mut config);
     depth_choice::apply(cli.sparse_depth, &scene, &mut config)?;
     let grid = config.occupancy.enabled;

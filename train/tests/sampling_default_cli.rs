@@ -1,7 +1,8 @@
 //! The per-capture sampling default through the `train` binary: an LLFF
 //! capture trains with 16 samples per ray and level and 128 rays a batch
 //! (and says so) unless `--samples` / `--rays`, a `--config` file or a
-//! `--preset` says otherwise; other scenes keep the built-in sizes.
+//! `--preset` says otherwise; a COLMAP capture trains with 64 rays a
+//! batch and the built-in samples; other scenes keep the built-in sizes.
 
 use std::path::Path;
 
@@ -59,18 +60,21 @@ fn an_llff_capture_trains_with_its_sampling_default_unless_told_otherwise() {
     );
 
     let out = dir.path().join("flags");
-    one_iteration(
+    let err = one_iteration(
         &out,
         &[&data[..], &["--samples", "40", "--rays", "64"]].concat(),
     );
     assert_eq!(sizes(&out), (40, 64));
+    // The default is not announced where the flags replaced it.
+    assert!(!err.contains("sampling:"), "{err}");
 
     // A file's keys win over the default; what it leaves out keeps it.
     let file = dir.path().join("samples.json");
     std::fs::write(&file, r#"{"model": {"num_samples": 20}}"#).expect("write");
     let out = dir.path().join("config");
-    one_iteration(&out, &[&data[..], &["--config", s(&file)]].concat());
+    let err = one_iteration(&out, &[&data[..], &["--config", s(&file)]].concat());
     assert_eq!(sizes(&out), (20, 128));
+    assert!(!err.contains("sampling:"), "{err}");
 
     // A preset sets its own sizes, and the default says nothing.
     let out = dir.path().join("preset");
@@ -84,6 +88,28 @@ fn other_scenes_keep_the_built_in_sizes() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("synthetic");
     let err = one_iteration(&out, &[]);
+    assert_eq!(sizes(&out), (48, 256));
+    assert!(!err.contains("sampling:"), "{err}");
+}
+
+#[test]
+fn a_colmap_capture_trains_with_64_rays_a_batch_unless_told_otherwise() {
+    let Some(statue) = datasets::shared_dataset("colmap_statue") else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = ["--data", s(&statue)];
+
+    let out = dir.path().join("default");
+    let err = one_iteration(&out, &data);
+    assert_eq!(sizes(&out), (48, 64));
+    assert!(
+        err.contains("sampling: 64 rays a batch (auto: a COLMAP capture"),
+        "{err}"
+    );
+
+    let out = dir.path().join("flags");
+    let err = one_iteration(&out, &[&data[..], &["--rays", "256"]].concat());
     assert_eq!(sizes(&out), (48, 256));
     assert!(!err.contains("sampling:"), "{err}");
 }
