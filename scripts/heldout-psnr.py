@@ -15,13 +15,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-
-def photograph(images: Path, name: str) -> Image.Image:
-    for ext in (".jpg", ".JPG", ".png", ".jpeg"):
-        p = images / f"{name}{ext}"
-        if p.is_file():
-            return Image.open(p).convert("RGB")
-    sys.exit(f"{images}: no photograph named {name}.jpg or {name}.png")
+from photographs import photograph
 
 
 def main() -> None:

@@ -12,13 +12,7 @@ from pathlib import Path
 
 from PIL import Image
 
-
-def photograph(images: Path, view: str) -> Image.Image:
-    for ext in (".jpg", ".JPG", ".png", ".jpeg"):
-        p = images / f"{view}{ext}"
-        if p.is_file():
-            return Image.open(p).convert("RGB")
-    sys.exit(f"{images}: no photograph named {view}.jpg or {view}.png")
+from photographs import photograph
 
 
 def main() -> None:

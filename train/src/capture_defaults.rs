@@ -27,21 +27,29 @@ pub struct SamplingDefault {
     pub doc: &'static str,
 }
 
+/// LLFF captures: more iterations of fewer samples (docs/fern.md).
+const LLFF: SamplingDefault = SamplingDefault {
+    samples: Some(16),
+    rays: 128,
+    capture: "an LLFF capture",
+    doc: "docs/fern.md",
+};
+
+/// COLMAP captures: more updates of fewer rays (docs/unbounded.md).
+const COLMAP: SamplingDefault = SamplingDefault {
+    samples: None,
+    rays: 64,
+    capture: "a COLMAP capture",
+    doc: "docs/unbounded.md",
+};
+
 /// The default for `scene`'s kind of capture, if it has its own.
 pub fn for_scene(scene: &Scene) -> Option<SamplingDefault> {
+    if crate::appearance::is_colmap(scene) {
+        return Some(COLMAP);
+    }
     match scene.source.base() {
-        SceneSource::Disk { loader, .. } if loader.format() == "llff" => Some(SamplingDefault {
-            samples: Some(16),
-            rays: 128,
-            capture: "an LLFF capture",
-            doc: "docs/fern.md",
-        }),
-        SceneSource::Disk { loader, .. } if loader.format() == "colmap" => Some(SamplingDefault {
-            samples: None,
-            rays: 64,
-            capture: "a COLMAP capture",
-            doc: "docs/unbounded.md",
-        }),
+        SceneSource::Disk { loader, .. } if loader.format() == "llff" => Some(LLFF),
         _ => None,
     }
 }
@@ -85,6 +93,16 @@ impl SamplingDefault {
 mod tests {
     use super::*;
 
+    /// A default named "test", measured on "docs/test.md".
+    fn test_default(samples: Option<usize>, rays: usize) -> SamplingDefault {
+        SamplingDefault {
+            samples,
+            rays,
+            capture: "test",
+            doc: "docs/test.md",
+        }
+    }
+
     #[test]
     fn apply_keeps_the_samples_drawn_and_sets_the_sizes() {
         let mut c = TrainConfig::default_run(0);
@@ -92,12 +110,7 @@ mod tests {
             c.schedule.iterations * c.model.num_samples * c.sampler.rays_per_batch
         };
         let before = drawn(&c);
-        let d = SamplingDefault {
-            samples: Some(16),
-            rays: 128,
-            capture: "test",
-            doc: "docs/test.md",
-        };
+        let d = test_default(Some(16), 128);
         d.apply(&mut c);
         assert_eq!(c.model.num_samples, 16);
         assert_eq!(c.sampler.rays_per_batch, 128);
@@ -109,12 +122,7 @@ mod tests {
     #[test]
     fn apply_without_samples_keeps_the_built_in_samples() {
         let mut c = TrainConfig::default_run(0);
-        let d = SamplingDefault {
-            samples: None,
-            rays: 128,
-            capture: "test",
-            doc: "docs/test.md",
-        };
+        let d = test_default(None, 128);
         d.apply(&mut c);
         assert_eq!(c.model.num_samples, 48);
         assert_eq!(c.sampler.rays_per_batch, 128);
@@ -131,16 +139,8 @@ mod tests {
 
     #[test]
     fn kept_by_asks_for_every_size_the_default_sets() {
-        let llff = SamplingDefault {
-            samples: Some(16),
-            rays: 128,
-            capture: "test",
-            doc: "docs/test.md",
-        };
-        let colmap = SamplingDefault {
-            samples: None,
-            ..llff
-        };
+        let llff = test_default(Some(16), 128);
+        let colmap = test_default(None, 128);
         let mut c = TrainConfig::default_run(0);
         llff.apply(&mut c);
         assert!(llff.kept_by(&c));

@@ -231,10 +231,10 @@ pub struct Cli {
     /// COLMAP: the sparse points as depth targets, each point's z-depth at
     /// the pixels of the features that observe it (as DS-NeRF supervises
     /// few views); a quarter of each batch (`sampler.depth_rays`, 16 of a
-    /// COLMAP capture's default 64 rays) is drawn from those pixels. `auto` (the default):
-    /// on for COLMAP captures with sparse points, unless --colmap-depth
-    /// gives dense depth (docs/unbounded.md); `on` elsewhere is an error.
-    /// `train` prints its choice.
+    /// COLMAP capture's default 64 rays) is drawn from those pixels.
+    /// `auto` (the default): on for COLMAP captures with sparse points,
+    /// unless --colmap-depth gives dense depth (docs/unbounded.md); `on`
+    /// elsewhere is an error. `train` prints its choice.
     #[arg(long, value_enum)]
     pub sparse_depth: Option<crate::depth_choice::SparseDepthArg>,
     /// Scenes on disk: grow the scene box by this fraction of its largest
