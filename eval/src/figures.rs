@@ -1,60 +1,14 @@
-//! Images meant for reading results: a held-out render next to its ground
-//! truth and an error image, a colour bar with its scale for relevancy
-//! images and animated GIFs of camera paths.
+//! Images meant for reading results: a colour bar with its scale for
+//! relevancy images and animated GIFs of camera paths (a held-out render
+//! next to its photograph: [`field_ops::strips`]).
 
 use std::path::Path;
 
-use datasets::RgbImage;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame, RgbaImage};
 
 use field_ops::OpsError;
 use field_ops::colormap::{to_u8, turbo};
-use field_ops::render::RenderedView;
-
-/// Mean absolute colour error mapped to the top of the error colour scale.
-/// Fixed (not per image) so that error images of different views compare.
-pub const ERROR_SCALE_MAX: f32 = 0.25;
-
-/// Mean squared colour error of `view` against `gt` over every pixel and
-/// channel; `None` when the sizes differ.
-pub fn rgb_mse(gt: &RgbImage, view: &RenderedView) -> Option<f64> {
-    if (gt.width, gt.height) != (view.width, view.height) || gt.data.is_empty() {
-        return None;
-    }
-    let sum: f64 = gt
-        .data
-        .iter()
-        .zip(&view.rgb)
-        .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
-        .sum();
-    Some(sum / gt.data.len() as f64)
-}
-
-/// `ground truth | render | error` side by side (`3 * width` wide): the error
-/// is the mean absolute difference over the three channels, Turbo-coloured
-/// from 0 to [`ERROR_SCALE_MAX`]. `None` when the sizes differ.
-pub fn comparison(gt: &RgbImage, view: &RenderedView) -> Option<(u32, u32, Vec<u8>)> {
-    if (gt.width, gt.height) != (view.width, view.height) {
-        return None;
-    }
-    let (w, h) = (gt.width as usize, gt.height as usize);
-    let mut out = Vec::with_capacity(9 * w * h);
-    for y in 0..h {
-        let row = |data: &[f32]| data[3 * y * w..3 * (y + 1) * w].to_vec();
-        let (g, r) = (row(&gt.data), row(&view.rgb));
-        out.extend(g.iter().map(|&v| to_u8(v)));
-        out.extend(r.iter().map(|&v| to_u8(v)));
-        for x in 0..w {
-            let e = (0..3)
-                .map(|c| (g[3 * x + c] - r[3 * x + c]).abs())
-                .sum::<f32>()
-                / 3.0;
-            out.extend(turbo(e / ERROR_SCALE_MAX).map(to_u8));
-        }
-    }
-    Some((3 * w as u32, h as u32, out))
-}
 
 /// 3x5 glyphs of the characters a scale label needs, one row per `u8`
 /// (the low three bits, left to right).
@@ -179,35 +133,6 @@ pub fn write_gif(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn view(w: u32, h: u32, v: f32) -> RenderedView {
-        RenderedView {
-            width: w,
-            height: h,
-            rgb: vec![v; (3 * w * h) as usize],
-            depth: vec![1.0; (w * h) as usize],
-            acc: vec![1.0; (w * h) as usize],
-            feature: Vec::new(),
-            feature_dim: 0,
-            samples_evaluated: 0,
-        }
-    }
-
-    #[test]
-    fn comparison_puts_truth_render_and_error_side_by_side() {
-        let gt = RgbImage {
-            width: 4,
-            height: 2,
-            data: vec![0.5; 24],
-        };
-        let (w, h, px) = comparison(&gt, &view(4, 2, 0.5)).unwrap();
-        assert_eq!((w, h, px.len()), (12, 2, 72));
-        // Zero error: the error panel shows the bottom of the scale.
-        assert_eq!(&px[24..27], &turbo(0.0).map(to_u8));
-        let (_, _, px) = comparison(&gt, &view(4, 2, 0.75)).unwrap();
-        assert_eq!(&px[24..27], &turbo(1.0).map(to_u8));
-        assert!(comparison(&gt, &view(3, 2, 0.5)).is_none());
-    }
 
     #[test]
     fn colour_bar_widens_the_image_and_greys_below_the_cut() {

@@ -256,7 +256,7 @@ fn point_labels_outside_the_classes_are_refused() {
 }
 
 #[test]
-fn render_writes_truth_render_error_panels_and_a_path_gif() {
+fn render_writes_strips_a_contact_sheet_readable_depth_and_a_path_gif() {
     let tmp = tempfile::tempdir().expect("tmp");
     let out = tmp.path().join("renders");
     let run = run_dir().display().to_string();
@@ -266,19 +266,73 @@ fn render_writes_truth_render_error_panels_and_a_path_gif() {
     let stdout = String::from_utf8_lossy(&r.stdout);
     // Scene frames are scored against their images.
     assert!(stdout.contains("PSNR against the"), "{stdout}");
+    assert!(stdout.contains("SSIM"), "{stdout}");
     assert!(stdout.contains("samples a ray evaluated"), "{stdout}");
-    let cmp = image::open(out.join("frame000000_compare.png")).expect("comparison image");
+    // photograph | render | error | depth, at the render's size.
+    let strip = image::open(out.join("frame000000_strip.png")).expect("strip");
     let rgb = image::open(out.join("frame000000_rgb.png")).expect("render");
-    assert_eq!(cmp.width(), 3 * rgb.width());
+    assert_eq!(strip.width(), 4 * rgb.width());
+    assert_eq!(strip.height(), rgb.height());
+    let opacity = image::open(out.join("frame000000_opacity.png")).expect("opacity");
+    assert_eq!(opacity.width(), rgb.width());
+    let sheet = image::open(out.join("heldout.png")).expect("contact sheet");
+    assert_eq!(sheet.height() % 120, 0, "{}", sheet.height() % 120);
+    // The depth image's scale: a box field's depth in metres.
+    let scale: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("frame000000_depth.json")).expect("depth scale"),
+    )
+    .expect("json");
+    assert_eq!(
+        (scale["quantity"].as_str(), scale["units"].as_str()),
+        (Some("depth"), Some("m"))
+    );
+    assert!(scale["lo"].as_f64() <= scale["hi"].as_f64(), "{scale}");
+    let metrics: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("render_metrics.json")).expect("render metrics"),
+    )
+    .expect("json");
+    let views = metrics["views"].as_array().expect("views");
+    assert!(!views.is_empty(), "{metrics}");
+    for v in views {
+        let s = v["ssim"].as_f64().expect("ssim");
+        assert!((-1.0..=1.0).contains(&s), "{v}");
+        assert!(v["photograph_resized_from"].is_null(), "{v}");
+    }
+
+    // At another size than the photographs, they are resized to the renders.
+    let small = tmp.path().join("small");
+    let o2 = small.display().to_string();
+    let r = eval(&["render", "--run", &run, "--out", &o2, "--width", "40"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(
+        stdout.contains("photographs resized to the renders"),
+        "{stdout}"
+    );
+    let strip = image::open(small.join("frame000000_strip.png")).expect("strip");
+    assert_eq!(strip.width(), 160);
+    let metrics: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(small.join("render_metrics.json")).expect("render metrics"),
+    )
+    .expect("json");
+    assert_eq!(
+        metrics["views"][0]["photograph_resized_from"],
+        serde_json::json!([rgb.width(), rgb.height()])
+    );
 
     let r = eval(&["render", "--run", &run, "--out", &o, "--camera-path", "4"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let stdout = String::from_utf8_lossy(&r.stdout);
     assert!(stdout.contains("path.gif"), "{stdout}");
-    let gif = std::fs::File::open(out.join("path.gif")).expect("gif");
-    let frames = image::codecs::gif::GifDecoder::new(std::io::BufReader::new(gif)).expect("decode");
     use image::AnimationDecoder;
-    assert_eq!(frames.into_frames().count(), 4);
+    // Colour, and depth on one scale over the path.
+    for name in ["path.gif", "path_depth.gif"] {
+        let gif = std::fs::File::open(out.join(name)).expect("gif");
+        let frames =
+            image::codecs::gif::GifDecoder::new(std::io::BufReader::new(gif)).expect("decode");
+        assert_eq!(frames.into_frames().count(), 4, "{name}");
+    }
+    assert!(out.join("path_depth.json").exists());
 }
 
 #[test]

@@ -1,69 +1,92 @@
-//! Pictures of rendered views: the colour, depth (Turbo) and feature (top
-//! three principal components) images.
+//! Pictures of rendered views: the colour, depth (see [`crate::depth_image`]),
+//! opacity and feature (top three principal components) images.
 
 use std::path::{Path, PathBuf};
 
 use datasets::features::symmetric_eigen;
 use datasets::imageio::save_rgb8;
 
-use crate::colormap::{to_u8, turbo};
+use crate::colormap::to_u8;
+use crate::depth_image::{DepthQuantity, DepthScale, opacity_grey};
 use crate::error::OpsError;
 use crate::render::RenderedView;
 
-/// Writes `{name}_rgb.png`, `{name}_depth.png` (Turbo over the depth range of
-/// the covered pixels; uncovered pixels black) and, with a feature head,
-/// `{name}_feature.png` (the feature image's top three principal components)
-/// into `dir`, creating it. Returns the written paths.
+/// The pictures of one rendered view, as RGB8 bytes of its size.
+#[derive(Debug, Clone)]
+pub struct ViewImages {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// The colour render.
+    pub rgb: Vec<u8>,
+    /// Depth coloured over [`ViewImages::depth_scale`].
+    pub depth: Vec<u8>,
+    /// The depth image's scale (range, units, colours).
+    pub depth_scale: DepthScale,
+    /// Accumulated opacity as grey.
+    pub opacity: Vec<u8>,
+    /// The feature image's top three principal components (with a head).
+    pub feature: Option<Vec<u8>>,
+}
+
+impl ViewImages {
+    /// The pictures of `view`, its depth shown as `quantity` (see
+    /// [`DepthQuantity::of`]).
+    pub fn of(view: &RenderedView, quantity: DepthQuantity) -> Self {
+        let depth_scale = DepthScale::of(&view.depth, &view.acc, quantity);
+        ViewImages {
+            width: view.width,
+            height: view.height,
+            rgb: view.rgb.iter().map(|&v| to_u8(v)).collect(),
+            depth: depth_scale.colours(&view.depth, &view.acc),
+            depth_scale,
+            opacity: opacity_grey(&view.acc),
+            feature: (view.feature_dim > 0).then(|| {
+                pca_colors(&view.feature, view.feature_dim)
+                    .into_iter()
+                    .flatten()
+                    .collect()
+            }),
+        }
+    }
+
+    /// Writes `{name}_rgb.png`, `{name}_depth.png` with its scale in
+    /// `{name}_depth.json`, `{name}_opacity.png` and, with a feature head,
+    /// `{name}_feature.png` into `dir`, creating it. Returns the written paths.
+    pub fn save(&self, dir: &Path, name: &str) -> Result<Vec<PathBuf>, OpsError> {
+        std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
+        let (w, h) = (self.width, self.height);
+        let mut written = Vec::new();
+        let pictures = [
+            ("rgb", Some(&self.rgb)),
+            ("depth", Some(&self.depth)),
+            ("opacity", Some(&self.opacity)),
+            ("feature", self.feature.as_ref()),
+        ];
+        for (kind, bytes) in pictures {
+            if let Some(bytes) = bytes {
+                let path = dir.join(format!("{name}_{kind}.png"));
+                save_rgb8(&path, w, h, bytes)?;
+                written.push(path);
+            }
+        }
+        let path = dir.join(format!("{name}_depth.json"));
+        crate::json::write_json(&path, &self.depth_scale)?;
+        written.push(path);
+        Ok(written)
+    }
+}
+
+/// Writes the pictures of `view` (see [`ViewImages::save`]) into `dir`,
+/// its depth shown as `quantity`. Returns the written paths.
 pub fn save_view_pngs(
     view: &RenderedView,
     dir: &Path,
     name: &str,
+    quantity: DepthQuantity,
 ) -> Result<Vec<PathBuf>, OpsError> {
-    std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
-    let (w, h) = (view.width, view.height);
-    let mut written = Vec::new();
-
-    let path = dir.join(format!("{name}_rgb.png"));
-    let rgb: Vec<u8> = view.rgb.iter().map(|&v| to_u8(v)).collect();
-    save_rgb8(&path, w, h, &rgb)?;
-    written.push(path);
-
-    let path = dir.join(format!("{name}_depth.png"));
-    save_rgb8(&path, w, h, &depth_colors(&view.depth, &view.acc))?;
-    written.push(path);
-
-    if view.feature_dim > 0 {
-        let path = dir.join(format!("{name}_feature.png"));
-        let colors = pca_colors(&view.feature, view.feature_dim);
-        let bytes: Vec<u8> = colors.into_iter().flatten().collect();
-        save_rgb8(&path, w, h, &bytes)?;
-        written.push(path);
-    }
-    Ok(written)
-}
-
-/// Depth colour-mapped with Turbo over `[min, max]` of pixels with opacity
-/// above one half; the rest black. Returns `3 * n` bytes.
-pub fn depth_colors(depth: &[f32], acc: &[f32]) -> Vec<u8> {
-    let covered = |i: usize| acc.get(i).is_none_or(|&a| a > 0.5) && depth[i].is_finite();
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for (i, &d) in depth.iter().enumerate() {
-        if covered(i) {
-            lo = lo.min(d);
-            hi = hi.max(d);
-        }
-    }
-    let span = (hi - lo).max(1e-6);
-    let mut out = Vec::with_capacity(3 * depth.len());
-    for (i, &d) in depth.iter().enumerate() {
-        let c = if covered(i) {
-            turbo((d - lo) / span)
-        } else {
-            [0.0; 3]
-        };
-        out.extend(c.map(to_u8));
-    }
-    out
+    ViewImages::of(view, quantity).save(dir, name)
 }
 
 /// Colours of an `n x dim` feature image from its top three principal
@@ -173,17 +196,6 @@ mod tests {
             let d: f64 = a.iter().zip(e).map(|(x, y)| x * y).sum();
             assert!(d.abs() > 0.999, "axis {a:?} vs {e:?}");
         }
-    }
-
-    #[test]
-    fn depth_colors_span_the_map_and_blank_empty_pixels() {
-        let depth = [1.0, 2.0, 3.0, 5.0];
-        let acc = [1.0, 1.0, 1.0, 0.0];
-        let c = depth_colors(&depth, &acc);
-        assert_eq!(&c[0..3], &turbo(0.0).map(to_u8));
-        assert_eq!(&c[3..6], &turbo(0.5).map(to_u8));
-        assert_eq!(&c[6..9], &turbo(1.0).map(to_u8));
-        assert_eq!(&c[9..12], &[0, 0, 0]);
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! with an occlusion test, the uncertainty map of the 2D feature maps,
 //! novel cameras with their rendering and re-extraction (and the
 //! ground-truth oracle), class scores and relevancy of field features
-//! (with text embedded by a CLIP model), images and plots.
+//! (with text embedded by a CLIP model), images (depth over a robust range,
+//! held-out strips), SSIM and plots.
 //!
 //! # Use from another crate
 //!
@@ -71,6 +72,7 @@ pub mod allocator;
 pub mod backend;
 pub mod batch_dir;
 pub mod colormap;
+pub mod depth_image;
 pub mod error;
 pub mod files;
 pub mod frame;
@@ -87,7 +89,9 @@ pub mod run_dir;
 pub mod sample;
 pub mod scores;
 pub mod similarity;
+pub mod ssim;
 pub mod stages;
+pub mod strips;
 pub mod subnormals;
 pub mod text_query;
 pub mod uncertainty;

@@ -75,7 +75,7 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
         );
     }
     for part in ["heldout_interior", "heldout_whole"] {
-        for key in ["psnr", "depth_mae", "feature_cosine", "pixels"] {
+        for key in ["psnr", "ssim", "depth_mae", "feature_cosine", "pixels"] {
             assert!(
                 summary[part][key].is_number(),
                 "summary.json: {part}.{key} = {}",
@@ -98,6 +98,46 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     };
     assert_eq!(last.interior, *h);
     assert_eq!(last.whole, Some(whole));
+    // SSIM of the views in full, in the summary and the log alike, and per
+    // view: the interior and whole figures are the means over the views.
+    let ssim = h.ssim.expect("held-out SSIM");
+    assert!(ssim > 0.0 && ssim <= 1.0, "{ssim}");
+    assert!(log.contains("\"ssim_interior\":") && log.contains("\"ssim_whole\":"));
+    assert_eq!(s.heldout_views.len(), s.heldout_frames.len());
+    let mean = |f: fn(&train::view_eval::ViewFigures) -> Option<f64>| {
+        s.heldout_views.iter().filter_map(f).sum::<f64>() / s.heldout_views.len() as f64
+    };
+    assert!((mean(|v| v.ssim_interior) - ssim).abs() < 1e-12);
+    assert!((mean(|v| v.ssim_whole) - whole.ssim.unwrap()).abs() < 1e-12);
+    for v in &s.heldout_views {
+        assert!(
+            v.psnr_interior.is_finite() && v.psnr_whole.is_finite(),
+            "{v:?}"
+        );
+        // Each view's strip (photograph, render, error, depth) and pictures.
+        let strip = image::open(run.renders().join(format!("{}_strip.png", v.name))).unwrap();
+        let rgb = image::open(run.renders().join(format!("{}_rgb.png", v.name))).unwrap();
+        assert_eq!(
+            (strip.width(), strip.height()),
+            (4 * rgb.width(), rgb.height())
+        );
+        for file in ["opacity.png", "depth.png", "depth.json"] {
+            assert!(
+                run.renders().join(format!("{}_{file}", v.name)).exists(),
+                "{file}"
+            );
+        }
+    }
+    let views = summary["heldout_views"]
+        .as_array()
+        .expect("per-view figures");
+    assert_eq!(views.len(), s.heldout_views.len());
+    let sheet = image::open(run.renders().join("heldout.png")).expect("contact sheet");
+    assert!(
+        sheet.height() >= 120 * views.len() as u32,
+        "{}",
+        sheet.height()
+    );
     // On disk, every held-out figure names the pixels it was measured on.
     let last: serde_json::Value = serde_json::from_str(log.lines().last().unwrap()).unwrap();
     assert_eq!(last["event"], "final");

@@ -1,5 +1,6 @@
 //! How close renders come to their targets, in plain numbers: colour PSNR,
-//! depth error and feature cosine, summed pixel by pixel.
+//! depth error and feature cosine, summed pixel by pixel, and SSIM, view by
+//! view.
 
 use serde::{Deserialize, Serialize};
 
@@ -20,6 +21,10 @@ pub struct EvalAccumulator {
     pub cosine: f64,
     /// Pixels with a non-zero feature target.
     pub feature_pixels: u64,
+    /// Sum of the SSIM of whole views.
+    pub ssim: f64,
+    /// Views whose SSIM was added.
+    pub ssim_views: u64,
 }
 
 impl EvalAccumulator {
@@ -52,6 +57,15 @@ impl EvalAccumulator {
         }
     }
 
+    /// Adds the SSIM of one view (`None`: a view too small for the window,
+    /// or without a pixel to average over).
+    pub fn add_ssim(&mut self, ssim: Option<f64>) {
+        if let Some(s) = ssim {
+            self.ssim += s;
+            self.ssim_views += 1;
+        }
+    }
+
     /// The finished metrics.
     pub fn finish(&self) -> EvalMetrics {
         EvalMetrics {
@@ -60,6 +74,7 @@ impl EvalAccumulator {
                 .then(|| self.depth_abs_err / self.depth_pixels as f64),
             feature_cosine: (self.feature_pixels > 0)
                 .then(|| self.cosine / self.feature_pixels as f64),
+            ssim: (self.ssim_views > 0).then(|| self.ssim / self.ssim_views as f64),
             pixels: self.rgb_values / 3,
         }
     }
@@ -74,6 +89,11 @@ pub struct EvalMetrics {
     pub depth_mae: Option<f64>,
     /// Mean cosine similarity of rendered vs target features (`None` without features).
     pub feature_cosine: Option<f64>,
+    /// Mean SSIM of whole views (11 x 11 Gaussian window, sigma 1.5, see
+    /// [`field_ops::ssim`]); absent where views were not rendered in full
+    /// (a pixel sample) and in runs written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ssim: Option<f64>,
     /// Pixels evaluated.
     pub pixels: u64,
 }
@@ -115,5 +135,11 @@ mod tests {
         assert_eq!(m.pixels, 3);
         let empty = EvalAccumulator::default().finish();
         assert!(empty.depth_mae.is_none() && empty.feature_cosine.is_none());
+        assert!(m.ssim.is_none() && empty.ssim.is_none());
+        let mut views = EvalAccumulator::default();
+        views.add_ssim(Some(0.5));
+        views.add_ssim(None);
+        views.add_ssim(Some(0.75));
+        assert_eq!(views.finish().ssim, Some(0.625));
     }
 }

@@ -1,11 +1,8 @@
-//! Held-out evaluation: a fixed pixel subset for the periodic checks during
-//! training, and full views (rendered with [`field_ops::render`]) at the end.
-
-use std::path::Path;
+//! Held-out evaluation on a fixed pixel subset, for the periodic checks
+//! during training (the views in full at the end: [`crate::view_eval`]).
 
 use datasets::Scene;
 use datasets::sampler::{SamplerConfig, sample_batch_from};
-use field_ops::render::{ViewSettings, render_view};
 use model::geometry::NormalizedRay;
 use model::{FeatureMode, OpenNerf, RenderRequest};
 
@@ -129,75 +126,4 @@ pub fn evaluate_pixels(
         start += part.len();
     }
     acc.finish()
-}
-
-/// Metrics of whole held-out views, over the interior pixels (those the
-/// training sampler draws from: the border margin left out) and over every
-/// pixel; masked-out pixels are left out of both.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ViewMetrics {
-    /// Pixels at least the (scaled) border margin from the image border.
-    pub interior: EvalMetrics,
-    /// All pixels, the never-supervised border included.
-    pub whole: EvalMetrics,
-}
-
-/// Renders every held-out view in full, writes its PNGs into `renders_dir`
-/// and returns the metrics over their interior pixels (border margin
-/// `margin`, scaled like the sampler's) and over all their pixels.
-pub fn evaluate_views(
-    model: &OpenNerf,
-    scene: &Scene,
-    frames: &[usize],
-    margin: u32,
-    chunk: usize,
-    renders_dir: &Path,
-) -> Result<ViewMetrics, TrainError> {
-    let mut interior = EvalAccumulator::default();
-    let mut whole = EvalAccumulator::default();
-    let settings =
-        ViewSettings::new(scene.background, chunk).with_features(scene.features.is_some());
-    for &f in frames {
-        let frame = &scene.frames[f];
-        let mut view = render_view(model, &frame.camera, &scene.scene_box, &settings)
-            .expect("never cancelled without an observer");
-        if scene.features.is_none() {
-            // The head of a scene without features is a stub: no feature image.
-            view.feature.clear();
-            view.feature_dim = 0;
-        }
-        field_ops::images::save_view_pngs(&view, renders_dir, &frame.name)?;
-        let (w, h) = (view.width, view.height);
-        let ((x0, x1), (y0, y1)) = datasets::sampler::interior(margin, w, h);
-        let lifted = (view.feature_dim > 0).then(|| lift_features(scene, view.feature.clone()));
-        let full = scene.features.as_ref().map_or(0, |fs| fs.full_dim);
-        for y in 0..h {
-            for x in 0..w {
-                // Masked-out pixels are no target, in evaluation as in training.
-                if !frame.is_target_pixel(x, y) {
-                    continue;
-                }
-                let p = (y * w + x) as usize;
-                let depth = frame.depth.as_ref().map(|d| (view.depth[p], d.get(x, y)));
-                let target = scene.features.as_ref().and_then(|fs| {
-                    let t = fs.target(f, x as f64, y as f64, w, h)?;
-                    Some(lift_features(scene, t.iter().map(|v| v.to_f32()).collect()))
-                });
-                let feature = match (&lifted, &target) {
-                    (Some(l), Some(t)) => Some((&l[p * full..(p + 1) * full], t.as_slice())),
-                    _ => None,
-                };
-                let rgb = [view.rgb[3 * p], view.rgb[3 * p + 1], view.rgb[3 * p + 2]];
-                let target_rgb = frame.rgb.get(x, y);
-                whole.add(rgb, target_rgb, depth, feature);
-                if (x0..x1).contains(&x) && (y0..y1).contains(&y) {
-                    interior.add(rgb, target_rgb, depth, feature);
-                }
-            }
-        }
-    }
-    Ok(ViewMetrics {
-        interior: interior.finish(),
-        whole: whole.finish(),
-    })
 }

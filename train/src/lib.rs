@@ -39,6 +39,7 @@ pub mod step;
 pub mod summary;
 pub mod training;
 pub mod validate;
+pub mod view_eval;
 pub mod vlm;
 
 pub use backend::BackendKind;

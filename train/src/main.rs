@@ -19,9 +19,10 @@ fn main() -> std::process::ExitCode {
             let s = &outcome.summary;
             let h = &s.heldout_interior;
             println!(
-                "done: {} iterations, held-out PSNR {:.2} dB on interior pixels{}{}{}, {:.0} rays/s training{}, {:.1} s",
+                "done: {} iterations, held-out PSNR {:.2} dB on interior pixels{}{}{}{}, {:.0} rays/s training{}, {:.1} s",
                 s.iterations,
                 h.psnr,
+                h.ssim.map(|v| format!(", SSIM {v:.3}")).unwrap_or_default(),
                 s.heldout_whole
                     .map(|w| format!(" ({:.2} dB on every pixel)", w.psnr))
                     .unwrap_or_default(),

@@ -119,6 +119,12 @@ struct EvalKeys {
     feature_cosine_interior: Option<f64>,
     #[serde(default, deserialize_with = "count_or_zero")]
     pixels_interior: u64,
+    #[serde(
+        default,
+        deserialize_with = "number_or_none",
+        skip_serializing_if = "Option::is_none"
+    )]
+    ssim_interior: Option<f64>,
     #[serde(flatten)]
     whole: Option<WholeKeys>,
 }
@@ -134,6 +140,12 @@ struct WholeKeys {
     feature_cosine_whole: Option<f64>,
     #[serde(default, deserialize_with = "count_or_zero")]
     pixels_whole: u64,
+    #[serde(
+        default,
+        deserialize_with = "number_or_none",
+        skip_serializing_if = "Option::is_none"
+    )]
+    ssim_whole: Option<f64>,
 }
 
 impl From<EvalLine> for EvalKeys {
@@ -145,11 +157,13 @@ impl From<EvalLine> for EvalKeys {
             depth_mae_interior: l.interior.depth_mae,
             feature_cosine_interior: l.interior.feature_cosine,
             pixels_interior: l.interior.pixels,
+            ssim_interior: l.interior.ssim,
             whole: l.whole.map(|w| WholeKeys {
                 psnr_whole: w.psnr,
                 depth_mae_whole: w.depth_mae,
                 feature_cosine_whole: w.feature_cosine,
                 pixels_whole: w.pixels,
+                ssim_whole: w.ssim,
             }),
         }
     }
@@ -164,12 +178,14 @@ impl From<EvalKeys> for EvalLine {
                 psnr: k.psnr_interior,
                 depth_mae: k.depth_mae_interior,
                 feature_cosine: k.feature_cosine_interior,
+                ssim: k.ssim_interior,
                 pixels: k.pixels_interior,
             },
             whole: k.whole.map(|w| EvalMetrics {
                 psnr: w.psnr_whole,
                 depth_mae: w.depth_mae_whole,
                 feature_cosine: w.feature_cosine_whole,
+                ssim: w.ssim_whole,
                 pixels: w.pixels_whole,
             }),
         }
@@ -348,8 +364,9 @@ mod tests {
     use super::*;
 
     /// Lines as runs have written them (a run with the occupancy grid and
-    /// novel views, one without, one whose steps went non-finite).
-    const LINES: [&str; 7] = [
+    /// novel views, one without, one whose steps went non-finite, one whose
+    /// final views were measured with SSIM).
+    const LINES: [&str; 8] = [
         r#"{"depth_mae_interior":1.3088842583820224,"event":"eval","feature_cosine_interior":0.026067644235930797,"iteration":0,"pixels_interior":1024,"psnr_interior":11.814963046118843,"wall_seconds":0.0}"#,
         r#"{"depth":0.2795112431049347,"event":"train","iteration":25,"loss":0.5102336406707764,"lr":0.0014254075868100975,"open":0.44456246495246887,"psnr":14.979057145000725,"rays_per_second":1528.9983051543545,"rgb_mse":0.031775638461112976,"wall_seconds":5.051209602}"#,
         r#"{"depth":0.27766841650009155,"event":"train","iteration":25,"loss":0.47789937257766724,"lr":0.0017944818331994334,"occupied_cells":1.0,"open":0.41272127628326416,"psnr":15.015101234715832,"ray_length_sampled":1.0,"rays_per_second":1241.6744575676016,"rays_rendered":1.0,"rgb_mse":0.03151300922036171,"wall_seconds":6.261850738}"#,
@@ -357,6 +374,7 @@ mod tests {
         r#"{"depth_mae_interior":1.4597540040206218,"depth_mae_whole":1.4327181395710495,"event":"final","feature_cosine_interior":0.9101479023412206,"feature_cosine_whole":0.9107054511141833,"iteration":50,"pixels_interior":13800,"pixels_whole":15552,"psnr_interior":15.226301197058751,"psnr_whole":15.223258946736307,"wall_seconds":18.562902343}"#,
         r#"{"consecutive":1,"event":"nonfinite","grad_l1":"NaN","iteration":1,"loss":"NaN"}"#,
         r#"{"depth_mae_interior":null,"depth_mae_whole":null,"event":"final","feature_cosine_interior":null,"feature_cosine_whole":null,"iteration":20,"pixels_interior":13800,"pixels_whole":15552,"psnr_interior":200.0,"psnr_whole":200.0,"wall_seconds":10.971060369}"#,
+        r#"{"depth_mae_interior":0.25,"depth_mae_whole":0.5,"event":"final","feature_cosine_interior":null,"feature_cosine_whole":null,"iteration":30,"pixels_interior":13800,"pixels_whole":15552,"psnr_interior":21.5,"psnr_whole":20.25,"ssim_interior":0.71875,"ssim_whole":0.6875,"wall_seconds":12.5}"#,
     ];
 
     #[test]
@@ -378,6 +396,12 @@ mod tests {
             panic!();
         };
         assert_eq!(f.whole.map(|w| w.pixels), Some(15552));
+        assert!(f.interior.ssim.is_none() && f.whole.is_some_and(|w| w.ssim.is_none()));
+        let MetricsEvent::Final(f) = MetricsEvent::from_line(LINES[7]).unwrap() else {
+            panic!();
+        };
+        assert_eq!(f.interior.ssim, Some(0.71875));
+        assert_eq!(f.whole.and_then(|w| w.ssim), Some(0.6875));
         let MetricsEvent::Eval(e) = MetricsEvent::from_line(LINES[0]).unwrap() else {
             panic!();
         };
@@ -408,6 +432,7 @@ mod tests {
                 psnr: f64::NAN,
                 depth_mae: Some(f64::NAN),
                 feature_cosine: None,
+                ssim: None,
                 pixels: 4,
             },
             whole: None,

@@ -98,6 +98,10 @@ pub fn result_files(dir: &Path) -> Vec<String> {
         (run.metrics(), "metrics.jsonl"),
         (dir.join("training_curve.png"), "training_curve.png"),
         (run.renders(), "renders/"),
+        (
+            run.renders().join(crate::view_eval::CONTACT_SHEET),
+            "renders/heldout.png",
+        ),
         (run.weights(), "model.bpk"),
         (run.occupancy(), "occupancy.bin"),
     ]

@@ -670,7 +670,7 @@ async function pollRender(job) {
     const s = await getJSON(`/api/render/${job}`);
     if (!app.render || app.render.job !== job) return;
     $('render-progress').value = Number(s.progress) || 0;
-    if (s.state === 'done') { await showRender(job, s.images || ['rgb', 'depth']); return; }
+    if (s.state === 'done') { await showRender(job, s.images || ['rgb', 'depth'], s.depth_caption); return; }
     if (s.state === 'failed') throw new Error(s.error || 'the render failed');
     if (s.state === 'cancelled') { setStatus('render cancelled'); $('render-cancel').disabled = true; return; }
     setStatus(`rendering… ${Math.round(100 * (Number(s.progress) || 0))}%`);
@@ -689,15 +689,21 @@ function loadImage(img, url) {
   });
 }
 
-async function showRender(job, images) {
+async function showRender(job, images, depthCaption) {
   const url = (name) => `/api/render/${job}/${name}.png`;
   const hasRel = images.includes('relevancy');
   const loads = [loadImage($('render-rgb'), url('rgb')), loadImage($('render-depth'), url('depth'))];
+  const hasOpacity = images.includes('opacity');
+  if (hasOpacity) loads.push(loadImage($('render-opacity'), url('opacity')));
   if (hasRel) loads.push(loadImage($('render-relevancy'), url('relevancy')));
   else $('render-relevancy').removeAttribute('src');
   await Promise.all(loads);
   if (!app.render || app.render.job !== job) return;
   $('render-relevancy-figure').hidden = !hasRel;
+  $('render-opacity-figure').hidden = !hasOpacity;
+  // The depth image's range and units (a robust range: 2nd to 98th percentile).
+  $('render-depth-caption').textContent = depthCaption ? `depth: ${depthCaption}` : 'depth';
+  $('render-depth-caption').title = depthCaption || '';
   $('render-panel').hidden = false;
   $('render-info').textContent = `${$('render-rgb').naturalWidth}×${$('render-rgb').naturalHeight}`;
   $('render-cancel').disabled = true;

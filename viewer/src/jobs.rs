@@ -13,7 +13,8 @@ use model::geometry::{Camera, Distortion, Intrinsics, Pose};
 use crate::ViewerError;
 use crate::query::{QueryRequest, resolve, score_points, scores};
 use crate::state::Viewer;
-use field_ops::colormap::{to_u8, turbo};
+use field_ops::depth_image::{DepthQuantity, DepthScale};
+use field_ops::images::ViewImages;
 use field_ops::query::{RelevancyScale, relevancy_overlay};
 use field_ops::render::{ViewSettings, render_view};
 
@@ -130,6 +131,7 @@ pub struct Job {
     cancel: AtomicBool,
     progress: AtomicU32,
     images: Mutex<Vec<(String, Vec<u8>)>>,
+    depth_scale: Mutex<Option<DepthScale>>,
 }
 
 /// A job's state as the API reports it.
@@ -143,20 +145,31 @@ pub struct JobStatus {
     pub progress: f32,
     /// Why it failed.
     pub error: Option<String>,
-    /// Names of the finished images (`rgb`, `depth`, `relevancy`).
+    /// Names of the finished images (`rgb`, `depth`, `opacity`, `relevancy`).
     pub images: Vec<String>,
+    /// What the depth image's colours stand for, once it is finished.
+    pub depth_scale: Option<DepthScale>,
+    /// The depth scale in one line, for a caption.
+    pub depth_caption: Option<String>,
 }
 
 impl Job {
     /// Its state, progress and images' names.
     pub fn status(&self) -> JobStatus {
         let (state, error) = self.state.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let depth_scale = self
+            .depth_scale
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
         JobStatus {
             job: self.id,
             state,
             progress: f32::from_bits(self.progress.load(Ordering::Relaxed)),
             error,
             images: self.image_names(),
+            depth_caption: depth_scale.as_ref().map(|d| d.caption()),
+            depth_scale,
         }
     }
 
@@ -230,6 +243,7 @@ impl Jobs {
             cancel: AtomicBool::new(false),
             progress: AtomicU32::new(0),
             images: Mutex::new(Vec::new()),
+            depth_scale: Mutex::new(None),
         });
         t.recent.push_back(job.clone());
         while t.recent.len() > KEPT && t.recent.front().is_some_and(|j| j.finished()) {
@@ -313,12 +327,12 @@ fn render(viewer: &Viewer, job: &Job) -> Result<bool, ViewerError> {
         return Ok(false);
     };
     let (w, h) = (v.width, v.height);
-    let rgb: Vec<u8> = v.rgb.iter().map(|&x| to_u8(x)).collect();
-    let mut images = vec![("rgb".to_string(), png(w, h, &rgb)?)];
-    images.push((
-        "depth".to_string(),
-        png(w, h, &depth_colours(&v.depth, &v.acc))?,
-    ));
+    let pictures = ViewImages::of(&v, DepthQuantity::of(&field.model));
+    let mut images = vec![
+        ("rgb".to_string(), png(w, h, &pictures.rgb)?),
+        ("depth".to_string(), png(w, h, &pictures.depth)?),
+        ("opacity".to_string(), png(w, h, &pictures.opacity)?),
+    ];
     if let Some((q, on_points)) = query {
         let s = scores(&v.feature, &q, d.meta.pca.as_ref())?;
         // The points' scale: the image and the cloud share one colour bar.
@@ -330,28 +344,8 @@ fn render(viewer: &Viewer, job: &Job) -> Result<bool, ViewerError> {
         images.push(("relevancy".to_string(), png(w, h, &overlay)?));
     }
     *job.images.lock().unwrap_or_else(|e| e.into_inner()) = images;
+    *job.depth_scale.lock().unwrap_or_else(|e| e.into_inner()) = Some(pictures.depth_scale);
     Ok(!job.cancel.load(Ordering::Relaxed))
-}
-
-/// Turbo colours of depth over the pixels the field fills (opacity above
-/// 0.5), near blue to far red; black elsewhere.
-pub fn depth_colours(depth: &[f32], acc: &[f32]) -> Vec<u8> {
-    let solid = |i: usize| acc[i] > 0.5 && depth[i].is_finite();
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for i in (0..depth.len()).filter(|&i| solid(i)) {
-        lo = lo.min(depth[i]);
-        hi = hi.max(depth[i]);
-    }
-    let span = (hi - lo).max(1e-6);
-    (0..depth.len())
-        .flat_map(|i| {
-            if solid(i) {
-                turbo((depth[i] - lo) / span).map(to_u8)
-            } else {
-                [0; 3]
-            }
-        })
-        .collect()
 }
 
 /// PNG bytes of an RGB8 image.

@@ -410,7 +410,21 @@ fn renders_equal_the_field_rendered_directly_and_can_be_cancelled() {
     assert_eq!(st["state"], "done", "{st}");
     assert_eq!(
         st["images"],
-        serde_json::json!(["rgb", "depth", "relevancy"])
+        serde_json::json!(["rgb", "depth", "opacity", "relevancy"])
+    );
+    // The depth image comes with its scale: what its colours stand for.
+    let scale = &st["depth_scale"];
+    assert_eq!(scale["quantity"], "depth", "{st}");
+    assert_eq!(scale["units"], "m", "{st}");
+    let (lo, hi) = (
+        scale["lo"].as_f64().expect("lo"),
+        scale["hi"].as_f64().expect("hi"),
+    );
+    assert!(lo.is_finite() && lo <= hi, "{st}");
+    let caption = st["depth_caption"].as_str().expect("caption");
+    assert!(
+        caption.contains("near (red)") && caption.contains(" m "),
+        "{caption}"
     );
     let (status, ty, png) = call(addr, "GET", &format!("/api/render/{job}/rgb.png"), b"");
     assert_eq!((status, ty.as_str()), (200, "image/png"));

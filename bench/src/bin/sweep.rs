@@ -158,6 +158,7 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
         peak_memory_bytes: s.peak_memory_bytes,
         psnr_interior: s.heldout_interior.psnr,
         psnr_whole: s.heldout_whole.map(|m| m.psnr),
+        ssim_interior: s.heldout_interior.ssim,
         depth_mae: s.heldout_interior.depth_mae,
         miou,
         miou_tail,

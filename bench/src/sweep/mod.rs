@@ -138,6 +138,11 @@ pub struct SweepResult {
     /// Held-out PSNR over every pixel of the held-out views (`None` where
     /// they were not rendered in full).
     pub psnr_whole: Option<f64>,
+    /// Held-out SSIM over the interior pixels of the held-out views (`None`
+    /// where they were not rendered in full, and in sweeps written before
+    /// it was recorded).
+    #[serde(default)]
+    pub ssim_interior: Option<f64>,
     /// Held-out depth MAE (metres), where the scene has depth.
     pub depth_mae: Option<f64>,
     /// Hybrid 3D segmentation mIoU over all classes (percent), when measured.

@@ -9,7 +9,8 @@ use plotters::prelude::*;
 use super::{SweepResult, pareto};
 
 /// Writes `sweep.csv`, `sweep.json`, `psnr_vs_seconds.png` and, when any
-/// point has a segmentation score, `miou_vs_seconds.png` into `dir`.
+/// point has an SSIM or a segmentation score, `ssim_vs_seconds.png` and
+/// `miou_vs_seconds.png` into `dir`.
 pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
     let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
     let psnr: Vec<(f64, f64)> = results
@@ -17,6 +18,11 @@ pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
         .map(|r| (r.train_seconds, r.psnr_interior))
         .collect();
     let psnr_front = pareto(&psnr);
+    let ssim: Vec<(f64, f64)> = results
+        .iter()
+        .map(|r| (r.train_seconds, r.ssim_interior.unwrap_or(f64::NAN)))
+        .collect();
+    let ssim_front = pareto(&ssim);
     let miou: Vec<(f64, f64)> = results
         .iter()
         .map(|r| (r.train_seconds, r.miou.unwrap_or(f64::NAN)))
@@ -25,11 +31,11 @@ pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
     let opt = |x: Option<f64>| x.map_or(String::new(), |v| format!("{v:.4}"));
     let mut csv = String::from(
         "point,flags,budget_s,train_seconds,wall_seconds,iterations,rays_per_second,peak_memory_mb,psnr_interior,\
-         psnr_whole,depth_mae,miou,miou_tail,pareto_psnr,pareto_miou\n",
+         psnr_whole,ssim_interior,depth_mae,miou,miou_tail,pareto_psnr,pareto_ssim,pareto_miou\n",
     );
     for (i, r) in results.iter().enumerate() {
         csv.push_str(&format!(
-            "{},{},{},{:.2},{:.2},{},{:.1},{},{:.4},{},{},{},{},{},{}\n",
+            "{},{},{},{:.2},{:.2},{},{:.1},{},{:.4},{},{},{},{},{},{},{},{}\n",
             r.point.name,
             r.point.flags.join(" "),
             r.point.budget,
@@ -41,10 +47,12 @@ pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
                 .map_or(String::new(), |b| format!("{:.1}", b as f64 / 1e6)),
             r.psnr_interior,
             opt(r.psnr_whole),
+            opt(r.ssim_interior),
             opt(r.depth_mae),
             opt(r.miou),
             opt(r.miou_tail),
             psnr_front.contains(&i),
+            ssim_front.contains(&i),
             miou_front.contains(&i),
         ));
     }
@@ -52,9 +60,11 @@ pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
     std::fs::write(&path, csv).map_err(|e| io(&path, e))?;
     let json = serde_json::json!({
         "psnr_measured_on": "every held-out view rendered in full, interior pixels",
+        "ssim_measured_on": "every held-out view rendered in full, interior window centres, mean over views",
         "miou": "hybrid 3D segmentation of the scene's labelled points, percent",
         "points": results,
         "pareto_psnr": psnr_front.iter().map(|&i| &results[i].point.name).collect::<Vec<_>>(),
+        "pareto_ssim": ssim_front.iter().map(|&i| &results[i].point.name).collect::<Vec<_>>(),
         "pareto_miou": miou_front.iter().map(|&i| &results[i].point.name).collect::<Vec<_>>(),
     });
     let path = dir.join("sweep.json");
@@ -73,6 +83,16 @@ pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
         &names,
         &psnr_front,
     )?;
+    if !ssim_front.is_empty() {
+        scatter(
+            &dir.join("ssim_vs_seconds.png"),
+            "held-out SSIM (interior pixels) against seconds; marker area = peak memory",
+            &ssim,
+            &memory,
+            &names,
+            &ssim_front,
+        )?;
+    }
     if !miou_front.is_empty() {
         scatter(
             &dir.join("miou_vs_seconds.png"),

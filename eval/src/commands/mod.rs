@@ -4,6 +4,7 @@
 pub mod common;
 pub mod extract;
 pub mod gather;
+pub mod photographs;
 pub mod proposals;
 pub mod query;
 pub mod render;

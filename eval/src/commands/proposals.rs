@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use datasets::Scene;
 use field_ops::OpsError;
+use field_ops::depth_image::DepthQuantity;
 use field_ops::images::save_view_pngs;
 use field_ops::novel::cameras::{mean_centre, scene_up};
 use field_ops::novel::guided::{FieldProbe, GuidedProposals, ProposalOptions, guided_proposals};
@@ -137,7 +138,13 @@ pub fn write_proposals(
         let settings = ViewSettings::new(run.meta.background, 4096);
         let view = render_view(&run.model, &cam, &run.meta.scene_box, &settings)
             .expect("never cancelled without an observer");
-        written.extend(save_view_pngs(&view, &previews, &format!("novel_{i:03}"))?);
+        let depth = DepthQuantity::of(&run.model);
+        written.extend(save_view_pngs(
+            &view,
+            &previews,
+            &format!("novel_{i:03}"),
+            depth,
+        )?);
     }
     Ok(written)
 }

@@ -4,15 +4,17 @@
 use std::path::{Path, PathBuf};
 
 use super::common::{Context, evenly, select_cameras};
+use super::photographs::Photographs;
 use crate::checks::{at_least_one, invalid, max_views};
 
 use crate::cameras::{NamedCamera, camera_path, resized};
-use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
 use field_ops::backend::BackendArgs;
+use field_ops::depth_image::{DepthQuantity, DepthScale};
 use field_ops::frame::{FrameArgs, OutputFrame};
-use field_ops::images::save_view_pngs;
+use field_ops::images::ViewImages;
 use field_ops::render::{ViewSettings, render_view};
+use field_ops::strips::PHOTOGRAPH_FILTER;
 use model::Termination;
 
 /// Arguments of `render` and the camera part of `query`.
@@ -104,8 +106,10 @@ pub fn render_cameras(args: &RenderArgs, ctx: &Context) -> Result<Vec<NamedCamer
     })
 }
 
-/// Runs `render`: colour, depth and feature-PCA PNGs per camera, and
-/// `cameras.json` with their poses. Returns the written files.
+/// Runs `render`: colour, depth (with its scale as JSON), opacity and
+/// feature-PCA PNGs per camera, `cameras.json` with their poses, and for
+/// scene frames a strip beside the photograph, the contact sheet and
+/// `render_metrics.json` (PSNR, SSIM). Returns the written files.
 pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
     check(args)?;
     let device = args.compute.device();
@@ -119,7 +123,8 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
     let mut written = vec![write_cameras(&out, &cams, &frame, &args.frame.frame)?];
     let mut animation = Vec::new();
     let bar = field_ops::progress::progress(cams.len(), "rendering");
-    let mut errors = Vec::new();
+    let mut photographs = Photographs::default();
+    let depth = DepthQuantity::of(&ctx.run.model);
     let (start, mut rays, mut samples) = (std::time::Instant::now(), 0usize, 0usize);
     for c in &cams {
         let m = &ctx.run.meta;
@@ -128,32 +133,29 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
             .expect("never cancelled without an observer");
         rays += v.pixels();
         samples += v.samples_evaluated;
-        written.extend(save_view_pngs(&v, &out, &c.name)?);
-        // A scene frame rendered at its own size is shown next to its
-        // ground truth and the error between them.
+        let images = ViewImages::of(&v, depth);
+        written.extend(images.save(&out, &c.name)?);
+        // A scene frame is shown next to its photograph (resized to the
+        // render) and scored against it.
         let truth = ctx
             .scene
             .as_ref()
             .and_then(|s| s.frames.iter().find(|f| f.name == c.name));
-        if let Some(mse) = truth.and_then(|f| crate::figures::rgb_mse(&f.rgb, &v)) {
-            errors.push(mse);
+        if let Some(f) = truth {
+            let score = photographs.add(&c.name, &f.rgb, &v, &images.depth, &out, &mut written)?;
+            let ssim = score.ssim.map(|s| format!(", SSIM {s:.4}"));
             field_ops::progress::note(
                 &bar,
-                format!("{}: PSNR {:.3} dB", c.name, field_ops::metrics::psnr(mse)),
+                format!(
+                    "{}: PSNR {:.3} dB{}",
+                    c.name,
+                    score.psnr,
+                    ssim.unwrap_or_default()
+                ),
             );
-        }
-        if let Some((w, h, px)) = truth.and_then(|f| crate::figures::comparison(&f.rgb, &v)) {
-            let path = out.join(format!("{}_compare.png", c.name));
-            save_rgb8(&path, w, h, &px)?;
-            written.push(path);
         }
         if args.camera_path.is_some() {
-            animation.push(
-                v.rgb
-                    .iter()
-                    .map(|&x| field_ops::colormap::to_u8(x))
-                    .collect(),
-            );
+            animation.push((images.rgb, v.depth, v.acc));
         }
         bar.inc(1);
         field_ops::progress::note(&bar, format!("rendered {}", c.name));
@@ -168,21 +170,64 @@ pub fn render_command(args: &RenderArgs) -> Result<Vec<PathBuf>, OpsError> {
         samples as f64 / rays.max(1) as f64,
         ctx.run.model.samples_per_ray()
     );
-    if !errors.is_empty() {
-        let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    if let Some((psnr, ssim)) = photographs.means() {
+        let resized = photographs
+            .scores
+            .iter()
+            .any(|s| s.photograph_resized_from.is_some());
         println!(
-            "PSNR against the {} scene frame(s): {:.3} dB (of the mean squared error, every pixel)",
-            errors.len(),
-            field_ops::metrics::psnr(mean)
+            "PSNR against the {} scene frame(s): {psnr:.3} dB (of the mean squared error, every \
+             pixel){}{}",
+            photographs.scores.len(),
+            ssim.map(|s| format!(", SSIM {s:.4} (mean over views)"))
+                .unwrap_or_default(),
+            if resized {
+                format!("; photographs resized to the renders: {PHOTOGRAPH_FILTER}")
+            } else {
+                String::new()
+            }
         );
+        written.extend(photographs.finish(&out, &contact_sheet_name(&args.cameras))?);
     }
     if let Some(first) = cams.first().filter(|_| !animation.is_empty()) {
         let k = first.camera.intrinsics;
-        let path = out.join("path.gif");
-        crate::figures::write_gif(&path, k.width, k.height, &animation, 10)?;
-        written.push(path);
+        written.extend(write_path_gifs(&out, k.width, k.height, &animation, depth)?);
     }
     Ok(written)
+}
+
+/// Writes `path.gif` (colour) and `path_depth.gif` (depth on one scale over
+/// the whole path, so that its colours do not flicker from frame to frame;
+/// the scale in `path_depth.json`) of the camera path's `frames` (colour
+/// bytes, depth and opacity of each). Returns the written paths.
+fn write_path_gifs(
+    out: &Path,
+    width: u32,
+    height: u32,
+    frames: &[(Vec<u8>, Vec<f32>, Vec<f32>)],
+    quantity: DepthQuantity,
+) -> Result<Vec<PathBuf>, OpsError> {
+    let colour: Vec<Vec<u8>> = frames.iter().map(|f| f.0.clone()).collect();
+    let path = out.join("path.gif");
+    crate::figures::write_gif(&path, width, height, &colour, 10)?;
+    let all_depth: Vec<f32> = frames.iter().flat_map(|f| f.1.iter().copied()).collect();
+    let all_acc: Vec<f32> = frames.iter().flat_map(|f| f.2.iter().copied()).collect();
+    let scale = DepthScale::of(&all_depth, &all_acc, quantity);
+    let depth: Vec<Vec<u8>> = frames.iter().map(|f| scale.colours(&f.1, &f.2)).collect();
+    let depth_gif = out.join("path_depth.gif");
+    crate::figures::write_gif(&depth_gif, width, height, &depth, 10)?;
+    let json = out.join("path_depth.json");
+    field_ops::json::write_json(&json, &scale)?;
+    Ok(vec![path, depth_gif, json])
+}
+
+/// The contact sheet's file name for the cameras selected by `--cameras`:
+/// `heldout.png`, `train.png` or `all.png` (`strips.png` for a camera file).
+fn contact_sheet_name(cameras: &str) -> String {
+    match cameras {
+        "heldout" | "train" | "all" => format!("{cameras}.png"),
+        _ => "strips.png".to_string(),
+    }
 }
 
 /// One rendered camera as `cameras.json` lists it.

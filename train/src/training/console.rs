@@ -75,8 +75,9 @@ impl RayRate {
 /// One line of held-out figures for the log.
 pub(super) fn describe(label: &str, m: &EvalMetrics) -> String {
     format!(
-        "{label} psnr {:.2} dB{}{}",
+        "{label} psnr {:.2} dB{}{}{}",
         m.psnr,
+        m.ssim.map(|s| format!(", ssim {s:.3}")).unwrap_or_default(),
         m.depth_mae
             .map(|d| format!(", depth mae {d:.3} m"))
             .unwrap_or_default(),

@@ -73,6 +73,7 @@ pub(super) fn finish(
         iterations: state.iteration,
         heldout_interior: interior,
         heldout_whole: whole,
+        heldout_views: last.views,
         wall_seconds,
         rays_per_second: state.rays_processed as f64 / state.train_seconds.max(1e-9),
         render_rays_per_second: Some(last.rays_per_second),

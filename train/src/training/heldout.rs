@@ -12,7 +12,8 @@ use model::OpenNerf;
 use crate::accuracy::EvalMetrics;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
-use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels, evaluate_views};
+use crate::evaluate::{EvalPixels, eval_pixels, evaluate_pixels};
+use crate::view_eval::{ViewFigures, evaluate_views};
 
 /// The held-out frames and pixels of a session.
 #[derive(Debug, Clone)]
@@ -59,8 +60,9 @@ impl HeldOut {
     }
 
     /// The final figures of `model`: with `render`, the views in full
-    /// (their PNGs written into `renders`), on interior pixels and on every
-    /// pixel; else on the pixel sample only.
+    /// (their pictures, strips and contact sheet written into `renders`),
+    /// on interior pixels, on every pixel and per view; else on the pixel
+    /// sample only.
     pub(super) fn last(
         &self,
         model: &OpenNerf,
@@ -70,7 +72,7 @@ impl HeldOut {
     ) -> Result<FinalEval, TrainError> {
         let valid = model.valid();
         let start = std::time::Instant::now();
-        let (interior, whole, rays) = if render {
+        let (interior, whole, views, rays) = if render {
             let m = evaluate_views(
                 &valid,
                 scene,
@@ -87,14 +89,15 @@ impl HeldOut {
                     k.width as usize * k.height as usize
                 })
                 .sum();
-            (m.interior, Some(m.whole), rays)
+            (m.interior, Some(m.whole), m.views, rays)
         } else {
             let m = evaluate_pixels(&valid, scene, &self.pixels, self.render_chunk);
-            (m, None, self.pixels.rays.len())
+            (m, None, Vec::new(), self.pixels.rays.len())
         };
         Ok(FinalEval {
             interior,
             whole,
+            views,
             rays_per_second: rays as f64 / start.elapsed().as_secs_f64().max(1e-9),
         })
     }
@@ -107,6 +110,8 @@ pub(super) struct FinalEval {
     pub interior: EvalMetrics,
     /// On every pixel (when the views were rendered in full).
     pub whole: Option<EvalMetrics>,
+    /// Per view (when the views were rendered in full).
+    pub views: Vec<ViewFigures>,
     /// Rays rendered per second (the rendering, the metrics and, for the
     /// full views, writing their PNGs).
     pub rays_per_second: f64,

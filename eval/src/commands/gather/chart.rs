@@ -10,10 +10,10 @@ use super::table::SceneRow;
 
 /// The groups drawn and their column in the table.
 const GROUPS: [(&str, usize, RGBColor); 4] = [
-    ("all", 1, RGBColor(60, 60, 60)),
-    ("head", 3, RGBColor(31, 119, 180)),
-    ("common", 5, RGBColor(255, 127, 14)),
-    ("tail", 7, RGBColor(44, 160, 44)),
+    ("all", 2, RGBColor(60, 60, 60)),
+    ("head", 4, RGBColor(31, 119, 180)),
+    ("common", 6, RGBColor(255, 127, 14)),
+    ("tail", 8, RGBColor(44, 160, 44)),
 ];
 
 /// Draws the chart; `Ok(false)` (nothing written) when no scene has

@@ -75,6 +75,9 @@ pub struct RunResult {
     pub iterations: Option<usize>,
     /// Held-out PSNR on interior pixels (from `summary.json`).
     pub psnr: Option<f64>,
+    /// Held-out SSIM on interior pixels (from `summary.json`; runs written
+    /// before it was recorded, or that did not render their views, have none).
+    pub ssim: Option<f64>,
     /// Segmentation scores (from `segmentation.json`).
     pub scores: Option<SegmentationScores>,
 }
@@ -149,6 +152,7 @@ fn read_run(path: &Path, scene: &str, run: &str, seed: Option<u64>) -> RunResult
         status: RunStatus::NotStarted,
         iterations: None,
         psnr: None,
+        ssim: None,
         scores: None,
     };
     if !path.is_dir() {
@@ -192,12 +196,13 @@ fn read_run(path: &Path, scene: &str, run: &str, seed: Option<u64>) -> RunResult
     result
 }
 
-/// Reads PSNR and iterations from `summary.json`, and the scores from
+/// Reads PSNR, SSIM and iterations from `summary.json`, and the scores from
 /// `segmentation.json` when it exists.
 fn read_figures(summary: &Path, segmentation: &Path, out: &mut RunResult) -> Result<(), String> {
     let s: serde_json::Value = field_ops::json::read_json(summary).map_err(|e| e.to_string())?;
     out.iterations = s["iterations"].as_u64().map(|i| i as usize);
     out.psnr = s["heldout_interior"]["psnr"].as_f64();
+    out.ssim = s["heldout_interior"]["ssim"].as_f64();
     if out.psnr.is_none() {
         return Err(format!("{}: no heldout_interior.psnr", summary.display()));
     }

@@ -49,10 +49,11 @@ impl Stat {
     }
 }
 
-/// The table's columns: held-out PSNR, then mIoU and mAcc of each class
-/// group.
-pub const COLUMNS: [&str; 9] = [
+/// The table's columns: held-out PSNR and SSIM, then mIoU and mAcc of each
+/// class group.
+pub const COLUMNS: [&str; 10] = [
     "psnr",
+    "ssim",
     "miou",
     "macc",
     "head_miou",
@@ -66,26 +67,29 @@ pub const COLUMNS: [&str; 9] = [
 /// A run's value in column `c` of `COLUMNS` (segmentation scores in
 /// percent).
 fn value(r: &RunResult, c: usize) -> Option<f64> {
-    if c == 0 {
-        return r.psnr;
+    match c {
+        0 => return r.psnr,
+        1 => return r.ssim,
+        _ => {}
     }
     let s: &SegmentationScores = r.scores.as_ref()?;
-    let group: Option<&GroupScore> = match (c - 1) / 2 {
+    let group: Option<&GroupScore> = match (c - 2) / 2 {
         0 => Some(&s.all),
         1 => s.head.as_ref(),
         2 => s.common.as_ref(),
         _ => s.tail.as_ref(),
     };
     let g = group?;
-    let v = if c % 2 == 1 { g.miou } else { g.macc };
+    let v = if c.is_multiple_of(2) { g.miou } else { g.macc };
     v.map(|x| 100.0 * x)
 }
 
 /// A runs' table row: a statistic per column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Row {
-    /// One per column of the table: PSNR, then mIoU and mAcc of all, head, common and tail classes.
-    pub stats: [Option<Stat>; 9],
+    /// One per column of the table: PSNR, SSIM, then mIoU and mAcc of all,
+    /// head, common and tail classes.
+    pub stats: [Option<Stat>; 10],
 }
 
 /// A scene's row.
@@ -151,21 +155,22 @@ pub fn markdown(rows: &[SceneRow], runs: &[RunResult]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "Held-out PSNR (dB, interior pixels) and 3D segmentation (%), mean ± std over each \
-         scene's runs; the last row is the mean over scenes ± std across them.\n"
+        "Held-out PSNR (dB) and SSIM (interior pixels; SSIM from runs that rendered their \
+         held-out views in full) and 3D segmentation (%), mean ± std over each scene's runs; \
+         the last row is the mean over scenes ± std across them.\n"
     );
     let _ = writeln!(
         s,
-        "| scene | runs | PSNR | mIoU | mAcc | head mIoU | head mAcc | common mIoU | common mAcc | tail mIoU | tail mAcc |"
+        "| scene | runs | PSNR | SSIM | mIoU | mAcc | head mIoU | head mAcc | common mIoU | common mAcc | tail mIoU | tail mAcc |"
     );
-    let _ = writeln!(s, "|---|---|{}", "---|".repeat(9));
+    let _ = writeln!(s, "|---|---|{}", "---|".repeat(COLUMNS.len()));
     for r in rows {
         let cells: Vec<String> = r
             .row
             .stats
             .iter()
             .enumerate()
-            .map(|(c, v)| Stat::cell(*v, if c == 0 { 2 } else { 1 }))
+            .map(|(c, v)| Stat::cell(*v, [2, 3].get(c).copied().unwrap_or(1)))
             .collect();
         let name = if r.scene == "mean" {
             "**mean**".to_string()
@@ -262,6 +267,46 @@ mod tests {
         assert!((s.std - (7.0f64 / 3.0).sqrt()).abs() < 1e-12);
         assert_eq!(Stat::of(&[5.0]).unwrap().std, 0.0);
         assert!(Stat::of(&[]).is_none());
+    }
+
+    #[test]
+    fn ssim_has_its_column_beside_psnr_in_every_table() {
+        let run = |name: &str, psnr: f64, ssim: Option<f64>| RunResult {
+            scene: "room".into(),
+            run: name.into(),
+            seed: None,
+            status: RunStatus::NotSegmented,
+            iterations: Some(10),
+            psnr: Some(psnr),
+            ssim,
+            scores: None,
+        };
+        let runs = [
+            run("a", 20.0, Some(0.5)),
+            run("b", 22.0, Some(0.75)),
+            run("old", 21.0, None),
+        ];
+        let rows = scene_rows(&runs);
+        let ssim = rows[0].row.stats[1].unwrap();
+        assert_eq!((ssim.mean, ssim.n), (0.625, 2));
+        let md = markdown(&rows, &runs);
+        assert!(md.contains("| PSNR | SSIM | mIoU |"), "{md}");
+        assert!(
+            md.contains("| room | 3/3 | 21.00 ± 1.00 | 0.625 ± 0.177 | - |"),
+            "{md}"
+        );
+        let csv = runs_csv(&runs);
+        assert!(
+            csv.starts_with("scene,run,seed,status,iterations,psnr,ssim,miou,"),
+            "{csv}"
+        );
+        assert!(csv.contains(",20.000000,0.500000,,"), "{csv}");
+        assert!(csv.contains(",21.000000,,,"), "{csv}");
+        let scenes = scenes_csv(&rows);
+        assert!(
+            scenes.contains("psnr_mean,psnr_std,ssim_mean,ssim_std,miou_mean"),
+            "{scenes}"
+        );
     }
 
     #[test]

@@ -1,0 +1,206 @@
+//! Pictures that put a render beside what it should show: for a held-out
+//! photograph, `photograph | render | absolute error | depth` at the
+//! render's size (a strip), and all strips of a run stacked small (a
+//! contact sheet).
+
+use datasets::RgbImage;
+use image::imageops::FilterType;
+use image::{ImageBuffer, Rgb, Rgb32FImage, RgbImage as Rgb8Image};
+
+use crate::colormap::{to_u8, turbo};
+use crate::render::RenderedView;
+
+/// Mean absolute colour error mapped to the top of the error colour scale.
+/// Fixed (not per image) so that error images of different views compare.
+pub const ERROR_SCALE_MAX: f32 = 0.25;
+
+/// How a photograph is brought to a render's size: the `image` crate's
+/// triangle (bilinear) filter, widened to the scale when shrinking so that
+/// every source pixel counts.
+pub const PHOTOGRAPH_FILTER: &str = "triangle (bilinear, widened to the scale when shrinking)";
+
+/// Height in pixels of a strip on the contact sheet.
+pub const SHEET_ROW_HEIGHT: u32 = 120;
+
+/// An RGB8 picture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Picture {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `height * width * 3` bytes, row-major.
+    pub rgb: Vec<u8>,
+}
+
+/// `photo` at `width x height` ([`PHOTOGRAPH_FILTER`]); the photograph
+/// itself when it already has that size.
+pub fn resized_photograph(photo: &RgbImage, width: u32, height: u32) -> RgbImage {
+    if (photo.width, photo.height) == (width, height) {
+        return photo.clone();
+    }
+    let Some(img) = Rgb32FImage::from_raw(photo.width, photo.height, photo.data.clone()) else {
+        return photo.clone();
+    };
+    let out = image::imageops::resize(&img, width, height, FilterType::Triangle);
+    RgbImage {
+        width,
+        height,
+        data: out.into_raw(),
+    }
+}
+
+/// `photo | render | error | depth` side by side (`4 * width` wide): the
+/// error is the mean absolute difference over the three channels,
+/// Turbo-coloured from 0 to [`ERROR_SCALE_MAX`]; `depth` is the view's
+/// coloured depth (`3 * width * height` bytes). `None` when the sizes differ.
+pub fn strip(photo: &RgbImage, view: &RenderedView, depth: &[u8]) -> Option<Picture> {
+    let (w, h) = (view.width as usize, view.height as usize);
+    if (photo.width, photo.height) != (view.width, view.height)
+        || photo.data.len() != 3 * w * h
+        || view.rgb.len() != 3 * w * h
+        || depth.len() != 3 * w * h
+    {
+        return None;
+    }
+    let mut out = Vec::with_capacity(12 * w * h);
+    for y in 0..h {
+        let row = 3 * y * w..3 * (y + 1) * w;
+        let (g, r) = (&photo.data[row.clone()], &view.rgb[row.clone()]);
+        out.extend(g.iter().map(|&v| to_u8(v)));
+        out.extend(r.iter().map(|&v| to_u8(v)));
+        for x in 0..w {
+            let e = (0..3)
+                .map(|c| (g[3 * x + c] - r[3 * x + c]).abs())
+                .sum::<f32>()
+                / 3.0;
+            out.extend(turbo(e / ERROR_SCALE_MAX).map(to_u8));
+        }
+        out.extend_from_slice(&depth[row]);
+    }
+    Some(Picture {
+        width: 4 * view.width,
+        height: view.height,
+        rgb: out,
+    })
+}
+
+/// `strips` stacked top to bottom, each scaled to `row_height` pixels high
+/// ([`PHOTOGRAPH_FILTER`]), with a 2-pixel black gap between them; narrower
+/// rows are padded black on the right. `None` without strips.
+pub fn contact_sheet(strips: &[Picture], row_height: u32) -> Option<Picture> {
+    let gap = 2u32;
+    let rows: Vec<Rgb8Image> = strips
+        .iter()
+        .filter_map(|s| {
+            let img: Rgb8Image = ImageBuffer::from_raw(s.width, s.height, s.rgb.clone())?;
+            let w = ((s.width as f64 * row_height as f64 / s.height as f64).round() as u32).max(1);
+            Some(image::imageops::resize(
+                &img,
+                w,
+                row_height.max(1),
+                FilterType::Triangle,
+            ))
+        })
+        .collect();
+    let width = rows.iter().map(|r| r.width()).max()?;
+    let height = rows.iter().map(|r| r.height() + gap).sum::<u32>() - gap;
+    let mut sheet = Rgb8Image::from_pixel(width, height, Rgb([0, 0, 0]));
+    let mut y = 0;
+    for r in &rows {
+        image::imageops::replace(&mut sheet, r, 0, y as i64);
+        y += r.height() + gap;
+    }
+    Some(Picture {
+        width,
+        height,
+        rgb: sheet.into_raw(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn view(w: u32, h: u32, v: f32) -> RenderedView {
+        RenderedView {
+            width: w,
+            height: h,
+            rgb: vec![v; (3 * w * h) as usize],
+            depth: vec![1.0; (w * h) as usize],
+            acc: vec![1.0; (w * h) as usize],
+            ..RenderedView::default()
+        }
+    }
+
+    fn photo(w: u32, h: u32, v: f32) -> RgbImage {
+        RgbImage {
+            width: w,
+            height: h,
+            data: vec![v; (3 * w * h) as usize],
+        }
+    }
+
+    #[test]
+    fn a_strip_puts_photograph_render_error_and_depth_side_by_side() {
+        let depth = vec![7u8; 24];
+        let s = strip(&photo(4, 2, 0.5), &view(4, 2, 0.5), &depth).unwrap();
+        assert_eq!((s.width, s.height, s.rgb.len()), (16, 2, 96));
+        let px = |x: usize| &s.rgb[3 * x..3 * x + 3];
+        assert_eq!(px(0), [128; 3]);
+        assert_eq!(px(4), [128; 3]);
+        // Zero error: the error panel shows the bottom of the scale.
+        assert_eq!(px(8), turbo(0.0).map(to_u8));
+        assert_eq!(px(12), [7; 3]);
+        let s = strip(&photo(4, 2, 0.5), &view(4, 2, 0.75), &depth).unwrap();
+        assert_eq!(&s.rgb[24..27], &turbo(1.0).map(to_u8));
+        assert!(strip(&photo(3, 2, 0.5), &view(4, 2, 0.5), &depth).is_none());
+        assert!(strip(&photo(4, 2, 0.5), &view(4, 2, 0.5), &depth[3..]).is_none());
+    }
+
+    #[test]
+    fn a_photograph_shrinks_to_the_render_size_keeping_its_mean() {
+        // Columns alternating 0 and 1: halved, every pixel averages both.
+        let (w, h) = (8u32, 4u32);
+        let data = (0..w * h)
+            .flat_map(|p| [(p % 2) as f32; 3])
+            .collect::<Vec<f32>>();
+        let p = RgbImage {
+            width: w,
+            height: h,
+            data,
+        };
+        let small = resized_photograph(&p, 4, 2);
+        assert_eq!((small.width, small.height, small.data.len()), (4, 2, 24));
+        for v in &small.data {
+            assert!((v - 0.5).abs() < 0.2, "{v}");
+        }
+        let mean = small.data.iter().sum::<f32>() / 24.0;
+        assert!((mean - 0.5).abs() < 0.05, "{mean}");
+        assert_eq!(resized_photograph(&p, 8, 4), p);
+    }
+
+    #[test]
+    fn the_contact_sheet_stacks_every_strip_at_one_height() {
+        let a = Picture {
+            width: 40,
+            height: 10,
+            rgb: vec![200; 1200],
+        };
+        let b = Picture {
+            width: 20,
+            height: 10,
+            rgb: vec![100; 600],
+        };
+        let sheet = contact_sheet(&[a, b], 5).unwrap();
+        assert_eq!((sheet.width, sheet.height), (20, 12));
+        assert_eq!(sheet.rgb.len(), 3 * 20 * 12);
+        assert_eq!(sheet.rgb[0], 200);
+        // The second row starts after the gap and is padded black on the right.
+        let at = |x: u32, y: u32| sheet.rgb[(3 * (y * 20 + x)) as usize];
+        assert_eq!(at(0, 5), 0);
+        assert_eq!(at(0, 7), 100);
+        assert_eq!(at(15, 7), 0);
+        assert!(contact_sheet(&[], 5).is_none());
+    }
+}
