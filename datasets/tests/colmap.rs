@@ -380,3 +380,37 @@ fn sparse_points_reproject_onto_their_features_through_the_loaded_cameras() {
     assert!(median < 1.0 && p90 < 2.0, "{median} {p90}");
     assert!(ray_median < 1.0, "{ray_median}");
 }
+
+/// The cup capture: 77 photographs at 800 x 600, each with a camera of its
+/// own (SIMPLE_PINHOLE), the model in `sparse/0`: every photograph loads
+/// with its own focal length, and the cameras look at what the sparse
+/// points hold.
+#[test]
+fn the_cup_loads_with_a_camera_per_photograph() {
+    let Some(dir) = datasets::shared_dataset("colmap_cup") else {
+        return;
+    };
+    let s = load_colmap(&dir, &ColmapOptions::default()).expect("the cup loads");
+    assert_eq!(s.frames.len(), 77);
+    let model = read_model(&dir.join("sparse/0")).expect("model");
+    assert_eq!(model.cameras.len(), 77, "one camera per image");
+    let mut focals: Vec<f64> = s.frames.iter().map(|f| f.camera.intrinsics.fx).collect();
+    for f in &s.frames {
+        let k = f.camera.intrinsics;
+        assert_eq!((k.width, k.height), (800, 600), "{}", f.name);
+        assert_eq!(
+            k.fx, k.fy,
+            "{}: SIMPLE_PINHOLE has one focal length",
+            f.name
+        );
+        assert_eq!((f.rgb.width, f.rgb.height), (800, 600));
+    }
+    focals.sort_by(f64::total_cmp);
+    focals.dedup();
+    assert!(
+        focals.len() > 1,
+        "the per-image cameras' focal lengths were merged: {focals:?}"
+    );
+    let points = s.points.as_ref().expect("sparse points");
+    assert!(points.positions.len() > 100, "{}", points.positions.len());
+}

@@ -252,6 +252,7 @@ fn detection_recognises_every_shared_scene() {
     };
     let want = [
         ("colmap_statue", Some(Format::Colmap)),
+        ("colmap_cup", Some(Format::Colmap)),
         ("lego_train", Some(Format::Blender)),
         ("llff_fern", Some(Format::Llff)),
         ("replica_room0_20f", Some(Format::Replica)),

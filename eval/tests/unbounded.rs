@@ -41,6 +41,17 @@ fn every_eval_command_runs_on_an_unbounded_run() {
     assert!(out.contains("evaluated of 20"), "{out}");
     let rgb = image::open(tmp.path().join("renders/frame000000_rgb.png")).expect("render");
     assert_eq!((rgb.width(), rgb.height()), (80, 60));
+    // An unbounded field's depth is shown as disparity (one over metres),
+    // near above far.
+    let scale: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("renders/frame000000_depth.json"))
+            .expect("depth scale"),
+    )
+    .expect("json");
+    assert_eq!(scale["quantity"], "disparity", "{scale}");
+    assert_eq!(scale["units"], "1/m", "{scale}");
+    let (near, far) = (scale["near_m"].as_f64(), scale["far_m"].as_f64());
+    assert!(near.zip(far).is_some_and(|(n, f)| n <= f), "{scale}");
     let out = succeeds(&[
         "render",
         "--run",

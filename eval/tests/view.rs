@@ -188,6 +188,13 @@ fn a_real_browser_shows_the_points_answers_a_class_query_and_renders() {
     assert_eq!(result["query_ok"], true, "{result}");
     assert_eq!(result["render_ok"], true, "{result}");
     assert!(result["render_width"].as_u64().unwrap_or(0) > 0, "{result}");
+    // The depth's range and units are shown under it, the opacity beside it.
+    let caption = result["depth_caption"].as_str().unwrap_or("");
+    assert!(
+        caption.starts_with("depth: depth ") && caption.contains(" m "),
+        "{result}"
+    );
+    assert_eq!(result["opacity_width"], result["render_width"], "{result}");
     let points = scene.points.expect("cloud").positions.len();
     assert_eq!(result["points"].as_u64(), Some(points as u64), "{result}");
 

@@ -95,10 +95,12 @@ impl DepthScale {
                 percentile(&values, PERCENTILES[1]),
             ),
         };
+        // Every disparity taken is positive; 0 stands for an image without
+        // an opaque pixel (and keeps the JSON free of infinities).
         let metres = |v: f32| match quantity {
             DepthQuantity::Depth => v,
             DepthQuantity::Disparity if v > 0.0 => 1.0 / v,
-            DepthQuantity::Disparity => f32::INFINITY,
+            DepthQuantity::Disparity => 0.0,
         };
         let (near_m, far_m) = match quantity {
             DepthQuantity::Depth => (metres(lo), metres(hi)),
@@ -236,6 +238,11 @@ mod tests {
         }
         let empty = DepthScale::of(&[], &[], DepthQuantity::Depth);
         assert_eq!((empty.opaque_pixels, empty.lo, empty.hi), (0, 0.0, 0.0));
+        let empty = DepthScale::of(&[1.0], &[0.0], DepthQuantity::Disparity);
+        assert_eq!(
+            (empty.opaque_pixels, empty.near_m, empty.far_m),
+            (0, 0.0, 0.0)
+        );
         assert_eq!(opacity_grey(&[0.0, 1.0]), vec![0, 0, 0, 255, 255, 255]);
     }
 }

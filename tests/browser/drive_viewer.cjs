@@ -77,7 +77,7 @@ async function main() {
 
   const result = {
     console_errors: [], page_errors: [], legend: [], query_ok: false, render_ok: false,
-    render_width: 0, points: 0, steps: [],
+    render_width: 0, depth_caption: '', opacity_width: 0, points: 0, steps: [],
   };
   const page = await browser.newPage({ viewport: { width: 1000, height: 700 } });
   page.on('console', (msg) => { if (msg.type() === 'error') result.console_errors.push(msg.text()); });
@@ -134,6 +134,9 @@ async function main() {
     await done();
     result.render_width = await page.$eval('#render-rgb', (img) => img.naturalWidth);
     if (!(result.render_width > 0)) throw new Error('#render-rgb has no image');
+    // The depth image's scale under it, and the opacity beside it.
+    result.depth_caption = await page.$eval('#render-depth-caption', (c) => c.textContent);
+    result.opacity_width = await page.$eval('#render-opacity', (img) => img.naturalWidth);
     await twoFrames(page);
     await page.screenshot({ path: path.join(args.out, 'page.png'), fullPage: true });
   });

@@ -2,8 +2,9 @@
 //! per ray, trunk width and depth, rays per batch, the occupancy grid, the
 //! time budget, and on feature scenes PCA and the head's top-k), each in
 //! its own process so that its peak memory is its own, and writes
-//! `sweep.{csv,json}` and `psnr_vs_seconds.png` (plus `miou_vs_seconds.png`
-//! on the benchmark synthetic scene) with the Pareto front joined.
+//! `sweep.{csv,json}`, `psnr_vs_seconds.png` and `ssim_vs_seconds.png`
+//! (plus `miou_vs_seconds.png` on the benchmark synthetic scene) with the
+//! Pareto front joined.
 //!
 //! `cargo run -p bench --release --bin sweep -- --scene lego [--budget S]`
 //!

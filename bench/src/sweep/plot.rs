@@ -75,33 +75,35 @@ pub fn write_report(results: &[SweepResult], dir: &Path) -> Result<(), String> {
         .map(|r| r.peak_memory_bytes.unwrap_or(0) as f64 / 1e6)
         .collect();
     let names: Vec<&str> = results.iter().map(|r| r.point.name.as_str()).collect();
-    scatter(
-        &dir.join("psnr_vs_seconds.png"),
-        "held-out PSNR (dB, interior pixels) against seconds; marker area = peak memory",
-        &psnr,
-        &memory,
-        &names,
-        &psnr_front,
-    )?;
-    if !ssim_front.is_empty() {
-        scatter(
-            &dir.join("ssim_vs_seconds.png"),
-            "held-out SSIM (interior pixels) against seconds; marker area = peak memory",
+    // PSNR always; SSIM and mIoU where some point has them.
+    let plots = [
+        (
+            "psnr_vs_seconds.png",
+            "held-out PSNR (dB, interior pixels)",
+            &psnr,
+            &psnr_front,
+            true,
+        ),
+        (
+            "ssim_vs_seconds.png",
+            "held-out SSIM (interior pixels)",
             &ssim,
-            &memory,
-            &names,
             &ssim_front,
-        )?;
-    }
-    if !miou_front.is_empty() {
-        scatter(
-            &dir.join("miou_vs_seconds.png"),
-            "hybrid mIoU (%) against seconds; marker area = peak memory",
+            !ssim_front.is_empty(),
+        ),
+        (
+            "miou_vs_seconds.png",
+            "hybrid mIoU (%)",
             &miou,
-            &memory,
-            &names,
             &miou_front,
-        )?;
+            !miou_front.is_empty(),
+        ),
+    ];
+    for (file, what, points, front, drawn) in plots {
+        if drawn {
+            let caption = format!("{what} against seconds; marker area = peak memory");
+            scatter(&dir.join(file), &caption, points, &memory, &names, front)?;
+        }
     }
     Ok(())
 }
@@ -169,4 +171,64 @@ fn scatter(
             .map_err(|e| e.to_string())?;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sweep::SweepPoint;
+
+    fn result(name: &str, seconds: f64, psnr: f64, ssim: Option<f64>) -> SweepResult {
+        SweepResult {
+            point: SweepPoint {
+                name: name.into(),
+                flags: vec![],
+                budget: seconds,
+            },
+            train_seconds: seconds,
+            wall_seconds: seconds + 1.0,
+            iterations: 10,
+            rays_per_second: 100.0,
+            peak_memory_bytes: Some(1_000_000),
+            psnr_interior: psnr,
+            psnr_whole: None,
+            ssim_interior: ssim,
+            depth_mae: None,
+            miou: None,
+            miou_tail: None,
+        }
+    }
+
+    #[test]
+    fn ssim_has_its_column_and_front_where_points_have_it() {
+        let dir = tempfile::tempdir().unwrap();
+        // `b` is slower and more accurate in PSNR, less in SSIM: it is on the
+        // PSNR front only.
+        let results = [
+            result("a", 10.0, 20.0, Some(0.8)),
+            result("b", 20.0, 22.0, Some(0.7)),
+        ];
+        write_report(&results, dir.path()).unwrap();
+        let csv = std::fs::read_to_string(dir.path().join("sweep.csv")).unwrap();
+        let lines: Vec<&str> = csv.lines().collect();
+        assert!(
+            lines[0].contains(",psnr_whole,ssim_interior,depth_mae,")
+                && lines[0].ends_with(",pareto_psnr,pareto_ssim,pareto_miou"),
+            "{csv}"
+        );
+        assert!(lines[1].ends_with(",0.8000,,,,true,true,false"), "{csv}");
+        assert!(lines[2].ends_with(",0.7000,,,,true,false,false"), "{csv}");
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.path().join("sweep.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["pareto_ssim"], serde_json::json!(["a"]));
+        assert!(dir.path().join("ssim_vs_seconds.png").exists());
+        assert!(!dir.path().join("miou_vs_seconds.png").exists());
+
+        // A sweep without SSIM draws no SSIM front.
+        let old = tempfile::tempdir().unwrap();
+        write_report(&[result("a", 10.0, 20.0, None)], old.path()).unwrap();
+        assert!(old.path().join("psnr_vs_seconds.png").exists());
+        assert!(!old.path().join("ssim_vs_seconds.png").exists());
+    }
 }
