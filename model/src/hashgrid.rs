@@ -5,8 +5,13 @@
 //! vertices than the table has rows. A point's encoding is, per level, the
 //! trilinear interpolation of its cell's eight vertex features.
 //!
-//! Gradients flow to the tables only: the corner indices and trilinear
-//! weights are computed on the host from the (constant) sample positions.
+//! Gradients flow to the tables only: the corner indices (the integer
+//! cell, the spatial hash, the level's offset) and the trilinear weights are
+//! computed from the detached sample positions with tensor ops on the
+//! positions' device, so the encoding reads nothing back to the host; the
+//! table lookup is a gather whose backward is a scatter-add into the
+//! tables. [`HashGrid::corners`] computes the same on the host, the
+//! reference the tests hold the tensor form to.
 
 use burn::config::Config;
 use burn::module::{Module, Param};
@@ -96,6 +101,18 @@ pub struct HashGrid {
     pub half_extent: f32,
 }
 
+/// Whether `device` is one of the CPU backends (flex, ndarray), on which
+/// [`HashGrid::forward`] computes the corners on the host: their tensor
+/// ops write every intermediate to memory, the host loop keeps a point's
+/// eight corners in registers.
+fn corners_on_host(device: &Device) -> bool {
+    // Burn 0.22's `Device` keeps its backend behind an opaque type; its
+    // debug form names it (`Flex(Cpu)`, `NdArray(Cpu)`, `Cube(..)`), also
+    // inside `Autodiff { device: .. }`.
+    let name = format!("{:?}", device.as_dispatch());
+    name.contains("Flex(") || name.contains("NdArray(")
+}
+
 /// Instant-NGP's spatial hash primes.
 const PRIMES: [u32; 3] = [1, 2_654_435_761, 805_459_861];
 
@@ -162,11 +179,142 @@ impl HashGrid {
         (rows, weights)
     }
 
-    /// The encoding of `points`.
+    /// The corner rows and trilinear weights of [`HashGrid::corners`] as
+    /// tensors on the points' device (no read-back): the same rows bit for
+    /// bit and the same weights, from the same f32 operations.
+    ///
+    /// Each axis contributes a lower and an upper term (its vertex
+    /// coordinate times its prime, or times its dense stride; its weight
+    /// `1 - frac` or `frac`), laid along a dimension of its own, so that the
+    /// eight corners come out of broadcast XORs (or sums) and products,
+    /// corner `c` taking axis `k`'s upper term where bit `k` of `c` is set.
+    ///
+    /// # Shapes
+    /// - `points`: `[n, 3]`; outputs: rows `[n * levels * 8]`, weights
+    ///   `[n * levels * 8, 1]`, point-major, then level, then corner.
+    pub fn corner_tensors(&self, points: Tensor<2>) -> (Tensor<1, Int>, Tensor<2>) {
+        let [n, _] = points.dims();
+        let device = points.device();
+        let levels = self.resolutions.len();
+        let level = |values: Vec<f32>| {
+            Tensor::<3>::from_data(TensorData::new(values, [1, levels, 1]), &device)
+        };
+        let res: Vec<f32> = self.resolutions.iter().map(|&r| r as f32).collect();
+        let last: Vec<f32> = res.iter().map(|r| (r - 1.0).max(0.0)).collect();
+        let x = points
+            .detach()
+            .mul_scalar(0.5 / self.half_extent)
+            .add_scalar(0.5)
+            .clamp(0.0, 1.0)
+            .unsqueeze_dim::<3>(1)
+            .mul(level(res));
+        let cell = x
+            .clone()
+            .floor()
+            .min_pair(level(last).expand([n, levels, 3]));
+        let frac = x.sub(cell.clone());
+        let cell = cell.int();
+        // Axis k's pair of terms along dimension 4 - k of [n, levels, 2, 2, 2].
+        let spread = |k: usize| {
+            let mut shape = [n, levels, 1, 1, 1];
+            shape[4 - k] = 2;
+            shape
+        };
+        let weights = (0..3)
+            .map(|k| {
+                let f = frac.clone().narrow(2, k, 1);
+                Tensor::cat(vec![f.clone().neg().add_scalar(1.0), f], 2).reshape(spread(k))
+            })
+            .reduce(|acc, w| acc.mul(w))
+            .expect("three axes");
+        let vertex = |k: usize| {
+            let c = cell.clone().narrow(2, k, 1);
+            Tensor::cat(vec![c.clone(), c.add_scalar(1)], 2).reshape(spread(k))
+        };
+        let rows = self.vertex_rows([vertex(0), vertex(1), vertex(2)], &device);
+        (
+            rows.reshape([n * levels * 8]),
+            weights.reshape([n * levels * 8, 1]),
+        )
+    }
+
+    /// [`vertex_row`] of every corner plus its level's first row, from each
+    /// axis's vertex coordinates (`[n, levels, ..]`, the axis's pair along
+    /// its own dimension): `[n, levels, 2, 2, 2]`. The levels whose grid
+    /// fits its table (the coarse ones, first) index it densely, the rest
+    /// by the hash; each part is computed on its own levels.
+    fn vertex_rows(&self, v: [Tensor<5, Int>; 3], device: &Device) -> Tensor<5, Int> {
+        let levels = self.resolutions.len();
+        let sides: Vec<i64> = self.resolutions.iter().map(|&r| r as i64 + 1).collect();
+        let dense = sides
+            .iter()
+            .take_while(|&&s| (s * s * s) as u64 <= self.rows as u64)
+            .count();
+        let per_level = |range: std::ops::Range<usize>, value: &dyn Fn(usize) -> i64| {
+            let values: Vec<i64> = range.clone().map(value).collect();
+            Tensor::<5, Int>::from_data(TensorData::new(values, [1, range.len(), 1, 1, 1]), device)
+        };
+        let part = |k: usize, range: std::ops::Range<usize>| {
+            v[k].clone().narrow(1, range.start, range.len())
+        };
+        let base = |l: usize| (l * self.rows) as i64;
+        let mut parts = Vec::new();
+        if dense > 0 {
+            let r = 0..dense;
+            let x = part(0, r.clone()).add(per_level(r.clone(), &base));
+            let y = part(1, r.clone()).mul(per_level(r.clone(), &|l| sides[l]));
+            let z = part(2, r.clone()).mul(per_level(r.clone(), &|l| sides[l] * sides[l]));
+            parts.push(z.add(y).add(x));
+        }
+        if dense < levels {
+            let r = dense..levels;
+            let mask = (self.rows - 1) as i64;
+            // The primes as the i32 bit patterns of their u32 values: every
+            // int width keeps the low 32 bits of the product, all the mask
+            // reads. Each term is masked first, and the level's first row
+            // (its bits above the mask's) joins by XOR, which is its sum.
+            let term = |k: usize| {
+                part(k, r.clone())
+                    .mul_scalar(PRIMES[k] as i32 as i64)
+                    .bitwise_and_scalar(mask)
+            };
+            let x = term(0).bitwise_xor(per_level(r.clone(), &base));
+            parts.push(term(2).bitwise_xor(term(1)).bitwise_xor(x));
+        }
+        Tensor::cat(parts, 1)
+    }
+
+    /// The encoding of `points`: its corners computed with tensor ops on
+    /// the points' device ([`HashGrid::corner_tensors`], nothing read back)
+    /// on a GPU backend, and on the host ([`HashGrid::forward_host`]) on the
+    /// CPU backends, where that is the faster form (measured in
+    /// docs/training-step.md).
     ///
     /// # Shapes
     /// - `points`: `[n, 3]`; output: `[n, levels * features]`.
     pub fn forward(&self, points: Tensor<2>) -> Tensor<2> {
+        if corners_on_host(&points.device()) {
+            self.forward_host(points)
+        } else {
+            self.forward_device(points)
+        }
+    }
+
+    /// The encoding of `points` with its corners computed with tensor ops on
+    /// the points' device ([`HashGrid::corner_tensors`]): nothing is read
+    /// back to the host.
+    pub fn forward_device(&self, points: Tensor<2>) -> Tensor<2> {
+        let [n, _] = points.dims();
+        let (ids, w) = self.corner_tensors(points);
+        self.gather(n, ids, w)
+    }
+
+    /// The encoding of `points` with its corners computed on the host
+    /// ([`HashGrid::corners`]): the positions are read back and the rows and
+    /// weights uploaded. The same values as [`HashGrid::forward_device`];
+    /// the faster form on the CPU backends (`bench`'s `hash_encoding` times
+    /// the two side by side).
+    pub fn forward_host(&self, points: Tensor<2>) -> Tensor<2> {
         let [n, _] = points.dims();
         let device = points.device();
         let host: Vec<f32> = points
@@ -175,11 +323,18 @@ impl HashGrid {
             .try_to_vec::<f32>()
             .expect("converted to f32 above");
         let (rows, weights) = self.corners(&host);
+        let count = rows.len();
+        let ids = Tensor::<1, Int>::from_data(TensorData::new(rows, [count]), &device);
+        let w = Tensor::<2>::from_data(TensorData::new(weights, [count, 1]), &device);
+        self.gather(n, ids, w)
+    }
+
+    /// The trilinear sum of the table rows `ids` weighted by `w`, eight
+    /// corners a level: `[n, levels * features]`.
+    fn gather(&self, n: usize, ids: Tensor<1, Int>, w: Tensor<2>) -> Tensor<2> {
         let levels = self.resolutions.len();
         let table = self.table.val();
         let [_, f] = table.dims();
-        let ids = Tensor::<1, Int>::from_data(TensorData::new(rows, [n * levels * 8]), &device);
-        let w = Tensor::<2>::from_data(TensorData::new(weights, [n * levels * 8, 1]), &device);
         let picked = table.select(0, ids).mul(w);
         picked
             .reshape([n * levels, 8, f])

@@ -100,6 +100,74 @@ fn weights_are_a_partition_of_unity_and_rows_stay_in_their_level() {
     }
 }
 
+/// The corners as tensors on the device, against the host's: the same rows
+/// bit for bit and the same weights, on dense and hashed levels, for points
+/// inside, on the faces of and outside the domain.
+#[test]
+fn the_device_corners_are_the_host_corners() {
+    let grid_on = |device: &Device| {
+        HashGridConfig::new()
+            .with_levels(8)
+            .with_log2_table(10)
+            .with_base_resolution(3)
+            .with_max_resolution(2048)
+            .with_half_extent(2.0)
+            .init(device)
+    };
+    let n = 500;
+    let mut pts: Vec<f32> = uniform(3 * n, 21, -2.5, 2.5)
+        .into_iter()
+        .map(|v| v as f32)
+        .collect();
+    // Faces, corners and far outside.
+    pts.extend([
+        2.0, -2.0, 0.0, 2.0, 2.0, 2.0, -2.0, -2.0, -2.0, 1e6, -1e6, 0.5,
+    ]);
+    let n = pts.len() / 3;
+    for (name, device) in devices(true) {
+        let grid = grid_on(&device);
+        let dense = grid
+            .resolutions
+            .iter()
+            .filter(|&&r| ((r + 1) as usize).pow(3) <= grid.rows)
+            .count();
+        assert!(
+            dense > 0 && dense < grid.resolutions.len(),
+            "{name}: both kinds of level"
+        );
+        let (host_rows, host_weights) = grid.corners(&pts);
+        let (rows, weights) = grid.corner_tensors(tensor(pts.clone(), [n, 3], &device));
+        let rows: Vec<i64> = rows
+            .into_data()
+            .convert::<i64>()
+            .try_to_vec::<i64>()
+            .expect("rows as i64");
+        assert_eq!(rows, host_rows, "{name}: rows");
+        assert_close(&vec(weights), &host_weights, 1e-6, 0.0, name);
+        // The encoding itself, in both forms: the host's corners gathered
+        // by hand against each.
+        let points = tensor(pts.clone(), [n, 3], &device);
+        let host_form = vec(grid.forward_host(points.clone()));
+        let enc = vec(grid.forward_device(points.clone()));
+        assert_eq!(enc, host_form, "{name}: the two forms");
+        assert_eq!(vec(grid.forward(points)), enc, "{name}: forward");
+        let table = vec(grid.table.val());
+        let f = grid.table.val().dims()[1];
+        let mut expected = vec![0f32; n * grid.output_dim()];
+        for (i, (r, w)) in host_rows.iter().zip(&host_weights).enumerate() {
+            let (point, level) = (
+                i / (8 * grid.resolutions.len()),
+                (i / 8) % grid.resolutions.len(),
+            );
+            for c in 0..f {
+                expected[point * grid.output_dim() + level * f + c] +=
+                    w * table[*r as usize * f + c];
+            }
+        }
+        assert_close(&enc, &expected, 1e-7, 1e-5, name);
+    }
+}
+
 #[test]
 fn the_gradient_reaches_the_table_as_finite_differences_say() {
     let base = Device::flex();

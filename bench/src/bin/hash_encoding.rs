@@ -1,0 +1,112 @@
+//! The multiresolution hash encoding's two forms side by side, in one run:
+//! the corners computed on the points' device with tensor ops
+//! (`HashGrid::forward_device`, no read-back) and on the host
+//! (`forward_host`:
+//! the positions read back, the rows and weights uploaded), each timed as
+//! one training step's work on the encoding (forward, backward into the
+//! tables), on every backend asked for. The two forms alternate, step by
+//! step, so that a change in the machine's speed falls on both alike.
+//!
+//! `cargo run -p bench --release --bin hash_encoding -- [--points N] [--steps N] [--backend flex,ndarray]`
+
+use std::time::Instant;
+
+use anyhow::Result;
+use burn::tensor::{Device, Distribution, Tensor};
+use clap::Parser;
+use field_ops::backend::BackendListArgs;
+use model::{HashGrid, HashGridConfig};
+
+#[cfg(not(target_env = "msvc"))]
+#[global_allocator]
+static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
+
+/// Options.
+#[derive(Debug, Parser)]
+#[command(
+    name = "hash_encoding",
+    about = "The hash encoding with its corners on the device against on the host"
+)]
+struct Args {
+    /// Points encoded a step [default: 8192, 64 rays x 64 samples x 2
+    /// levels, the COLMAP default's batch].
+    #[arg(long, default_value_t = 8192)]
+    points: usize,
+    /// Timed steps of each form (after one untimed warm-up step each).
+    #[arg(long, default_value_t = 20)]
+    steps: usize,
+    /// Grid levels.
+    #[arg(long, default_value_t = 16)]
+    levels: usize,
+    /// Rows of each level's table, as a power of two.
+    #[arg(long, default_value_t = 15)]
+    log2_table: usize,
+    /// Backends to measure and wgpu's adapter.
+    #[command(flatten)]
+    compute: BackendListArgs,
+}
+
+/// One step of the encoding's work: the encoding of `points`, a weighted
+/// sum as the loss, its gradient into the table (waited for).
+fn step(grid: &HashGrid, points: &Tensor<2>, weights: &Tensor<2>, host: bool) {
+    let enc = if host {
+        grid.forward_host(points.clone())
+    } else {
+        grid.forward_device(points.clone())
+    };
+    let grads = enc.mul(weights.clone()).sum().backward();
+    let g = grid
+        .table
+        .val()
+        .grad(&grads)
+        .expect("the table gets a gradient");
+    g.device().sync().expect("the device finishes its work");
+}
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    field_ops::subnormals::flush_to_zero();
+    args.compute.check().map_err(anyhow::Error::msg)?;
+    if args.points == 0 || args.steps == 0 {
+        anyhow::bail!("--points and --steps take at least 1");
+    }
+    println!(
+        "{} points a step, {} levels of 2^{} rows x 2 features, {} timed steps of each form",
+        args.points, args.levels, args.log2_table, args.steps
+    );
+    println!("backend   device (ms/step)   host (ms/step)   host / device");
+    for &kind in &args.compute.backend {
+        let device: Device = args.compute.of(kind).device().autodiff();
+        device.seed(1);
+        let grid = HashGridConfig::new()
+            .with_levels(args.levels)
+            .with_log2_table(args.log2_table)
+            .init(&device);
+        let points =
+            Tensor::<2>::random([args.points, 3], Distribution::Uniform(-3.0, 3.0), &device);
+        let weights = Tensor::<2>::random(
+            [args.points, grid.output_dim()],
+            Distribution::Uniform(-1.0, 1.0),
+            &device,
+        );
+        step(&grid, &points, &weights, false);
+        step(&grid, &points, &weights, true);
+        let mut seconds = [0.0f64; 2];
+        for _ in 0..args.steps {
+            for (form, host) in [(0, false), (1, true)] {
+                let start = Instant::now();
+                step(&grid, &points, &weights, host);
+                seconds[form] += start.elapsed().as_secs_f64();
+            }
+        }
+        let ms = seconds.map(|s| 1e3 * s / args.steps as f64);
+        println!(
+            "{:<9} {:>17.2}   {:>14.2}   {:>13.2}",
+            kind.name(),
+            ms[0],
+            ms[1],
+            ms[1] / ms[0]
+        );
+    }
+    Ok(())
+}
