@@ -101,18 +101,6 @@ pub struct HashGrid {
     pub half_extent: f32,
 }
 
-/// Whether `device` is one of the CPU backends (flex, ndarray), on which
-/// [`HashGrid::forward`] computes the corners on the host: their tensor
-/// ops write every intermediate to memory, the host loop keeps a point's
-/// eight corners in registers.
-fn corners_on_host(device: &Device) -> bool {
-    // Burn 0.22's `Device` keeps its backend behind an opaque type; its
-    // debug form names it (`Flex(Cpu)`, `NdArray(Cpu)`, `Cube(..)`), also
-    // inside `Autodiff { device: .. }`.
-    let name = format!("{:?}", device.as_dispatch());
-    name.contains("Flex(") || name.contains("NdArray(")
-}
-
 /// Instant-NGP's spatial hash primes.
 const PRIMES: [u32; 3] = [1, 2_654_435_761, 805_459_861];
 
@@ -293,7 +281,7 @@ impl HashGrid {
     /// # Shapes
     /// - `points`: `[n, 3]`; output: `[n, levels * features]`.
     pub fn forward(&self, points: Tensor<2>) -> Tensor<2> {
-        if corners_on_host(&points.device()) {
+        if crate::host_work::is_cpu_backend(&points.device()) {
             self.forward_host(points)
         } else {
             self.forward_device(points)

@@ -81,6 +81,7 @@ pub mod exposure;
 pub mod field;
 pub mod geometry;
 pub mod hashgrid;
+pub mod host_work;
 pub mod loss;
 pub mod mip;
 pub mod nerf;

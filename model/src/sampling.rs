@@ -118,6 +118,18 @@ pub fn sample_pdf(
     num_posts: usize,
     randomized: bool,
 ) -> Tensor<2> {
+    let [rays, _] = weights.dims();
+    let u = pdf_quantiles(rays, num_posts, randomized, &bins.device());
+    sample_pdf_at(bins, weights, u)
+}
+
+/// [`sample_pdf`] at given quantiles `u` (`[rays, num_posts]`, each row
+/// sorted in `[0, 1]`, e.g. [`pdf_quantiles`]).
+///
+/// # Shapes
+/// - `bins`: `[rays, samples + 1]`; `weights`: `[rays, samples]`; `u`:
+///   `[rays, num_posts]`; output: like `u`.
+pub fn sample_pdf_at(bins: Tensor<2>, weights: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
     let device = bins.device();
     let [rays, s] = weights.dims();
     let eps = 1e-5f32;
@@ -133,7 +145,7 @@ pub fn sample_pdf(
     }
     parts.push(Tensor::ones([rays, 1], &device));
     let cdf = Tensor::cat(parts, 1); // [rays, s + 1]
-    let u = pdf_quantiles(rays, num_posts, randomized, &device); // [rays, n]
+    let [_, num_posts] = u.dims();
     // mask[r, j, i] = u_i >= cdf_j: the interval of u_i starts at the last j
     // with the mask set and ends at the first j without it.
     let m = s + 1;

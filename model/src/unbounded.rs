@@ -3,7 +3,7 @@
 //! parameterisation ([`spacing`]), and the proposal (interlevel) and
 //! distortion losses with the proposal-weight helpers ([`stepfun`], and
 //! the dilation and the resampling on the host, [`mod@dilate`],
-//! [`mod@resample`]), and an
+//! [`mod@resample`], and one proposal round in either form, [`rounds`]), and an
 //! unbounded scene's configuration with the ray coordinate `s` ([`scene`]).
 //!
 //! Everything but the configuration is a pure, differentiable function on
@@ -13,6 +13,7 @@
 pub mod contract;
 pub mod dilate;
 pub mod resample;
+pub mod rounds;
 pub mod scene;
 pub mod spacing;
 pub mod stepfun;

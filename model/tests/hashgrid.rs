@@ -151,6 +151,9 @@ fn the_device_corners_are_the_host_corners() {
         let enc = vec(grid.forward_device(points.clone()));
         assert_eq!(enc, host_form, "{name}: the two forms");
         assert_eq!(vec(grid.forward(points)), enc, "{name}: forward");
+        // The CPU backends take the host form, wgpu the device's.
+        let cpu = model::host_work::is_cpu_backend(&device);
+        assert_eq!(cpu, name != "wgpu", "{name}");
         let table = vec(grid.table.val());
         let f = grid.table.val().dims()[1];
         let mut expected = vec![0f32; n * grid.output_dim()];

@@ -125,6 +125,39 @@ fn the_march_is_the_dense_render_for_every_field_and_sampler() {
     }
 }
 
+/// The same weights render alike on every backend, for every field and
+/// sampler with the hash encoding: the GPU backends resample the proposal
+/// rounds and find the hash corners with tensor ops on the device, the CPU
+/// backends on the host (`model::host_work`).
+#[test]
+fn every_backend_renders_the_same_weights_alike() {
+    let hash = model::HashGridConfig::new()
+        .with_levels(4)
+        .with_log2_table(8)
+        .with_max_resolution(64);
+    let rays = camera_rays(6, 3);
+    for (name, config) in configs(8) {
+        let config = config.with_hash(Some(hash.clone()));
+        let reference = {
+            let _seeded = seeded();
+            Device::flex().seed(6);
+            config.init(&Device::flex())
+        };
+        let render = |m: &OpenNerf| {
+            let out = m.render(&RenderRequest::train(&rays).with_randomized(false));
+            (vec(out.fine.rgb), vec(out.fine.depth))
+        };
+        let (rgb, depth) = render(&reference);
+        for (device_name, device) in devices(true) {
+            let m = reference.clone().fork(&device);
+            let (r, d) = render(&m);
+            let what = format!("{device_name} {name}");
+            assert_close(&r, &rgb, 1e-4, 1e-4, &what);
+            assert_close(&d, &depth, 1e-3, 1e-4, &what);
+        }
+    }
+}
+
 /// An unbounded field renders every ray from `near * radius` to
 /// `far * radius` normalised units, whatever bounds the ray carries; its
 /// posts are sorted in `t` and in `s`, and the proposal rounds' posts cover

@@ -2,16 +2,15 @@
 //! or of the NeRF level after the proposal rounds (Mip-NeRF 360, section
 //! 3). Shared by the training and the inference pass.
 
-use burn::tensor::{Tensor, TensorData};
+use burn::tensor::Tensor;
 
 use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
 use crate::nerf::{OpenNerf, Rays};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::sampling::{pdf_quantiles, resample_t_vals, stratified_t_vals};
-use crate::unbounded::{
-    Spacing, anneal_exponent, anneal_weights_host, max_dilate_weights_host, sample_pdf_host,
-};
+use crate::sampling::{resample_t_vals, stratified_t_vals};
+use crate::unbounded::rounds::{Round, resample};
+use crate::unbounded::{Spacing, anneal_exponent};
 
 /// One proposal round's histogram along the rays, what the interlevel loss
 /// makes an upper envelope of the NeRF weights.
@@ -101,7 +100,14 @@ impl OpenNerf {
         let rounds = cfg.samples.iter().copied().map(|k| k.max(1));
         let mut levels = Vec::with_capacity(cfg.samples.len());
         for (round, count) in rounds.chain([self.num_samples]).enumerate() {
-            s = resample_round(cfg, round, s, w, exponent, count, randomized);
+            let spec = Round {
+                dilation: (round > 0).then(|| cfg.dilation(round)),
+                exponent,
+                padding: cfg.resample_padding,
+                count,
+                randomized,
+            };
+            s = resample(&spec, s, w);
             if round == cfg.samples.len() {
                 break;
             }
@@ -120,53 +126,4 @@ impl OpenNerf {
         }
         (levels, s)
     }
-}
-
-/// One resampling, on the host: round `round` (after the first) dilates
-/// the previous histogram `(s, w)` ([`max_dilate_weights_host`]), the
-/// weights are annealed ([`anneal_weights_host`]), and `count + 1` new
-/// posts are drawn from them ([`sample_pdf_host`] at the quantiles of
-/// [`pdf_quantiles`]), the first and the last pinned to 0 and 1 so that
-/// every round covers the whole ray, jittered or not. The posts are
-/// detached: only the proposal weights learn (from the interlevel loss).
-fn resample_round(
-    cfg: &ProposalConfig,
-    round: usize,
-    s: Tensor<2>,
-    w: Tensor<2>,
-    exponent: f32,
-    count: usize,
-    randomized: bool,
-) -> Tensor<2> {
-    let device = s.device();
-    let [n, posts] = s.dims();
-    let (ends, mut weights) = if round > 0 {
-        let (ends, weights) =
-            max_dilate_weights_host(&host(s), &host(w), n, cfg.dilation(round), (0.0, 1.0), true);
-        let m = 3 * (posts - 1);
-        // The outermost dilated intervals are clamped to zero width.
-        let ends: Vec<f32> = ends.chunks(m + 1).flat_map(|r| r[1..m].to_vec()).collect();
-        let weights: Vec<f32> = weights
-            .chunks(m)
-            .flat_map(|r| r[1..m - 1].to_vec())
-            .collect();
-        (ends, weights)
-    } else {
-        (host(s), host(w))
-    };
-    anneal_weights_host(&ends, &mut weights, n, exponent, cfg.resample_padding);
-    let u = host(pdf_quantiles(n, count + 1, randomized, &device));
-    let mut drawn = sample_pdf_host(&ends, &weights, &u, n);
-    for row in drawn.chunks_mut(count + 1) {
-        row[0] = 0.0;
-        row[count] = 1.0;
-    }
-    Tensor::from_data(TensorData::new(drawn, [n, count + 1]), &device)
-}
-
-fn host(t: Tensor<2>) -> Vec<f32> {
-    t.detach()
-        .into_data()
-        .try_into_vec_as::<f32>()
-        .expect("a float tensor converts to f32")
 }

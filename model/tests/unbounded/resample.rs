@@ -137,3 +137,65 @@ fn host_annealing_equals_the_tensor_form() {
         }
     }
 }
+
+/// One proposal round in its two forms (the host's loops, the device's
+/// tensor ops): the same posts on every backend (wgpu where a Vulkan driver
+/// is), for a first round and dilated ones, plain and jittered (the same
+/// draw of the generator), one sample and many; every row from 0 to 1,
+/// sorted.
+#[test]
+fn a_round_resamples_alike_on_the_host_and_on_the_device() {
+    use model::unbounded::rounds::{
+        Round, resample, resample_on_device, resample_on_device_in_chunks, resample_on_host,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(34);
+    for (name, device) in devices(true) {
+        let cases = [
+            (None, 1, 8, false),
+            (None, 5, 12, true),
+            (Some(0.02), 16, 32, false),
+            (Some(0.005), 33, 16, true),
+            (Some(0.1), 8, 1, true),
+        ];
+        for (dilation, n, count, randomized) in cases {
+            let rays = 12;
+            let (t, w) = steps(&mut rng, rays, n);
+            let round = Round {
+                dilation,
+                exponent: 0.6,
+                padding: 0.0,
+                count,
+                randomized,
+            };
+            let s = tensor(t, [rays, n + 1], &device);
+            let w = tensor(w, [rays, n], &device);
+            device.seed(9);
+            let host = vec(resample_on_host(&round, s.clone(), w.clone()));
+            device.seed(9);
+            let dense = vec(resample_on_device(&round, s.clone(), w.clone()));
+            let what = format!("{name}: {round:?}");
+            assert_close(&dense, &host, 2e-6, 1e-5, &what);
+            // In chunks of one to a few rays, with the quantiles drawn once.
+            for chunk_elements in [1, 5000] {
+                device.seed(9);
+                let chunked = vec(resample_on_device_in_chunks(
+                    &round,
+                    s.clone(),
+                    w.clone(),
+                    chunk_elements,
+                ));
+                let what = format!("{what}: chunks of {chunk_elements}");
+                assert_close(&chunked, &dense, 1e-6, 1e-6, &what);
+            }
+            for row in host.chunks(count + 1) {
+                assert_eq!((row[0], row[count]), (0.0, 1.0), "{what}");
+                assert!(row.windows(2).all(|p| p[0] <= p[1]), "{what}: {row:?}");
+            }
+            // `resample` takes one of the two.
+            device.seed(9);
+            let chosen = vec(resample(&round, s, w));
+            let cpu = model::host_work::is_cpu_backend(&device);
+            assert_eq!(chosen, if cpu { host } else { dense }, "{what}");
+        }
+    }
+}
