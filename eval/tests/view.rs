@@ -191,7 +191,7 @@ fn a_real_browser_shows_the_points_answers_a_class_query_and_renders() {
     // The depth's range and units are shown under it, the opacity beside it.
     let caption = result["depth_caption"].as_str().unwrap_or("");
     assert!(
-        caption.starts_with("depth: depth ") && caption.contains(" m "),
+        caption.starts_with("depth: ") && caption.contains(" m (red, near) to "),
         "{result}"
     );
     assert_eq!(result["opacity_width"], result["render_width"], "{result}");

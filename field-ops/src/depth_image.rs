@@ -135,16 +135,20 @@ impl DepthScale {
         })
     }
 
-    /// One line for a caption: the quantity, its range and the depths.
+    /// One line for a caption: the depths at the two ends of the colours
+    /// and, for disparity, the range of the quantity itself.
     pub fn caption(&self) -> String {
-        let q = match self.quantity {
-            DepthQuantity::Depth => "depth",
-            DepthQuantity::Disparity => "disparity",
-        };
-        format!(
-            "{q} {:.3} to {:.3} {} (2nd to 98th percentile): {:.2} m near (red) to {:.2} m far (blue)",
-            self.lo, self.hi, self.units, self.near_m, self.far_m
-        )
+        let ends = format!(
+            "{:.2} m (red, near) to {:.2} m (blue, far), 2nd to 98th percentile",
+            self.near_m, self.far_m
+        );
+        match self.quantity {
+            DepthQuantity::Depth => ends,
+            DepthQuantity::Disparity => format!(
+                "disparity {:.3} to {:.3} {}: {ends}",
+                self.lo, self.hi, self.units
+            ),
+        }
     }
 
     /// `3 * n` bytes: the colour of every pixel of `depth` (opacities
@@ -210,6 +214,18 @@ mod tests {
         );
         assert_eq!(d.position(1.0), Some(1.0));
         assert_eq!(d.position(1e4), Some(0.0));
+        assert!(
+            s.caption()
+                .starts_with("1.02 m (red, near) to 2.00 m (blue, far)"),
+            "{}",
+            s.caption()
+        );
+        assert!(
+            d.caption()
+                .starts_with("disparity 0.500 to 0.980 1/m: 1.02 m (red, near)"),
+            "{}",
+            d.caption()
+        );
         // The two quantities order the pixels alike: near above far.
         assert!(s.position(1.2).unwrap() > s.position(1.8).unwrap());
         assert!(d.position(1.2).unwrap() > d.position(1.8).unwrap());

@@ -423,7 +423,7 @@ fn renders_equal_the_field_rendered_directly_and_can_be_cancelled() {
     assert!(lo.is_finite() && lo <= hi, "{st}");
     let caption = st["depth_caption"].as_str().expect("caption");
     assert!(
-        caption.contains("near (red)") && caption.contains(" m "),
+        caption.contains(" m (red, near) to ") && caption.contains(" m (blue, far)"),
         "{caption}"
     );
     let (status, ty, png) = call(addr, "GET", &format!("/api/render/{job}/rgb.png"), b"");
