@@ -31,10 +31,11 @@ const BENCH: &str = env!("CARGO_BIN_EXE_bench");
 const BENCH_VLM: &str = env!("CARGO_BIN_EXE_bench-vlm");
 const SWEEP: &str = env!("CARGO_BIN_EXE_sweep");
 const TIME_TO_ACCURACY: &str = env!("CARGO_BIN_EXE_time_to_accuracy");
+const HASH_ENCODING: &str = env!("CARGO_BIN_EXE_hash_encoding");
 
 #[test]
 fn every_program_refuses_a_bad_backend_or_device() {
-    for program in [BENCH, BENCH_VLM, SWEEP, TIME_TO_ACCURACY] {
+    for program in [BENCH, BENCH_VLM, SWEEP, TIME_TO_ACCURACY, HASH_ENCODING] {
         assert_refused(
             program,
             &["--backend", "cuda"],
@@ -58,7 +59,7 @@ fn every_program_refuses_a_bad_backend_or_device() {
 /// in it.
 #[test]
 fn the_timing_programs_take_a_list_of_backends() {
-    for program in [BENCH, BENCH_VLM] {
+    for program in [BENCH, BENCH_VLM, HASH_ENCODING] {
         assert_refused(
             program,
             &["--backends", "flex,cuda"],
@@ -73,6 +74,23 @@ fn the_timing_programs_take_a_list_of_backends() {
         assert!(help.contains("--backend <BACKEND>"), "{help}");
         assert!(help.contains("--device <INDEX>"), "{help}");
     }
+}
+
+/// The hash-encoding timing refuses sizes it cannot measure, naming the
+/// flag, before it measures anything.
+#[test]
+fn the_hash_encoding_timing_refuses_empty_and_unbounded_sizes() {
+    for flag in ["--points", "--steps", "--levels"] {
+        assert_refused(HASH_ENCODING, &[flag, "0"], &[flag, "at least 1"]);
+    }
+    for rows in ["3", "25"] {
+        assert_refused(
+            HASH_ENCODING,
+            &["--log2-table", rows],
+            &["--log2-table", rows, "2^4 to 2^24"],
+        );
+    }
+    assert_refused(HASH_ENCODING, &["--points", "many"], &["--points", "many"]);
 }
 
 #[test]

@@ -67,8 +67,20 @@ fn main() -> Result<()> {
     let args = Args::parse();
     field_ops::subnormals::flush_to_zero();
     args.compute.check().map_err(anyhow::Error::msg)?;
-    if args.points == 0 || args.steps == 0 {
-        anyhow::bail!("--points and --steps take at least 1");
+    for (flag, value) in [
+        ("--points", args.points),
+        ("--steps", args.steps),
+        ("--levels", args.levels),
+    ] {
+        if value == 0 {
+            anyhow::bail!("{flag} 0: at least 1");
+        }
+    }
+    if !(4..=24).contains(&args.log2_table) {
+        anyhow::bail!(
+            "--log2-table {}: a table of 2^4 to 2^24 rows, as `train` takes",
+            args.log2_table
+        );
     }
     println!(
         "{} points a step, {} levels of 2^{} rows x 2 features, {} timed steps of each form",
