@@ -93,6 +93,14 @@ fn the_hash_encoding_timing_refuses_empty_and_unbounded_sizes() {
     assert_refused(HASH_ENCODING, &["--points", "many"], &["--points", "many"]);
 }
 
+/// The training-step timing refuses empty sizes, naming the flag.
+#[test]
+fn the_step_timing_refuses_empty_sizes() {
+    for flag in ["--rays", "--samples", "--steps"] {
+        assert_refused(BENCH, &[flag, "0"], &[flag, "at least 1"]);
+    }
+}
+
 #[test]
 fn a_dense_variant_outside_the_set_is_listed_against_it() {
     assert_refused(

@@ -46,6 +46,9 @@ struct Args {
     /// Timed steps per case (after one untimed warm-up step).
     #[arg(long, default_value_t = 2)]
     steps: usize,
+    /// Rays a training step [default: 1024; 256 with --quick].
+    #[arg(long)]
+    rays: Option<usize>,
     /// Samples per ray at each level [default: 32, i.e. 64 per ray over coarse
     /// and fine, the reference step's 64 samples; 16 with --quick].
     #[arg(long)]
@@ -189,6 +192,7 @@ fn size_of(args: &Args) -> Size {
         }
     };
     Size {
+        rays: args.rays.unwrap_or(size.rays),
         samples: args.samples.unwrap_or(size.samples),
         ..size
     }
@@ -274,6 +278,15 @@ fn main() -> anyhow::Result<()> {
         field_ops::subnormals::flush_to_zero();
     }
     args.compute.check().map_err(anyhow::Error::msg)?;
+    for (flag, value) in [
+        ("--rays", args.rays),
+        ("--samples", args.samples),
+        ("--steps", Some(args.steps)),
+    ] {
+        if value == Some(0) {
+            anyhow::bail!("{flag} 0: at least 1");
+        }
+    }
     if let Some(fifo) = &args.perf_control {
         profile::open(fifo)
             .with_context(|| format!("--perf-control {}: cannot open it", fifo.display()))?;
