@@ -3,11 +3,15 @@
 //! render's size (a strip), and all strips of a run stacked small (a
 //! contact sheet).
 
+use std::path::{Path, PathBuf};
+
 use datasets::RgbImage;
+use datasets::imageio::save_rgb8;
 use image::imageops::FilterType;
 use image::{ImageBuffer, Rgb, Rgb32FImage, RgbImage as Rgb8Image};
 
 use crate::colormap::{to_u8, turbo};
+use crate::error::OpsError;
 use crate::render::RenderedView;
 
 /// Mean absolute colour error mapped to the top of the error colour scale.
@@ -31,6 +35,52 @@ pub struct Picture {
     pub height: u32,
     /// `height * width * 3` bytes, row-major.
     pub rgb: Vec<u8>,
+}
+
+impl Picture {
+    /// Writes the picture as a PNG at `path`.
+    pub fn save(&self, path: &Path) -> Result<(), OpsError> {
+        Ok(save_rgb8(path, self.width, self.height, &self.rgb)?)
+    }
+}
+
+/// The strips of a set of views, each written as it is made, and their
+/// contact sheet at the end.
+#[derive(Debug, Default)]
+pub struct Strips {
+    strips: Vec<Picture>,
+}
+
+impl Strips {
+    /// Writes `{name}_strip.png` into `dir` ([`strip`] of `photo`, `view`
+    /// and its coloured `depth`, all of the view's size) and keeps it for the
+    /// sheet; `None` (nothing written) when the sizes differ.
+    pub fn add(
+        &mut self,
+        photo: &RgbImage,
+        view: &RenderedView,
+        depth: &[u8],
+        dir: &Path,
+        name: &str,
+    ) -> Result<Option<PathBuf>, OpsError> {
+        let Some(s) = strip(photo, view, depth) else {
+            return Ok(None);
+        };
+        let path = dir.join(format!("{name}_strip.png"));
+        s.save(&path)?;
+        self.strips.push(s);
+        Ok(Some(path))
+    }
+
+    /// Writes the [`contact_sheet`] of the strips so far at `path`, rows of
+    /// [`SHEET_ROW_HEIGHT`]; `None` (nothing written) without a strip.
+    pub fn write_sheet(&self, path: &Path) -> Result<Option<PathBuf>, OpsError> {
+        let Some(sheet) = contact_sheet(&self.strips, SHEET_ROW_HEIGHT) else {
+            return Ok(None);
+        };
+        sheet.save(path)?;
+        Ok(Some(path.to_path_buf()))
+    }
 }
 
 /// `photo` at `width x height` ([`PHOTOGRAPH_FILTER`]); the photograph
@@ -178,6 +228,35 @@ mod tests {
         let mean = small.data.iter().sum::<f32>() / 24.0;
         assert!((mean - 0.5).abs() < 0.05, "{mean}");
         assert_eq!(resized_photograph(&p, 8, 4), p);
+    }
+
+    #[test]
+    fn strips_are_written_as_made_and_sheeted_at_the_end() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut strips = Strips::default();
+        let sheet = dir.path().join("sheet.png");
+        assert_eq!(strips.write_sheet(&sheet).unwrap(), None);
+        assert!(!sheet.exists());
+        let depth = vec![7u8; 24];
+        let a = strips
+            .add(&photo(4, 2, 0.5), &view(4, 2, 0.5), &depth, dir.path(), "a")
+            .unwrap();
+        assert_eq!(a, Some(dir.path().join("a_strip.png")));
+        let written = image::open(dir.path().join("a_strip.png")).unwrap();
+        assert_eq!((written.width(), written.height()), (16, 2));
+        // A photograph of another size makes no strip.
+        let b = strips
+            .add(&photo(3, 2, 0.5), &view(4, 2, 0.5), &depth, dir.path(), "b")
+            .unwrap();
+        assert_eq!(b, None);
+        assert!(!dir.path().join("b_strip.png").exists());
+        assert_eq!(strips.write_sheet(&sheet).unwrap(), Some(sheet.clone()));
+        let s = image::open(&sheet).unwrap();
+        // One strip, 16 x 2, at the sheet's row height.
+        assert_eq!(
+            (s.width(), s.height()),
+            (8 * SHEET_ROW_HEIGHT, SHEET_ROW_HEIGHT)
+        );
     }
 
     #[test]

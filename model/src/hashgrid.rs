@@ -305,11 +305,7 @@ impl HashGrid {
     pub fn forward_host(&self, points: Tensor<2>) -> Tensor<2> {
         let [n, _] = points.dims();
         let device = points.device();
-        let host: Vec<f32> = points
-            .into_data()
-            .convert::<f32>()
-            .try_to_vec::<f32>()
-            .expect("converted to f32 above");
+        let host = crate::host_work::read_back(points);
         let (rows, weights) = self.corners(&host);
         let count = rows.len();
         let ids = Tensor::<1, Int>::from_data(TensorData::new(rows, [count]), &device);

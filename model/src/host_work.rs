@@ -1,5 +1,6 @@
 //! Which backends do the non-differentiable bookkeeping of a step (the hash
-//! encoding's corners, the proposal rounds' resampling) on the host.
+//! encoding's corners, the proposal rounds' resampling) on the host, and the
+//! one function every such host read of the model goes through.
 //!
 //! On the CPU backends the host loops are the faster form: their tensor
 //! ops write every intermediate to memory where a loop keeps it in
@@ -7,7 +8,7 @@
 //! is the one to use: the host form would wait for the device's queue to
 //! drain to read its inputs back, every step.
 
-use burn::tensor::Device;
+use burn::tensor::{Device, Tensor};
 
 /// Whether `device` is one of the CPU backends (flex, ndarray).
 pub fn is_cpu_backend(device: &Device) -> bool {
@@ -16,6 +17,17 @@ pub fn is_cpu_backend(device: &Device) -> bool {
     // inside `Autodiff { device: .. }`.
     let name = format!("{:?}", device.as_dispatch());
     name.contains("Flex(") || name.contains("NdArray(")
+}
+
+/// The values of `t` on the host, as `f32` (detached). On a GPU this waits
+/// for the device's queue to drain: the training step calls it only on the
+/// CPU backends ([`is_cpu_backend`]); inference's early ray termination
+/// reads its alive rays back once a segment of samples.
+pub fn read_back<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.detach()
+        .into_data()
+        .try_into_vec_as::<f32>()
+        .expect("a float tensor converts to f32")
 }
 
 #[cfg(test)]

@@ -7,12 +7,11 @@
 use std::path::Path;
 
 use datasets::Scene;
-use datasets::imageio::save_rgb8;
 use field_ops::depth_image::DepthQuantity;
 use field_ops::images::ViewImages;
 use field_ops::render::{RenderedView, ViewSettings, render_view};
 use field_ops::ssim::ssim_map;
-use field_ops::strips::{Picture, SHEET_ROW_HEIGHT, contact_sheet, strip};
+use field_ops::strips::Strips;
 use model::OpenNerf;
 use serde::{Deserialize, Serialize};
 
@@ -73,7 +72,7 @@ pub fn evaluate_views(
         ViewSettings::new(scene.background, chunk).with_features(scene.features.is_some());
     let quantity = DepthQuantity::of(model);
     let mut views = Vec::new();
-    let mut strips: Vec<Picture> = Vec::new();
+    let mut strips = Strips::default();
     for &f in frames {
         let frame = &scene.frames[f];
         let mut view = render_view(model, &frame.camera, &scene.scene_box, &settings)
@@ -95,16 +94,9 @@ pub fn evaluate_views(
             ssim_interior: one_interior.ssim,
             ssim_whole: one_whole.ssim,
         });
-        if let Some(s) = strip(&frame.rgb, &view, &images.depth) {
-            let path = renders_dir.join(format!("{}_strip.png", frame.name));
-            save_rgb8(&path, s.width, s.height, &s.rgb)?;
-            strips.push(s);
-        }
+        strips.add(&frame.rgb, &view, &images.depth, renders_dir, &frame.name)?;
     }
-    if let Some(sheet) = contact_sheet(&strips, SHEET_ROW_HEIGHT) {
-        let path = renders_dir.join(CONTACT_SHEET);
-        save_rgb8(&path, sheet.width, sheet.height, &sheet.rgb)?;
-    }
+    strips.write_sheet(&renders_dir.join(CONTACT_SHEET))?;
     Ok(ViewMetrics {
         interior: interior.finish(),
         whole: whole.finish(),

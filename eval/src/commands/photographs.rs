@@ -7,14 +7,11 @@
 use std::path::{Path, PathBuf};
 
 use datasets::RgbImage;
-use datasets::imageio::save_rgb8;
 use field_ops::OpsError;
 use field_ops::metrics::psnr;
 use field_ops::render::RenderedView;
 use field_ops::ssim::ssim;
-use field_ops::strips::{
-    PHOTOGRAPH_FILTER, Picture, SHEET_ROW_HEIGHT, contact_sheet, resized_photograph, strip,
-};
+use field_ops::strips::{PHOTOGRAPH_FILTER, Strips, resized_photograph};
 use serde::Serialize;
 
 /// One view's figures against its photograph.
@@ -38,7 +35,7 @@ pub struct ViewScore {
 pub struct Photographs {
     /// Every scored view, in the order rendered.
     pub scores: Vec<ViewScore>,
-    strips: Vec<Picture>,
+    strips: Strips,
 }
 
 impl Photographs {
@@ -65,12 +62,7 @@ impl Photographs {
             .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
             .sum::<f64>()
             / n;
-        if let Some(s) = strip(&photo, view, depth) {
-            let path = out.join(format!("{name}_strip.png"));
-            save_rgb8(&path, s.width, s.height, &s.rgb)?;
-            written.push(path);
-            self.strips.push(s);
-        }
+        written.extend(self.strips.add(&photo, view, depth, out, name)?);
         self.scores.push(ViewScore {
             name: name.to_string(),
             mse,
@@ -99,12 +91,11 @@ impl Photographs {
         let Some((psnr, ssim)) = self.means() else {
             return Ok(Vec::new());
         };
-        let mut written = Vec::new();
-        if let Some(s) = contact_sheet(&self.strips, SHEET_ROW_HEIGHT) {
-            let path = out.join(sheet);
-            save_rgb8(&path, s.width, s.height, &s.rgb)?;
-            written.push(path);
-        }
+        let mut written: Vec<PathBuf> = self
+            .strips
+            .write_sheet(&out.join(sheet))?
+            .into_iter()
+            .collect();
         let path = out.join("render_metrics.json");
         field_ops::json::write_json(
             &path,

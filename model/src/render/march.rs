@@ -12,6 +12,7 @@ use crate::composite::{
     FEATURE_ACC_EPS, composite_features_mean, composite_values, expected_depth, over_background,
     segment_weights, t_mids,
 };
+use crate::host_work::read_back as host;
 use crate::nerf::{OpenNerf, Rays};
 
 /// When a ray stops being evaluated.
@@ -109,12 +110,6 @@ struct Alive {
 fn index(rows: &[usize], device: &Device) -> Tensor<1, Int> {
     let v: Vec<i64> = rows.iter().map(|&r| r as i64).collect();
     Tensor::from_data(TensorData::new(v, [rows.len()]), device)
-}
-
-fn host(t: Tensor<2>) -> Vec<f32> {
-    t.into_data()
-        .try_into_vec_as::<f32>()
-        .expect("a float tensor converts to f32")
 }
 
 impl Alive {

@@ -18,6 +18,7 @@ use burn::tensor::{Tensor, TensorData};
 use super::dilate::max_dilate_weights_host;
 use super::resample::{anneal_weights_host, sample_pdf_host};
 use super::stepfun::{anneal_weights, max_dilate_weights};
+use crate::host_work::read_back as host;
 use crate::sampling::{pdf_quantiles, sample_pdf_at};
 
 /// How one round resamples.
@@ -139,11 +140,4 @@ fn draw(round: &Round, s: Tensor<2>, w: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
     };
     let weights = anneal_weights(ends.clone(), weights, round.exponent, round.padding);
     sample_pdf_at(ends, weights, u)
-}
-
-fn host(t: Tensor<2>) -> Vec<f32> {
-    t.detach()
-        .into_data()
-        .try_into_vec_as::<f32>()
-        .expect("a float tensor converts to f32")
 }
