@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU's figures in one run (docs/gpu.md), for the day a GPU machine is
+# The GPU's figures in one run (docs/guide/gpu.md), for the day a GPU machine is
 # lent: the training step (`bench`) on wgpu at 1024, 4096 and 16384 rays a
 # step, and the bench room trained on wgpu for 300 s; one table of rays/s,
 # step time, the seconds of the first logged iterations (kernel compilation

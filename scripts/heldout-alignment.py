@@ -1,5 +1,5 @@
 """How much of a run's held-out error a colour change or a camera shift
-could explain (docs/unbounded.md, "What holds the statue back").
+could explain (docs/measurements/unbounded.md, "What holds the statue back").
 
     python3 scripts/heldout-alignment.py RUN IMAGES OUT_PREFIX [SPARSE]
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Held-out PSNR of renders at any size against the photographs resized to
-it (docs/unbounded.md, "Smaller batches").
+it (docs/measurements/unbounded.md, "Smaller batches").
 
     python3 scripts/heldout-psnr.py IMAGES DIR [DIR ...]
 

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Two builds of `train` side by side on the same flags, each pinned to one
 # core with one thread, so that a change is measured against the build
-# before it on the same machine at the same seconds (docs/unbounded.md,
+# before it on the same machine at the same seconds (docs/measurements/unbounded.md,
 # "Lego and the bench room against the build before").
 #
 #   bash scripts/pair-builds.sh BEFORE_BIN AFTER_BIN OUT NAME TRAIN_FLAGS...

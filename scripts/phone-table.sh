@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The phone loaders against the Replica loader on the same frames
-# (docs/phone.md): the Replica room written out as each phone export, each
+# (docs/guide/phone.md): the Replica room written out as each phone export, each
 # trained for the same seconds with simulated feature maps, held-out PSNR
 # and the segmentation of labelled points compared.
 #

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# What moves the statue's held-out PSNR (docs/unbounded.md, "What holds the
-# statue back") and fern's (docs/fern.md): runs of `train` side by side, each pinned to two cores
+# What moves the statue's held-out PSNR (docs/measurements/unbounded.md, "What holds the
+# statue back") and fern's (docs/measurements/fern.md): runs of `train` side by side, each pinned to two cores
 # (RAYON_NUM_THREADS=2, taskset), so that a machine of 16 cores runs eight
 # at once and every run of a set gets the same seconds on the same CPU.
 #

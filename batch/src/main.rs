@@ -28,7 +28,7 @@ enum Emit {
 /// a batch. `--emit slurm` writes job-array scripts instead (one task per
 /// run; a preempted or requeued task writes a checkpoint and resumes from
 /// it), and --submit submits them. `eval gather DIR` then writes the table.
-/// The scene list's format: docs/batch.md.
+/// The scene list's format: docs/guide/batch.md.
 #[derive(Debug, Parser)]
 #[command(name = "batch", version)]
 struct Cli {
@@ -58,7 +58,7 @@ struct Cli {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     let stop = StopFlag::on_signals().unwrap_or_else(|e| {
         eprintln!("warning: signals will stop the batch without a checkpoint: {e}");

@@ -7,7 +7,7 @@ use clap::Parser;
 static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemalloc;
 
 fn main() -> std::process::ExitCode {
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     // Printed as one line per cause (not through `main`'s `Debug`, which adds
     // a backtrace whenever RUST_BACKTRACE is set), like `train`.

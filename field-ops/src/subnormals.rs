@@ -11,7 +11,7 @@
 //! exponential of minus the density in front of it. x86 CPUs compute with
 //! such numbers through a slow microcode assist, so once the field had
 //! learnt a surface the reference training step on flex took several times
-//! as long on an Intel Xeon (docs/cpu-step.md).
+//! as long on an Intel Xeon (docs/measurements/cpu-step.md).
 //! Flushing changes only values below 1.2e-38, which vanish in any f32 sum
 //! with a term above about 1e-31.
 

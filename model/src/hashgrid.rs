@@ -34,7 +34,7 @@ pub struct HashGridConfig {
     pub base_resolution: usize,
     /// Cells across the domain at the finest level (512: on a capture of
     /// 20 photographs, finer grids fit detail the training views alone
-    /// show; docs/unbounded.md).
+    /// show; docs/measurements/unbounded.md).
     #[config(default = 512)]
     pub max_resolution: usize,
     /// Half the side of the cube the grids cover, centred at the origin:
@@ -276,7 +276,7 @@ impl HashGrid {
     /// the points' device ([`HashGrid::corner_tensors`], nothing read back)
     /// on a GPU backend, and on the host ([`HashGrid::forward_host`]) on the
     /// CPU backends, where that is the faster form (measured in
-    /// docs/training-step.md).
+    /// docs/measurements/training-step.md).
     ///
     /// # Shapes
     /// - `points`: `[n, 3]`; output: `[n, levels * features]`.

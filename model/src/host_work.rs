@@ -4,7 +4,7 @@
 //!
 //! On the CPU backends the host loops are the faster form: their tensor
 //! ops write every intermediate to memory where a loop keeps it in
-//! registers (measured in docs/training-step.md). On a GPU the tensor form
+//! registers (measured in docs/measurements/training-step.md). On a GPU the tensor form
 //! is the one to use: the host form would wait for the device's queue to
 //! drain to read its inputs back, every step.
 

@@ -78,7 +78,7 @@ pub fn choose(arg: AppearanceArg, model: &OpenNerfConfig, scene: &Scene) -> Appe
         AppearanceArg::Auto if model.unbounded.is_some() && is_colmap(scene) => (
             (false, true),
             "auto: a colmap capture with the unbounded field, where codes were measured to lift \
-             the held-out views (docs/unbounded.md)"
+             the held-out views (docs/measurements/unbounded.md)"
                 .to_string(),
         ),
         AppearanceArg::Auto => ((false, false), format!("auto: {}", capture(scene))),

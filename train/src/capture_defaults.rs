@@ -4,9 +4,9 @@
 //! run's field is short of iterations, not of samples: 16 samples per ray
 //! and level and 128 rays a batch give it about six times the iterations
 //! of 48 and 256 in the same seconds, and a higher held-out PSNR
-//! (docs/fern.md). On a COLMAP capture (the unbounded field with the hash
+//! (docs/measurements/fern.md). On a COLMAP capture (the unbounded field with the hash
 //! encoding) 64 rays a batch instead of 256 give four times the updates in
-//! the same seconds and lift the held-out views (docs/unbounded.md). Other
+//! the same seconds and lift the held-out views (docs/measurements/unbounded.md). Other
 //! captures keep the built-in settings. A `--preset`, a `--config` file
 //! and `--samples` / `--rays` still win.
 
@@ -27,20 +27,20 @@ pub struct SamplingDefault {
     pub doc: &'static str,
 }
 
-/// LLFF captures: more iterations of fewer samples (docs/fern.md).
+/// LLFF captures: more iterations of fewer samples (docs/measurements/fern.md).
 const LLFF: SamplingDefault = SamplingDefault {
     samples: Some(16),
     rays: 128,
     capture: "an LLFF capture",
-    doc: "docs/fern.md",
+    doc: "docs/measurements/fern.md",
 };
 
-/// COLMAP captures: more updates of fewer rays (docs/unbounded.md).
+/// COLMAP captures: more updates of fewer rays (docs/measurements/unbounded.md).
 const COLMAP: SamplingDefault = SamplingDefault {
     samples: None,
     rays: 64,
     capture: "a COLMAP capture",
-    doc: "docs/unbounded.md",
+    doc: "docs/measurements/unbounded.md",
 };
 
 /// The default for `scene`'s kind of capture, if it has its own.

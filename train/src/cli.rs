@@ -233,7 +233,7 @@ pub struct Cli {
     /// few views); a quarter of each batch (`sampler.depth_rays`, 16 of a
     /// COLMAP capture's default 64 rays) is drawn from those pixels.
     /// `auto` (the default): on for COLMAP captures with sparse points,
-    /// unless --colmap-depth gives dense depth (docs/unbounded.md); `on`
+    /// unless --colmap-depth gives dense depth (docs/measurements/unbounded.md); `on`
     /// elsewhere is an error. `train` prints its choice.
     #[arg(long, value_enum)]
     pub sparse_depth: Option<crate::depth_choice::SparseDepthArg>,
@@ -291,7 +291,7 @@ pub struct Cli {
     /// photograph constrains the field, and asks their depth to be smooth
     /// (RegNeRF's geometry regulariser; `losses.unseen_patches`,
     /// `unseen_patch_side` and `unseen_patch_stride` in `--config` set the
-    /// patches). 0 (the default) renders none; docs/unbounded.md measures it.
+    /// patches). 0 (the default) renders none; docs/measurements/unbounded.md measures it.
     #[arg(long, value_name = "WEIGHT", allow_negative_numbers = true)]
     pub unseen_depth: Option<f32>,
     /// Override: evaluate the feature head only on the K samples of largest
@@ -391,14 +391,14 @@ pub struct Cli {
     /// the scene box to effectively infinite distance; no occupancy grid)
     /// or `auto` (unbounded for the synthetic outdoor scene and COLMAP
     /// captures, where it was measured better, box otherwise,
-    /// docs/unbounded.md). `train` prints its choice and why.
+    /// docs/measurements/unbounded.md). `train` prints its choice and why.
     #[arg(long, value_enum, default_value_t = crate::field_choice::FieldArg::Auto)]
     pub field: crate::field_choice::FieldArg,
     /// Where the MLP samples: `coarse-fine` (Mip-NeRF's two levels of the
     /// one MLP, `--samples` each), `proposal` (Mip-NeRF 360: two rounds of
     /// 64 samples of a small density MLP, trained by the interlevel loss,
     /// then `--samples` of the MLP) or `auto` (coarse-fine, measured more
-    /// accurate and faster at the default sizes: docs/unbounded.md).
+    /// accurate and faster at the default sizes: docs/measurements/unbounded.md).
     #[arg(long, value_enum, default_value_t = crate::field_choice::SamplerArg::Auto)]
     pub sampler: crate::field_choice::SamplerArg,
     /// The photographs' appearance: `exposure` learns a gain and an offset
@@ -412,7 +412,7 @@ pub struct Cli {
     /// code; `none` takes every photograph as taken at one exposure; `auto`
     /// is `embedding` for a COLMAP capture with the unbounded field, else
     /// `none`, unless the `--config` file sets `model.exposure` or
-    /// `model.appearance` (docs/unbounded.md). `train` prints its choice.
+    /// `model.appearance` (docs/measurements/unbounded.md). `train` prints its choice.
     #[arg(long, value_enum, default_value_t = crate::appearance::AppearanceArg::Auto)]
     pub appearance: crate::appearance::AppearanceArg,
     /// Refine the training photographs' camera poses with the field: `on`
@@ -422,7 +422,7 @@ pub struct Cli {
     /// `optimiser.pose_lr_scale` times the field's rate and held near zero
     /// by `losses.pose_penalty`; held-out and novel views keep their poses.
     /// `off` uses the poses as given; `auto` (the default) is `off` unless
-    /// the `--config` file sets `model.pose` (docs/unbounded.md). `train`
+    /// the `--config` file sets `model.pose` (docs/measurements/unbounded.md). `train`
     /// prints its choice.
     #[arg(long, value_enum)]
     pub pose_refine: Option<crate::pose_choice::PoseRefineArg>,
@@ -434,7 +434,7 @@ pub struct Cli {
     /// twice the seconds per iteration on the CPU. `auto` (the default) is
     /// `on` for a COLMAP capture with the unbounded field, where it was
     /// measured to lift the held-out views at equal seconds, else `off`
-    /// unless the `--config` file sets `model.hash` (docs/unbounded.md).
+    /// unless the `--config` file sets `model.hash` (docs/measurements/unbounded.md).
     /// `train` prints its choice.
     #[arg(long, value_enum)]
     pub hash_grid: Option<crate::hash_choice::HashGridArg>,

@@ -9,7 +9,7 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 
 /// The share of each batch drawn from the pixels with a sparse depth
-/// target: 64 of 256 rays, the measured setting (docs/unbounded.md).
+/// target: 64 of 256 rays, the measured setting (docs/measurements/unbounded.md).
 pub const SPARSE_DEPTH_SHARE: usize = 4;
 
 /// Whether the sparse points are depth targets (`--sparse-depth`).
@@ -17,7 +17,7 @@ pub const SPARSE_DEPTH_SHARE: usize = 4;
 pub enum SparseDepthArg {
     /// `on` for COLMAP captures whose model has sparse points (unless
     /// `--colmap-depth` gives dense depth), where it was measured to lift
-    /// the held-out views (docs/unbounded.md); `off` elsewhere.
+    /// the held-out views (docs/measurements/unbounded.md); `off` elsewhere.
     #[default]
     Auto,
     /// No depth from the sparse points.
@@ -64,7 +64,7 @@ impl SparseDepthChoice {
             "--sparse-depth on"
         } else {
             "auto: a COLMAP capture with sparse points, where they were measured to lift the \
-             held-out views (docs/unbounded.md)"
+             held-out views (docs/measurements/unbounded.md)"
         };
         format!(
             "depth: the sparse points give depth targets at {} pixels of {} photographs; {} of \

@@ -1,6 +1,6 @@
 //! Which field and sampler a run models its scene with (`--field`,
 //! `--sampler`), and why. `auto` takes what was measured better
-//! (docs/unbounded.md): Mip-NeRF 360's contraction, its rays starting
+//! (docs/measurements/unbounded.md): Mip-NeRF 360's contraction, its rays starting
 //! where they enter the scene box, where a scene's content reaches far
 //! past its box (the synthetic outdoor scene, and COLMAP captures, walked
 //! around what they look at: on the statue it ends above the box at equal
@@ -18,7 +18,7 @@ use crate::error::TrainError;
 pub enum FieldArg {
     /// Chosen from the scene: `unbounded` for the synthetic outdoor scene
     /// and COLMAP captures, `box` otherwise (where the unbounded field was
-    /// not measured better: docs/unbounded.md).
+    /// not measured better: docs/measurements/unbounded.md).
     #[default]
     Auto,
     /// The scene box mapped to `[-pi, pi]^3`; rays end where they leave it.
@@ -33,7 +33,7 @@ pub enum FieldArg {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum SamplerArg {
     /// `coarse-fine`: at the default sizes the proposal sampler was both
-    /// slower and less accurate, with either field (docs/unbounded.md).
+    /// slower and less accurate, with either field (docs/measurements/unbounded.md).
     #[default]
     Auto,
     /// Mip-NeRF's coarse and fine level of the one MLP.
@@ -85,7 +85,7 @@ fn capture(scene: &Scene) -> (String, bool) {
         SceneSource::Disk { loader, .. } => match loader.format() {
             "colmap" => (
                 "a colmap capture, walked around what it looks at: the unbounded field, its rays \
-                 from the scene box, measured above the box (docs/unbounded.md)"
+                 from the scene box, measured above the box (docs/measurements/unbounded.md)"
                     .into(),
                 true,
             ),

@@ -11,7 +11,7 @@ use model::{HashGridConfig, OpenNerfConfig};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum HashGridArg {
     /// `on` for a COLMAP capture with the unbounded field (measured to
-    /// lift its held-out views at equal seconds: docs/unbounded.md), else
+    /// lift its held-out views at equal seconds: docs/measurements/unbounded.md), else
     /// `off`, unless the `--config` file sets `model.hash`.
     #[default]
     Auto,
@@ -59,7 +59,7 @@ pub fn choose(arg: Option<HashGridArg>, model: &OpenNerfConfig, scene: &Scene) -
         HashGridArg::Auto if model.unbounded.is_some() && is_colmap(scene) => (
             true,
             "auto: a colmap capture with the unbounded field, where it was measured to lift the \
-             held-out views at equal seconds (docs/unbounded.md)"
+             held-out views at equal seconds (docs/measurements/unbounded.md)"
                 .to_string(),
         ),
         HashGridArg::Auto => (false, "auto: not measured to help this capture".to_string()),

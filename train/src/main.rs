@@ -8,7 +8,7 @@ static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemallo
 
 fn main() -> std::process::ExitCode {
     let cli = train::cli::Cli::parse();
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     let stop = train::interrupt::StopFlag::on_signals().unwrap_or_else(|e| {
         eprintln!("warning: signals will stop the run without a checkpoint: {e}");

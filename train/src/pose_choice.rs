@@ -10,7 +10,7 @@ use model::{OpenNerfConfig, PoseCorrectionConfig};
 pub enum PoseRefineArg {
     /// `off`, unless the `--config` file asks for `model.pose`: on the
     /// captures measured it did not lift the held-out views
-    /// (docs/unbounded.md).
+    /// (docs/measurements/unbounded.md).
     #[default]
     Auto,
     /// The poses as the capture gives them.
@@ -53,7 +53,8 @@ pub fn choose(arg: Option<PoseRefineArg>, model: &OpenNerfConfig) -> PoseChoice 
         }
         PoseRefineArg::Auto => (
             false,
-            "auto: not measured to lift held-out views (docs/unbounded.md)".to_string(),
+            "auto: not measured to lift held-out views (docs/measurements/unbounded.md)"
+                .to_string(),
         ),
         PoseRefineArg::Off => (false, "--pose-refine off".into()),
         PoseRefineArg::On => (true, "--pose-refine on".into()),

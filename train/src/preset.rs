@@ -1,5 +1,5 @@
 //! Speed/accuracy presets (`train --preset`), chosen from the measured
-//! sweeps (docs/sweep-and-presets.md): each sets the samples per ray,
+//! sweeps (docs/measurements/sweep-and-presets.md): each sets the samples per ray,
 //! the occupancy grid, the rays per batch and the schedule's length of a
 //! measured point; `--config` keys and explicit flags (`--iters`,
 //! `--rays`, `--time-budget`, ...) still win.
@@ -9,7 +9,7 @@
 //! starts inside the scene and ends on a wall, the same samples and grid
 //! with 128 rays a batch and as many iterations as fill the same seconds
 //! gave a higher PSNR at every preset's budget and the same segmentation
-//! on average (docs/sweep-and-presets.md, "The presets on the room").
+//! on average (docs/measurements/sweep-and-presets.md, "The presets on the room").
 
 use model::geometry::{SceneBox, Vec3};
 

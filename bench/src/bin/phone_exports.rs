@@ -2,7 +2,7 @@
 //! App, Polycam, Record3D EXR + JPG and R3D) and, for scoring
 //! segmentation, labelled ground-truth points in Replica's world and in the
 //! exports' ARKit world: the inputs of the phone-loader comparison in
-//! `docs/phone.md` (`scripts/phone-table.sh` runs it).
+//! `docs/guide/phone.md` (`scripts/phone-table.sh` runs it).
 
 use std::path::PathBuf;
 

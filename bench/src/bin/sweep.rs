@@ -168,7 +168,7 @@ fn measure(args: &Args, p: &SweepPoint, out: &Path) -> Result<SweepResult> {
 
 fn main() -> Result<()> {
     let args = Args::parse();
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     args.compute.check().map_err(anyhow::Error::msg)?;
     let (budget, points) = match args.scene {

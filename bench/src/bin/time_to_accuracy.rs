@@ -165,7 +165,7 @@ fn measure(variant: &str, dir: &Path, targets: &[f64]) -> Result<(Row, Vec<(f64,
 
 fn main() -> Result<()> {
     let args = Args::parse();
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     args.compute.check().map_err(anyhow::Error::msg)?;
     if !args.data.join("transforms_train.json").exists()

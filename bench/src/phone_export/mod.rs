@@ -1,7 +1,7 @@
 //! Replica frames written out as phone exports (3D Scanner App, Record3D,
 //! Polycam), the way each app lays out its files and conventions: the
 //! fixtures that check every phone loader against the Replica loader on
-//! the same frames, and the training comparison of `docs/phone.md`.
+//! the same frames, and the training comparison of `docs/guide/phone.md`.
 //!
 //! The export's world is ARKit's, y up, reached from Replica's by a fixed
 //! rigid map ([`ReplicaFrames::to_arkit`]); camera poses are written with

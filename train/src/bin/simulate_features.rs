@@ -146,7 +146,7 @@ fn check_out(out: &Path) -> Result<()> {
 }
 
 fn main() -> Result<()> {
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     run(&Args::parse())
 }

@@ -251,7 +251,7 @@ fn print_table(
 
 fn main() -> Result<()> {
     let args = Args::parse();
-    // Subnormals flushed to zero: docs/cpu-step.md.
+    // Subnormals flushed to zero: docs/measurements/cpu-step.md.
     field_ops::subnormals::flush_to_zero();
     args.compute.check().map_err(anyhow::Error::msg)?;
     ensure!(
