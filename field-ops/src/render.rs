@@ -62,11 +62,10 @@ pub fn camera_rays(camera: &Camera, scene_box: &SceneBox) -> Vec<NormalizedRay> 
     rays
 }
 
-/// Values of a float tensor as `f32`, whatever the backend's float type.
+/// Values of a float tensor as `f32`, whatever the backend's float type
+/// (an inference read, counted by [`model::host_work::read_backs`]).
 pub fn tensor_to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
-    t.into_data()
-        .try_into_vec_as::<f32>()
-        .expect("a float tensor converts to f32")
+    model::host_work::read_back(model::host_work::ReadReason::Inference, t)
 }
 
 /// How a view is rendered.

@@ -305,7 +305,7 @@ impl HashGrid {
     pub fn forward_host(&self, points: Tensor<2>) -> Tensor<2> {
         let [n, _] = points.dims();
         let device = points.device();
-        let host = crate::host_work::read_back(points);
+        let host = crate::host_work::read_back(crate::host_work::ReadReason::HashCorners, points);
         let (rows, weights) = self.corners(&host);
         let count = rows.len();
         let ids = Tensor::<1, Int>::from_data(TensorData::new(rows, [count]), &device);

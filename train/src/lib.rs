@@ -36,6 +36,7 @@ pub mod progress;
 pub mod report;
 pub mod schedule;
 pub mod step;
+pub mod step_report;
 pub mod summary;
 pub mod training;
 pub mod validate;

@@ -1,5 +1,9 @@
 //! One training step — render, losses, backward, non-finite guard, Adam —
-//! written once for every device (the device is a runtime value).
+//! written once for every device (the device is a runtime value), in two
+//! forms: guarded (the loss terms are read back and a non-finite step is
+//! not applied) and deferred (nothing is read back: the values stay on the
+//! device until the training loop checks a run of steps at once, see
+//! `training::guard`).
 
 use burn::module::{Module, ModuleVisitor, Param, ParamGroup};
 use burn::optim::lr_scheduler::module_lr_scheduler::ModuleLrScheduler;
@@ -8,10 +12,11 @@ use burn::tensor::Tensor;
 use model::exposure::{expose, exposure_penalty};
 use model::geometry::NormalizedRay;
 use model::unbounded::{distortion_loss, interlevel_loss};
-use model::{ClipStats, FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
+use model::{FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
 
 use crate::batch::BatchTensors;
 use crate::config::LossConfig;
+pub use crate::step_report::{StepReport, StepValues};
 
 /// The loss and its terms as tensors (each `[1]`).
 #[derive(Debug, Clone)]
@@ -182,32 +187,6 @@ pub struct StepRates {
     pub pose: f64,
 }
 
-/// What one step measured (host numbers).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepReport {
-    /// Total loss.
-    pub loss: f64,
-    /// Fine colour MSE.
-    pub rgb_mse: f64,
-    /// Fine depth Huber.
-    pub depth: f64,
-    /// Open-set loss.
-    pub open: f64,
-    /// Sum of absolute gradient values over all parameters.
-    pub grad_l1: f64,
-    /// Whether the update was applied (false: non-finite loss or gradient).
-    pub applied: bool,
-    /// What the occupancy grid clipped (`None` without a grid).
-    pub clip: Option<ClipStats>,
-}
-
-impl StepReport {
-    /// PSNR of the batch's fine colour.
-    pub fn psnr(&self) -> f64 {
-        crate::accuracy::psnr(self.rgb_mse)
-    }
-}
-
 /// Sums `|g|` over the gradients of every float parameter of a module.
 struct GradL1<'a> {
     grads: &'a GradientsParams,
@@ -250,10 +229,14 @@ pub struct StepRender {
     pub grid: GridUse,
     /// The fraction of training done, for the proposal sampler's annealing.
     pub progress: f32,
+    /// Whether the samples along each ray are jittered (training: yes; off,
+    /// a step draws nothing from the device's generator, so that backends
+    /// can be compared step for step).
+    pub jitter: bool,
 }
 
-/// One step: render the batch (stratified jitter on) as `render` says
-/// (background, grid use, training progress), compute the losses
+/// One step: render the batch as `render` says (background, grid use,
+/// training progress, jitter), compute the losses
 /// on the rays rendered (their colours first corrected by their
 /// photographs' learned exposure, with its penalty, when the model has
 /// one: [`expose_outputs`]), backpropagate, and — only when the loss and every
@@ -297,12 +280,44 @@ pub fn train_step_regularised(
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
+    let (out, smoothness) = render_step(&model, batch, unseen, render, cfg);
+    finish_step(model, optim, out, batch, smoothness, cfg, rates)
+}
+
+/// [`train_step_regularised`] without a read-back: the update is applied
+/// whatever the loss, and the values come back on the device, for the
+/// caller to read ([`StepValues::read`]) together with others and to undo
+/// the steps from the first non-finite one (the training loop keeps the
+/// model and optimiser of its last check for that).
+pub fn train_step_deferred(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    batch: &BatchTensors,
+    unseen: Option<&UnseenPatches>,
+    render: StepRender,
+    cfg: &LossConfig,
+    rates: StepRates,
+) -> (OpenNerf, StepValues) {
+    let (out, smoothness) = render_step(&model, batch, unseen, render, cfg);
+    train_step_from_deferred(model, optim, out, batch, smoothness, cfg, rates)
+}
+
+/// The batch rendered for a step, with the unseen patches' weighted depth
+/// smoothness when asked for.
+fn render_step(
+    model: &OpenNerf,
+    batch: &BatchTensors,
+    unseen: Option<&UnseenPatches>,
+    render: StepRender,
+    cfg: &LossConfig,
+) -> (RenderOutputs, Option<Tensor<1>>) {
     let mode = if batch.feature.is_some() && cfg.lambda_open > 0.0 {
         FeatureMode::Composited
     } else {
         FeatureMode::None
     };
     let request = RenderRequest::train(&batch.rays)
+        .with_randomized(render.jitter)
         .with_features(mode)
         .with_background(render.background)
         .with_grid(render.grid)
@@ -324,6 +339,7 @@ pub fn train_step_regularised(
                 other => other,
             };
             let request = RenderRequest::train(&u.rays)
+                .with_randomized(render.jitter)
                 .with_features(FeatureMode::None)
                 .with_background(render.background)
                 .with_grid(grid)
@@ -336,7 +352,7 @@ pub fn train_step_regularised(
             let depth = patches.fine.depth;
             Some(model::depth_smoothness(depth, u.side).mul_scalar(cfg.unseen_depth_weight))
         });
-    finish_step(model, optim, out, batch, smoothness, cfg, rates)
+    (out, smoothness)
 }
 
 /// [`train_step`] for outputs already rendered from `batch.rays` (e.g. with
@@ -354,7 +370,7 @@ pub fn train_step_from(
 }
 
 /// [`train_step_from`] with `extra` (a weighted regulariser, `[1]`) added
-/// to the loss.
+/// to the loss: the guarded form, one read-back.
 fn finish_step(
     model: OpenNerf,
     optim: &mut ModuleOptimizer,
@@ -364,6 +380,40 @@ fn finish_step(
     cfg: &LossConfig,
     rates: StepRates,
 ) -> (OpenNerf, StepReport) {
+    let (grads, values) = backward(&model, out, batch, extra, cfg);
+    let mut report = values.read();
+    if !report.finite() {
+        return (model, report);
+    }
+    let model = apply(model, optim, grads, rates);
+    report.applied = true;
+    (model, report)
+}
+
+/// [`train_step_from`] without a read-back (see [`train_step_deferred`]),
+/// with `extra` added to the loss.
+pub fn train_step_from_deferred(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    out: RenderOutputs,
+    batch: &BatchTensors,
+    extra: Option<Tensor<1>>,
+    cfg: &LossConfig,
+    rates: StepRates,
+) -> (OpenNerf, StepValues) {
+    let (grads, values) = backward(&model, out, batch, extra, cfg);
+    (apply(model, optim, grads, rates), values)
+}
+
+/// The losses of `out` against `batch` (the rows the render kept), their
+/// gradients, and the values a step reports, on the device.
+fn backward(
+    model: &OpenNerf,
+    out: RenderOutputs,
+    batch: &BatchTensors,
+    extra: Option<Tensor<1>>,
+    cfg: &LossConfig,
+) -> (GradientsParams, StepValues) {
     let kept;
     let batch = match &out.kept {
         Some(rows) => {
@@ -373,7 +423,7 @@ fn finish_step(
         None => batch,
     };
     let clip = out.clip;
-    let (out, correction) = expose_outputs(&model, out, batch);
+    let (out, correction) = expose_outputs(model, out, batch);
     let mut terms = losses(&out, batch, cfg);
     if let Some(c) = correction
         && cfg.exposure_penalty > 0.0
@@ -394,7 +444,7 @@ fn finish_step(
         terms.total = terms.total + extra;
     }
     let grads = terms.total.backward();
-    let grads = GradientsParams::from_grads(grads, &model);
+    let grads = GradientsParams::from_grads(grads, model);
     let mut visitor = GradL1 {
         grads: &grads,
         sum: None,
@@ -405,38 +455,34 @@ fn finish_step(
         .sum
         .unwrap_or_else(|| Tensor::zeros([1], &device))
         .inner();
-    let values = Tensor::cat(
-        vec![
+    let values = StepValues::new(
+        [
             terms.total.inner(),
             terms.rgb.inner(),
             terms.depth.inner(),
             terms.open.inner(),
             grad_l1,
         ],
-        0,
-    );
-    let v: Vec<f32> = field_ops::render::tensor_to_vec(values);
-    let mut report = StepReport {
-        loss: v[0] as f64,
-        rgb_mse: v[1] as f64,
-        depth: v[2] as f64,
-        open: v[3] as f64,
-        grad_l1: v[4] as f64,
-        applied: false,
         clip,
-    };
-    if !v.iter().all(|x| x.is_finite()) {
-        return (model, report);
-    }
+    );
+    (grads, values)
+}
+
+/// Adam's update with the head (and the pose corrections) at their own
+/// rates.
+fn apply(
+    model: OpenNerf,
+    optim: &mut ModuleOptimizer,
+    grads: GradientsParams,
+    rates: StepRates,
+) -> OpenNerf {
     let mut scheduler =
         ModuleLrScheduler::new(rates.base).with_group(head_group(&model), rates.head);
     if let Some(pose) = model.pose.as_ref() {
         scheduler = scheduler.with_group(ParamGroup::ids_from_module(pose.clone()), rates.pose);
     }
     let lr = scheduler.step();
-    let model = optim.step(lr, model, grads);
-    report.applied = true;
-    (model, report)
+    optim.step(lr, model, grads)
 }
 
 #[cfg(test)]
@@ -452,6 +498,7 @@ mod tests {
         background: None,
         grid: GridUse::Model,
         progress: 1.0,
+        jitter: true,
     };
 
     fn tiny_model(device: &Device) -> OpenNerf {

@@ -70,6 +70,7 @@ fn patches_behind_a_grid_stay_whole() {
         background: None,
         grid: GridUse::Model,
         progress: 1.0,
+        jitter: true,
     };
     let cfg = LossConfig {
         lambda_open: 0.0,

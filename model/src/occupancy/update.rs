@@ -3,6 +3,7 @@
 use burn::tensor::{Tensor, TensorData};
 
 use super::OccupancyGrid;
+use crate::host_work::{ReadReason, read_back};
 use crate::nerf::OpenNerf;
 
 /// Points per density query of an update (bounds the peak memory).
@@ -26,11 +27,7 @@ impl OccupancyGrid {
             let flat: Vec<f32> = part.iter().flatten().copied().collect();
             let p = Tensor::<2>::from_data(TensorData::new(flat, [part.len(), 3]), &device);
             let d = field.query_density(p, radius);
-            density.extend(
-                d.into_data()
-                    .try_into_vec_as::<f32>()
-                    .expect("a float tensor converts to f32"),
-            );
+            density.extend(read_back(ReadReason::OccupancyUpdate, d));
         }
         self.update(&density);
     }

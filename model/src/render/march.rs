@@ -12,8 +12,13 @@ use crate::composite::{
     FEATURE_ACC_EPS, composite_features_mean, composite_values, expected_depth, over_background,
     segment_weights, t_mids,
 };
-use crate::host_work::read_back as host;
+use crate::host_work::{ReadReason, read_back};
 use crate::nerf::{OpenNerf, Rays};
+
+/// A march's values on the host (an inference read).
+fn host<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    read_back(ReadReason::Inference, t)
+}
 
 /// When a ray stops being evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -18,8 +18,13 @@ use burn::tensor::{Tensor, TensorData};
 use super::dilate::max_dilate_weights_host;
 use super::resample::{anneal_weights_host, sample_pdf_host};
 use super::stepfun::{anneal_weights, max_dilate_weights};
-use crate::host_work::read_back as host;
+use crate::host_work::{ReadReason, read_back};
 use crate::sampling::{pdf_quantiles, sample_pdf_at};
+
+/// A round's values on the host (the CPU backends' form).
+fn host<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    read_back(ReadReason::ProposalRound, t)
+}
 
 /// How one round resamples.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,6 +6,7 @@
 mod budget;
 mod console;
 mod finish;
+mod guard;
 mod heldout;
 mod live_viewer;
 mod novel;

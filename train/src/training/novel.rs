@@ -128,9 +128,14 @@ impl SessionViews {
     /// Whether the views join the sampler's frames at iteration `it` (true
     /// once, at the first iteration that draws them).
     pub(super) fn join(&mut self, it: usize) -> bool {
-        let joins = !self.in_sampler && self.added.as_ref().is_some_and(|a| it >= a.at);
+        let joins = self.joins_at(it);
         self.in_sampler |= joins;
         joins
+    }
+
+    /// Whether [`SessionViews::join`] would be true at `it`.
+    pub(super) fn joins_at(&self, it: usize) -> bool {
+        !self.in_sampler && self.added.as_ref().is_some_and(|a| it >= a.at)
     }
 }
 

@@ -18,6 +18,7 @@ use model::{ClipStats, FeatureSpace, GridUse, OpenNerf};
 use super::budget::ScheduleFit;
 use super::console::{Clock, RayRate, describe, grid_line, show_step};
 use super::finish::{Trained, finish};
+use super::guard::{Checked, Kept, Pending, Unchecked, Verdict, checked_until};
 use super::heldout::HeldOut;
 use super::live_viewer::LiveViewer;
 use super::novel::SessionViews;
@@ -29,7 +30,7 @@ use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
 use crate::progress::say;
-use crate::step::{StepRates, StepRender, StepReport, train_step_regularised};
+use crate::step::{StepRates, StepRender, train_step_deferred, train_step_regularised};
 use field_ops::json::write_json;
 use field_ops::novel::record::RecordedViews;
 
@@ -80,6 +81,14 @@ pub(super) struct TrainLoop<'a> {
     /// What the occupancy grid clipped since the last log line.
     skipping: ClipStats,
     consecutive_bad: usize,
+    /// The steps taken since the last check, on the device.
+    unchecked: Option<Unchecked>,
+    /// Steps before this iteration are checked as they are taken (after a
+    /// non-finite one, to the end of its log window).
+    checked_until: usize,
+    /// Steps before this iteration are taken again whatever the time
+    /// budget says (those after going back from a non-finite one).
+    replay_to: usize,
     last_checkpoint: Option<PathBuf>,
     /// The web viewer served while training (`--viewer`).
     viewer: Option<LiveViewer>,
@@ -88,12 +97,11 @@ pub(super) struct TrainLoop<'a> {
     stages: StageLog,
 }
 
-/// What one step did.
-struct Step {
-    report: StepReport,
-    lr: f64,
-    /// Rays drawn for it.
-    rays: u64,
+/// What one step did: checked as it was taken, or left on the device for
+/// the next check ([`Unchecked`]).
+enum Step {
+    Checked(Checked),
+    Deferred(Box<Pending>),
 }
 
 /// The seed of the device generator (the stratified jitter) at iteration
@@ -113,21 +121,32 @@ impl<'a> TrainLoop<'a> {
     /// then saves, measures and summarises.
     pub(super) fn train(start: SessionStart<'a>) -> Result<RunOutcome, TrainError> {
         let (mut session, mut model) = Self::new(start)?;
-        while session.state.iteration < session.end {
-            if session.session.stop.requested() {
+        loop {
+            let it = session.state.iteration;
+            let stop = session.session.stop.requested();
+            // Steps being taken again after a non-finite one are taken
+            // whatever the clock says.
+            let over = it >= session.end || (it >= session.replay_to && session.budget_spent());
+            let views = session.views.due(&session.config, it) || session.views.joins_at(it);
+            // Nothing is saved, made or stopped on before the steps since
+            // the last check are known to be finite.
+            if (stop || over || views) && session.settle(&mut model)? {
+                continue;
+            }
+            if stop {
                 return Err(session.interrupt(&model));
             }
-            if session.budget_spent() {
+            if over {
                 break;
             }
-            let it = session.state.iteration;
             session.refit_schedule(it)?;
             session.add_novel_views_if_due(&model, it)?;
             session.join_novel_views(it)?;
             let (next, step) = session.step(model, it)?;
             model = next;
-            session.account(it, &step)?;
-            session.log_step(&model, &step)?;
+            if session.record(&mut model, it, step)? {
+                continue;
+            }
             session.evaluate_and_save(&model)?;
             if let Some(v) = session.viewer.as_mut() {
                 v.refresh(&model, session.state.iteration);
@@ -203,6 +222,9 @@ impl<'a> TrainLoop<'a> {
             rate: RayRate::start(),
             skipping: ClipStats::default(),
             consecutive_bad: 0,
+            unchecked: None,
+            checked_until: 0,
+            replay_to: 0,
             last_checkpoint,
             viewer,
             stages,
@@ -322,30 +344,151 @@ impl<'a> TrainLoop<'a> {
             self.state.seed,
             it,
         );
-        let (next, report) = train_step_regularised(
-            model,
-            &mut self.optim,
-            &batch,
-            unseen.as_ref(),
-            StepRender {
-                background: self.scene.background,
-                grid,
-                progress: self.config.schedule.progress(it),
-            },
-            &self.config.losses,
-            rates,
-        );
-        if let Some(clip) = report.clip {
+        let render = StepRender {
+            background: self.scene.background,
+            grid,
+            progress: self.config.schedule.progress(it),
+            jitter: true,
+        };
+        let (losses, unseen) = (&self.config.losses, unseen.as_ref());
+        // A step checked as it is taken costs the one read its check would,
+        // and nothing to go back to.
+        let checked =
+            it < self.checked_until || (self.unchecked.is_none() && self.check_due(it + 1));
+        let (next, clip, step) = if checked {
+            let (next, report) = train_step_regularised(
+                model,
+                &mut self.optim,
+                &batch,
+                unseen,
+                render,
+                losses,
+                rates,
+            );
+            let done = it + 1;
+            let step = Step::Checked(Checked {
+                done,
+                report,
+                lr,
+                rays,
+            });
+            (next, report.clip, step)
+        } else {
+            if self.unchecked.is_none() {
+                self.unchecked = Some(Unchecked::new(Kept {
+                    model: model.clone(),
+                    optim: self.optim.clone(),
+                    state: self.state.clone(),
+                    skipping: self.skipping,
+                    consecutive_bad: self.consecutive_bad,
+                }));
+            }
+            let (next, values) = train_step_deferred(
+                model,
+                &mut self.optim,
+                &batch,
+                unseen,
+                render,
+                losses,
+                rates,
+            );
+            let clip = values.clip;
+            let step = Step::Deferred(Box::new(Pending {
+                done: it + 1,
+                values,
+                lr,
+                rays,
+            }));
+            (next, clip, step)
+        };
+        if let Some(clip) = clip {
             self.skipping.add(clip);
         }
         self.state.train_seconds += step_start.elapsed().as_secs_f64();
         self.state.iteration += 1;
-        Ok((next, Step { report, lr, rays }))
+        Ok((next, step))
+    }
+
+    /// Counts and logs a checked step; keeps a deferred one for the next
+    /// check, which is made when a log line, an evaluation or a checkpoint
+    /// is due. Returns whether a check went back to an earlier iteration.
+    fn record(&mut self, model: &mut OpenNerf, it: usize, step: Step) -> Result<bool, TrainError> {
+        match step {
+            Step::Checked(checked) => {
+                self.account(it, &checked)?;
+                self.log_step(model, &checked)?;
+                Ok(false)
+            }
+            Step::Deferred(pending) => {
+                if let Some(u) = self.unchecked.as_mut() {
+                    u.steps.push(*pending);
+                }
+                let back = self.check_due(self.state.iteration) && self.settle(model)?;
+                self.bar.set_position(self.state.iteration as u64);
+                Ok(back)
+            }
+        }
+    }
+
+    /// Whether the steps are checked once `done` iterations are: a log
+    /// line, an evaluation or a checkpoint is due.
+    fn check_due(&self, done: usize) -> bool {
+        let logging = self.config.logging;
+        let due = |every: usize| every > 0 && done.is_multiple_of(every);
+        done == self.end
+            || due(logging.log_every.max(1))
+            || due(logging.eval_every)
+            || due(logging.checkpoint_every)
+    }
+
+    /// Checks the steps taken since the last check (one read-back): finite
+    /// ones are counted and the last logged when due; from a non-finite
+    /// one, the model, optimiser and state go back to before the first of
+    /// them (returns true), and the steps are taken again, checked.
+    fn settle(&mut self, model: &mut OpenNerf) -> Result<bool, TrainError> {
+        let Some(unchecked) = self.unchecked.take() else {
+            return Ok(false);
+        };
+        match unchecked.check() {
+            Verdict::Finite(steps) => {
+                let last = steps.len().saturating_sub(1);
+                for (k, checked) in steps.iter().enumerate() {
+                    self.account(checked.done - 1, checked)?;
+                    if k == last {
+                        self.log_step(model, checked)?;
+                    }
+                }
+                Ok(false)
+            }
+            Verdict::Back { kept, done } => {
+                let kept = *kept;
+                let seconds = self.state.train_seconds;
+                *model = kept.model;
+                self.optim = kept.optim;
+                self.state = kept.state;
+                self.state.train_seconds = seconds;
+                self.skipping = kept.skipping;
+                self.consecutive_bad = kept.consecutive_bad;
+                self.checked_until = checked_until(done, self.config.logging.log_every);
+                self.replay_to = done;
+                self.bar.set_position(self.state.iteration as u64);
+                say(
+                    &self.bar,
+                    format!(
+                        "iteration {}: a non-finite loss or gradient since iteration {}; \
+                         taking those steps again, each checked",
+                        done - 1,
+                        self.state.iteration
+                    ),
+                );
+                Ok(true)
+            }
+        }
     }
 
     /// Counts the step of iteration `it`; a skipped one is logged, and too
     /// many in a row end the run.
-    fn account(&mut self, it: usize, step: &Step) -> Result<(), TrainError> {
+    fn account(&mut self, it: usize, step: &Checked) -> Result<(), TrainError> {
         let report = &step.report;
         if report.applied {
             self.consecutive_bad = 0;
@@ -380,8 +523,8 @@ impl<'a> TrainLoop<'a> {
     }
 
     /// The training line of the step, when one is due, and the bar.
-    fn log_step(&mut self, model: &OpenNerf, step: &Step) -> Result<(), TrainError> {
-        let i = self.state.iteration;
+    fn log_step(&mut self, model: &OpenNerf, step: &Checked) -> Result<(), TrainError> {
+        let i = step.done;
         let report = &step.report;
         let every = self.config.logging.log_every.max(1);
         if report.applied && (i.is_multiple_of(every) || i == self.end) {

@@ -48,6 +48,7 @@ pub fn fit(
         background: None,
         grid: GridUse::Model,
         progress: 1.0,
+        jitter: true,
     };
     let cfg = LossConfig {
         lambda_open: 0.0,

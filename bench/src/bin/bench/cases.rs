@@ -13,7 +13,7 @@ use model::{
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
-use train::step::{StepRates, train_step_from};
+use train::step::{StepRates, train_step_from_deferred};
 
 use crate::Size;
 
@@ -169,35 +169,46 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
         head: 1e-4,
         pose: 1e-4,
     };
-    let mut times = Vec::new();
+    // The steps read nothing back (as in training); the time of steps
+    // 1..=steps runs to the read of the last one's values, which waits for
+    // a GPU's queue to drain.
+    let mut timed = None;
+    let mut last = None;
     for step in 0..=steps {
         if step == 1 {
             crate::profile::enable();
+            timed = Some(Instant::now());
         }
-        let start = Instant::now();
         // The grid case's model clips the host rays every step, as
         // training does.
         let batch = batch_of(&host_rays);
         let out = model.render(&RenderRequest::train(&batch.rays).with_features(case.path));
         rendered = out.clip.map_or(n, |c| c.kept);
-        let (next, report) = train_step_from(
+        let (next, values) = train_step_from_deferred(
             model,
             &mut optim,
             out,
             &batch,
+            None,
             &LossConfig::default(),
             rates,
         );
         model = next;
-        let secs = start.elapsed().as_secs_f64();
-        assert!(report.applied, "benchmark step produced a non-finite loss");
-        if step > 0 {
-            times.push(secs);
+        if step == 0 {
+            assert!(
+                values.read().finite(),
+                "benchmark warm-up step was not finite"
+            );
+        } else {
+            last = Some(values);
         }
     }
+    let finite = last.is_none_or(|v| v.read().finite());
+    let total = timed.map_or(0.0, |t| t.elapsed().as_secs_f64());
+    assert!(finite, "benchmark step produced a non-finite loss");
     crate::profile::disable();
     Timing {
-        secs: times.iter().sum::<f64>() / times.len().max(1) as f64,
+        secs: total / steps.max(1) as f64,
         rendered,
         infer: inference(&model, case, grid, n, segment),
     }
