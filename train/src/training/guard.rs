@@ -11,13 +11,20 @@ use burn::optim::ModuleOptimizer;
 use model::{ClipStats, OpenNerf};
 
 use crate::checkpoint::CheckpointState;
+use crate::config::TrainConfig;
 use crate::step::{StepReport, StepValues};
 
 /// What the loop goes back to when a step of the run was not finite.
 pub(super) struct Kept {
     pub model: OpenNerf,
     pub optim: ModuleOptimizer,
+    pub mark: LoopMark,
+}
+
+/// The loop's own counts at the start of a run of unchecked steps.
+pub(super) struct LoopMark {
     pub state: CheckpointState,
+    /// What the grid clipped since the last log line.
     pub skipping: ClipStats,
     pub consecutive_bad: usize,
 }
@@ -102,6 +109,27 @@ impl Unchecked {
 pub(super) fn checked_until(done: usize, every: usize) -> usize {
     let every = every.max(1);
     done.div_ceil(every) * every
+}
+
+/// Whether the steps are checked once `done` iterations of a session
+/// ending at `end` are: a log line, an evaluation or a checkpoint is due.
+pub(super) fn check_due(config: &TrainConfig, end: usize, done: usize) -> bool {
+    let logging = config.logging;
+    let due = |every: usize| every > 0 && done.is_multiple_of(every);
+    done == end
+        || due(logging.log_every.max(1))
+        || due(logging.eval_every)
+        || due(logging.checkpoint_every)
+}
+
+/// The console line when the step ending at iteration `done` was the
+/// first non-finite one since iteration `from`.
+pub(super) fn going_back(done: usize, from: usize) -> String {
+    format!(
+        "iteration {}: a non-finite loss or gradient since iteration {from}; \
+         taking those steps again, each checked",
+        done - 1
+    )
 }
 
 #[cfg(test)]

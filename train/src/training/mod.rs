@@ -13,6 +13,7 @@ mod novel;
 mod session;
 mod snapshot;
 mod start;
+mod stepper;
 mod train_loop;
 mod unseen;
 

@@ -1,9 +1,20 @@
-//! What a session is asked to do besides the configuration, and what it
-//! returns.
+//! What a session is asked to do besides the configuration, what it starts
+//! from, and what it returns.
 
+use std::borrow::Cow;
 use std::path::PathBuf;
 
+use burn::optim::ModuleOptimizer;
+use burn::tensor::Device;
+use datasets::Scene;
+use field_ops::novel::record::RecordedViews;
+use field_ops::run_dir::{RunDir, Split};
+use field_ops::stages::StageLog;
+use model::OpenNerf;
+
 use crate::backend::BackendKind;
+use crate::checkpoint::CheckpointState;
+use crate::config::TrainConfig;
 use crate::interrupt::StopFlag;
 use crate::summary::Summary;
 
@@ -64,4 +75,23 @@ pub struct RunOutcome {
     pub dir: PathBuf,
     /// The summary written to `summary.json`.
     pub summary: Summary,
+}
+
+/// Everything a session starts from.
+pub(super) struct SessionStart<'a> {
+    /// Owned when the caller hands the scene over (adding novel views then
+    /// extends it in place instead of copying it first).
+    pub scene: Cow<'a, Scene>,
+    /// Novel views already made (read back on resume).
+    pub added: Option<RecordedViews>,
+    pub config: &'a TrainConfig,
+    pub split: &'a Split,
+    pub run: &'a RunDir,
+    pub model: OpenNerf,
+    pub optim: ModuleOptimizer,
+    pub state: CheckpointState,
+    pub device: &'a Device,
+    pub session: &'a SessionOptions,
+    /// Where the stages' time and peak memory are recorded.
+    pub stages: StageLog,
 }

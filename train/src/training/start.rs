@@ -8,9 +8,9 @@ use datasets::{Scene, SceneMeta};
 use field_ops::run_dir::{RunDir, Split};
 use field_ops::stages::{STAGES_FILE, StageLog};
 
-use super::session::{RunOutcome, SessionOptions};
+use super::session::{RunOutcome, SessionOptions, SessionStart};
 use super::snapshot::{adam, restore};
-use super::train_loop::{SessionStart, TrainLoop};
+use super::train_loop::TrainLoop;
 use crate::backend::training_device;
 use crate::checkpoint::{CheckpointState, list_checkpoints};
 use crate::config::TrainConfig;

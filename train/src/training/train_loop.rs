@@ -7,51 +7,30 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use burn::module::Module;
-use burn::optim::ModuleOptimizer;
 use burn::tensor::Device;
 use datasets::Scene;
 use field_ops::run_dir::{RunDir, Split};
 use field_ops::stages::StageLog;
 use indicatif::ProgressBar;
-use model::{ClipStats, FeatureSpace, GridUse, OpenNerf};
+use model::{ClipStats, OpenNerf};
 
 use super::budget::ScheduleFit;
 use super::console::{Clock, RayRate, describe, grid_line, show_step};
 use super::finish::{Trained, finish};
-use super::guard::{Checked, Kept, Pending, Unchecked, Verdict, checked_until};
+use super::guard::{Checked, Kept, LoopMark, Verdict, check_due, going_back};
 use super::heldout::HeldOut;
 use super::live_viewer::LiveViewer;
 use super::novel::SessionViews;
-use super::session::{RunOutcome, SessionOptions};
+use super::session::{RunOutcome, SessionOptions, SessionStart};
 use super::snapshot::save_checkpoint;
-use crate::batch::{TrainSampler, feature_space, iteration_seed, to_tensors};
+use super::stepper::{Step, StepInputs, Stepper};
+use crate::batch::{TrainSampler, feature_space};
 use crate::checkpoint::{CheckpointState, list_checkpoints};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 use crate::metrics_log::{EvalLine, MetricsEvent, MetricsLog, NonfiniteLine, TrainLine};
 use crate::progress::say;
-use crate::step::{StepRates, StepRender, train_step_deferred, train_step_regularised};
 use field_ops::json::write_json;
-use field_ops::novel::record::RecordedViews;
-
-/// Everything a session starts from.
-pub(super) struct SessionStart<'a> {
-    /// Owned when the caller hands the scene over (adding novel views then
-    /// extends it in place instead of copying it first).
-    pub scene: Cow<'a, Scene>,
-    /// Novel views already made (read back on resume).
-    pub added: Option<RecordedViews>,
-    pub config: &'a TrainConfig,
-    pub split: &'a Split,
-    pub run: &'a RunDir,
-    pub model: OpenNerf,
-    pub optim: ModuleOptimizer,
-    pub state: CheckpointState,
-    pub device: &'a Device,
-    pub session: &'a SessionOptions,
-    /// Where the stages' time and peak memory are recorded.
-    pub stages: StageLog,
-}
 
 /// A session in progress. The model is not held here but passed from step
 /// to step, since each step consumes it and returns the next.
@@ -64,12 +43,11 @@ pub(super) struct TrainLoop<'a> {
     device: &'a Device,
     inference: Device,
     heldout: HeldOut,
-    space: FeatureSpace,
     /// Novel views are appended to a copy of the scene when they are made.
     scene: Cow<'a, Scene>,
     views: SessionViews,
-    sampler: TrainSampler,
-    optim: ModuleOptimizer,
+    /// The optimiser, the sampler and the steps not yet checked.
+    stepper: Stepper,
     state: CheckpointState,
     /// The iteration the session stops at.
     end: usize,
@@ -81,39 +59,12 @@ pub(super) struct TrainLoop<'a> {
     /// What the occupancy grid clipped since the last log line.
     skipping: ClipStats,
     consecutive_bad: usize,
-    /// The steps taken since the last check, on the device.
-    unchecked: Option<Unchecked>,
-    /// Steps before this iteration are checked as they are taken (after a
-    /// non-finite one, to the end of its log window).
-    checked_until: usize,
-    /// Steps before this iteration are taken again whatever the time
-    /// budget says (those after going back from a non-finite one).
-    replay_to: usize,
     last_checkpoint: Option<PathBuf>,
     /// The web viewer served while training (`--viewer`).
     viewer: Option<LiveViewer>,
     /// The `training` stage is open from the start of the session to its
     /// end; the sampler builds, novel views and final render nest in it.
     stages: StageLog,
-}
-
-/// What one step did: checked as it was taken, or left on the device for
-/// the next check ([`Unchecked`]).
-enum Step {
-    Checked(Checked),
-    Deferred(Box<Pending>),
-}
-
-/// The seed of the device generator (the stratified jitter) at iteration
-/// `it`: seeding it per iteration makes a resumed run draw what the
-/// uninterrupted one would.
-fn jitter_seed(seed: u64, it: usize) -> u64 {
-    iteration_seed(seed ^ 0x6a09_e667_f3bc_c909, it)
-}
-
-/// The seed of the occupancy grid's update at iteration `it`.
-fn grid_update_seed(seed: u64, it: usize) -> u64 {
-    iteration_seed(seed ^ 0x0cc0_9a1d, it)
 }
 
 impl<'a> TrainLoop<'a> {
@@ -126,7 +77,8 @@ impl<'a> TrainLoop<'a> {
             let stop = session.session.stop.requested();
             // Steps being taken again after a non-finite one are taken
             // whatever the clock says.
-            let over = it >= session.end || (it >= session.replay_to && session.budget_spent());
+            let over =
+                it >= session.end || (!session.stepper.replaying(it) && session.budget_spent());
             let views = session.views.due(&session.config, it) || session.views.joins_at(it);
             // Nothing is saved, made or stopped on before the steps since
             // the last check are known to be finite.
@@ -208,11 +160,9 @@ impl<'a> TrainLoop<'a> {
             device: s.device,
             inference,
             heldout,
-            space,
             scene: s.scene,
             views,
-            sampler,
-            optim: s.optim,
+            stepper: Stepper::new(s.optim, sampler, space),
             state: s.state,
             end,
             fit,
@@ -222,9 +172,6 @@ impl<'a> TrainLoop<'a> {
             rate: RayRate::start(),
             skipping: ClipStats::default(),
             consecutive_bad: 0,
-            unchecked: None,
-            checked_until: 0,
-            replay_to: 0,
             last_checkpoint,
             viewer,
             stages,
@@ -297,6 +244,7 @@ impl<'a> TrainLoop<'a> {
             super::novel::added_message(&report, self.run, it),
         );
         self.views.added = Some(report.added);
+        self.stepper.forget_ahead();
         Ok(())
     }
 
@@ -306,102 +254,34 @@ impl<'a> TrainLoop<'a> {
         if self.views.join(it) {
             let novel = self.views.novel_frames(it);
             let (scene, config, train) = (&self.scene, &self.config, &self.split.train);
-            self.sampler = self.stages.run("sampler", || {
+            let sampler = self.stages.run("sampler", || {
                 TrainSampler::with_novel(scene, train, novel, &config.sampler, self.state.seed)
             })?;
+            self.stepper.set_sampler(sampler);
         }
         Ok(())
     }
 
-    /// The step of iteration `it`: the grid's update when due, the batch
-    /// (rendered behind the grid), the loss and the update.
+    /// The step of iteration `it` ([`Stepper::take`]), its time and what
+    /// the grid clipped of its batch.
     fn step(&mut self, model: OpenNerf, it: usize) -> Result<(OpenNerf, Step), TrainError> {
-        let mut model = model;
-        let lr = self.config.schedule.lr(it);
-        let rates = StepRates {
-            base: lr,
-            head: lr * self.config.optimiser.head_lr_scale,
-            pose: lr * self.config.optimiser.pose_lr_scale,
-        };
         let step_start = Instant::now();
-        self.device.seed(jitter_seed(self.state.seed, it));
-        if self.config.occupancy.update_due(it)
-            && let Some(grid) = model.occupancy()
-        {
-            let mut grid = grid.clone();
-            let seed = grid_update_seed(self.state.seed, it);
-            grid.update_from_field(&model.valid(), seed);
-            model = model.with_occupancy(Some(grid));
-        }
-        let drawn = self.sampler.batch(&self.scene, it)?;
-        let rays = drawn.len() as u64;
-        let batch = to_tensors(&drawn, &self.space, self.device);
-        let grid = GridUse::for_training(&self.config.occupancy, model.occupancy());
-        let unseen = super::unseen::patches(
-            &self.scene,
-            &self.split.train,
-            &self.config,
-            self.state.seed,
-            it,
-        );
-        let render = StepRender {
-            background: self.scene.background,
-            grid,
-            progress: self.config.schedule.progress(it),
-            jitter: true,
+        let inputs = StepInputs {
+            scene: &self.scene,
+            train: &self.split.train,
+            config: &self.config,
+            device: self.device,
+            seed: self.state.seed,
+            end: self.end,
         };
-        let (losses, unseen) = (&self.config.losses, unseen.as_ref());
-        // A step checked as it is taken costs the one read its check would,
-        // and nothing to go back to.
-        let checked =
-            it < self.checked_until || (self.unchecked.is_none() && self.check_due(it + 1));
-        let (next, clip, step) = if checked {
-            let (next, report) = train_step_regularised(
-                model,
-                &mut self.optim,
-                &batch,
-                unseen,
-                render,
-                losses,
-                rates,
-            );
-            let done = it + 1;
-            let step = Step::Checked(Checked {
-                done,
-                report,
-                lr,
-                rays,
-            });
-            (next, report.clip, step)
-        } else {
-            if self.unchecked.is_none() {
-                self.unchecked = Some(Unchecked::new(Kept {
-                    model: model.clone(),
-                    optim: self.optim.clone(),
-                    state: self.state.clone(),
-                    skipping: self.skipping,
-                    consecutive_bad: self.consecutive_bad,
-                }));
-            }
-            let (next, values) = train_step_deferred(
-                model,
-                &mut self.optim,
-                &batch,
-                unseen,
-                render,
-                losses,
-                rates,
-            );
-            let clip = values.clip;
-            let step = Step::Deferred(Box::new(Pending {
-                done: it + 1,
-                values,
-                lr,
-                rays,
-            }));
-            (next, clip, step)
+        let check_after = check_due(&self.config, self.end, it + 1);
+        let mark = || LoopMark {
+            state: self.state.clone(),
+            skipping: self.skipping,
+            consecutive_bad: self.consecutive_bad,
         };
-        if let Some(clip) = clip {
+        let (next, step) = self.stepper.take(&inputs, model, it, check_after, mark)?;
+        if let Some(clip) = step.clip() {
             self.skipping.add(clip);
         }
         self.state.train_seconds += step_start.elapsed().as_secs_f64();
@@ -420,25 +300,13 @@ impl<'a> TrainLoop<'a> {
                 Ok(false)
             }
             Step::Deferred(pending) => {
-                if let Some(u) = self.unchecked.as_mut() {
-                    u.steps.push(*pending);
-                }
-                let back = self.check_due(self.state.iteration) && self.settle(model)?;
+                self.stepper.defer(*pending);
+                let back = check_due(&self.config, self.end, self.state.iteration)
+                    && self.settle(model)?;
                 self.bar.set_position(self.state.iteration as u64);
                 Ok(back)
             }
         }
-    }
-
-    /// Whether the steps are checked once `done` iterations are: a log
-    /// line, an evaluation or a checkpoint is due.
-    fn check_due(&self, done: usize) -> bool {
-        let logging = self.config.logging;
-        let due = |every: usize| every > 0 && done.is_multiple_of(every);
-        done == self.end
-            || due(logging.log_every.max(1))
-            || due(logging.eval_every)
-            || due(logging.checkpoint_every)
     }
 
     /// Checks the steps taken since the last check (one read-back): finite
@@ -446,41 +314,32 @@ impl<'a> TrainLoop<'a> {
     /// one, the model, optimiser and state go back to before the first of
     /// them (returns true), and the steps are taken again, checked.
     fn settle(&mut self, model: &mut OpenNerf) -> Result<bool, TrainError> {
-        let Some(unchecked) = self.unchecked.take() else {
-            return Ok(false);
-        };
-        match unchecked.check() {
-            Verdict::Finite(steps) => {
-                let last = steps.len().saturating_sub(1);
-                for (k, checked) in steps.iter().enumerate() {
+        match self.stepper.check() {
+            None => Ok(false),
+            Some(Verdict::Finite(steps)) => {
+                for checked in &steps {
                     self.account(checked.done - 1, checked)?;
-                    if k == last {
-                        self.log_step(model, checked)?;
-                    }
+                }
+                if let Some(last) = steps.last() {
+                    self.log_step(model, last)?;
                 }
                 Ok(false)
             }
-            Verdict::Back { kept, done } => {
-                let kept = *kept;
+            Some(Verdict::Back { kept, done }) => {
+                let Kept {
+                    model: m,
+                    optim,
+                    mark,
+                } = *kept;
                 let seconds = self.state.train_seconds;
-                *model = kept.model;
-                self.optim = kept.optim;
-                self.state = kept.state;
+                *model = m;
+                self.stepper
+                    .went_back(optim, done, self.config.logging.log_every);
+                (self.state, self.skipping) = (mark.state, mark.skipping);
+                self.consecutive_bad = mark.consecutive_bad;
                 self.state.train_seconds = seconds;
-                self.skipping = kept.skipping;
-                self.consecutive_bad = kept.consecutive_bad;
-                self.checked_until = checked_until(done, self.config.logging.log_every);
-                self.replay_to = done;
                 self.bar.set_position(self.state.iteration as u64);
-                say(
-                    &self.bar,
-                    format!(
-                        "iteration {}: a non-finite loss or gradient since iteration {}; \
-                         taking those steps again, each checked",
-                        done - 1,
-                        self.state.iteration
-                    ),
-                );
+                say(&self.bar, going_back(done, self.state.iteration));
                 Ok(true)
             }
         }
@@ -577,7 +436,7 @@ impl<'a> TrainLoop<'a> {
             self.last_checkpoint = Some(save_checkpoint(
                 self.run,
                 model,
-                &self.optim,
+                &self.stepper.optim,
                 &self.state,
                 logging.keep_checkpoints,
             )?);
@@ -596,7 +455,7 @@ impl<'a> TrainLoop<'a> {
         let saved = save_checkpoint(
             self.run,
             model,
-            &self.optim,
+            &self.stepper.optim,
             &self.state,
             self.config.logging.keep_checkpoints,
         );
@@ -626,7 +485,7 @@ impl<'a> TrainLoop<'a> {
             config: &self.config,
             scene: &self.scene,
             model,
-            optim: &self.optim,
+            optim: &self.stepper.optim,
             state: &self.state,
             heldout: &self.heldout,
         };
