@@ -53,9 +53,27 @@ pub fn device(kind: BackendKind, index: Option<usize>) -> Device {
 /// Whether this build has the wgpu backend (the default `wgpu` feature).
 pub const WGPU_BUILT: bool = cfg!(feature = "wgpu");
 
+/// Where the kernel cache was decided, once, before the first wgpu device.
+#[cfg(feature = "wgpu")]
+static KERNEL_CACHE: std::sync::OnceLock<crate::kernel_cache::KernelCache> =
+    std::sync::OnceLock::new();
+
+/// What the wgpu backend does in this build, for a program's first lines
+/// (after the first wgpu device was made: where its kernel cache is).
+pub fn wgpu_settings() -> String {
+    #[cfg(feature = "wgpu")]
+    let cache = KERNEL_CACHE
+        .get()
+        .map_or_else(|| "kernel cache not set up yet".into(), |c| c.describe());
+    #[cfg(not(feature = "wgpu"))]
+    let cache = String::from("not built");
+    format!("wgpu: Burn's fusion on (chains of element-wise operations run as one kernel); {cache}")
+}
+
 #[cfg(feature = "wgpu")]
 fn wgpu_device(index: Option<usize>) -> Device {
     use burn::tensor::DeviceKind;
+    KERNEL_CACHE.get_or_init(crate::kernel_cache::configure);
     Device::wgpu(match index {
         Some(i) => DeviceKind::DiscreteGpu(i),
         None => DeviceKind::DefaultDevice,

@@ -78,6 +78,7 @@ pub mod files;
 pub mod frame;
 pub mod images;
 pub mod json;
+pub mod kernel_cache;
 pub mod metrics;
 pub mod novel;
 pub mod plot;

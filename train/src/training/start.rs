@@ -79,6 +79,9 @@ pub fn train_new_with_stages(
     stages.attach(run.dir.join(STAGES_FILE))?;
     let _ = std::fs::remove_file(run.metrics());
     let device = training_device(session.backend, session.device_index);
+    if session.backend == crate::backend::BackendKind::Wgpu {
+        eprintln!("{}", field_ops::backend::wgpu_settings());
+    }
     device.seed(config.seed);
     let model = config
         .model
@@ -178,6 +181,9 @@ pub fn resume(
         ));
     }
     let device = training_device(session.backend, session.device_index);
+    if session.backend == crate::backend::BackendKind::Wgpu {
+        eprintln!("{}", field_ops::backend::wgpu_settings());
+    }
     let (model, optim) = restore(&config, &ckpt, &path, &device)?;
     if iterations.is_some() {
         write_json(&run.config(), &config)?;
