@@ -301,6 +301,13 @@ pub struct Cli {
     /// Override: seed of the initialisation, the ray sampler and the jitter.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Override: a `metrics.jsonl` line every N iterations. The steps in
+    /// between read nothing back from the device: their losses are read
+    /// together when the line is written (and before an evaluation or a
+    /// checkpoint) [default: 25, or the `--config` file's
+    /// `logging.log_every`].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub log_every: Option<u64>,
 
     /// Stop cleanly after this many seconds of training, then evaluate and
     /// save. Without `--iters`, the schedule's length is fitted to the

@@ -48,7 +48,9 @@ impl Default for OptimiserConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct LoggingConfig {
-    /// A `metrics.jsonl` line every this many iterations.
+    /// A `metrics.jsonl` line every this many iterations; the steps'
+    /// values are read back from the device then (and before an evaluation
+    /// or a checkpoint), not at every step.
     pub log_every: usize,
     /// A held-out evaluation every this many iterations (0 = only at the start and end).
     pub eval_every: usize,
@@ -134,6 +136,8 @@ pub struct Overrides {
     pub unseen_depth: Option<f32>,
     /// Seed.
     pub seed: Option<u64>,
+    /// Iterations between two log lines (and reads of the steps' values).
+    pub log_every: Option<usize>,
 }
 
 impl TrainConfig {
@@ -281,6 +285,9 @@ impl TrainConfig {
         if let Some(v) = o.seed {
             self.seed = v;
         }
+        if let Some(v) = o.log_every {
+            self.logging.log_every = v;
+        }
     }
 
     /// Checks ranges; the message names the offending key.
@@ -288,6 +295,9 @@ impl TrainConfig {
         let bad = |m: String| Err(TrainError::Config(m));
         if self.sampler.rays_per_batch == 0 {
             return bad("sampler.rays_per_batch must be at least 1".into());
+        }
+        if self.logging.log_every == 0 {
+            return bad("logging.log_every must be at least 1 (--log-every)".into());
         }
         if self.sampler.depth_rays >= self.sampler.rays_per_batch {
             return bad(format!(

@@ -142,6 +142,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         lr: cli.lr,
         unseen_depth: cli.unseen_depth,
         seed: cli.seed,
+        log_every: cli.log_every.map(|n| n as usize),
     });
     // Said only where the file and the flags keep what the default chose.
     sampling

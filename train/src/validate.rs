@@ -282,6 +282,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("pose-refine", cli.pose_refine.is_some()),
         ("hash-grid", cli.hash_grid.is_some()),
         ("seed", cli.seed.is_some()),
+        ("log-every", cli.log_every.is_some()),
         ("novel-views", cli.novel_views.is_some()),
         ("novel-after", cli.novel_after.is_some()),
         ("novel-views-mode", cli.novel_views_mode.is_some()),
