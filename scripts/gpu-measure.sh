@@ -11,11 +11,14 @@
 # OUT/gpu_table.md is the table; OUT/bench_R.txt, OUT/bench-room/ (a run
 # directory) and OUT/gpu_memory.csv (nvidia-smi's samples) hold what it was
 # made from. QUICK=1 shrinks every size (bench's --quick at 128, 256 and 512
-# rays, the CI room for 30 s, no final render): a rehearsal on lavapipe
+# rays, the CI room for 30 s logged every 5 iterations, no final render): a
+# rehearsal on lavapipe
 # (Vulkan on the CPU) that runs every step of the script in a few minutes.
-# Binaries are built first (release, default features), so the timed steps
-# compile nothing. Burn's CUDA backend is not a backend of this build
-# (`--backend` takes flex, ndarray and wgpu), so wgpu is the GPU measured.
+# The binaries come from gpu-pack/ when it exists (scripts/gpu-pack.sh: a
+# lent GPU machine reaches no registry to build from), else they are built
+# first (release, default features); either way the timed steps compile
+# nothing. Burn's CUDA backend is not a backend of this build (`--backend`
+# takes flex, ndarray and wgpu), so wgpu is the GPU measured.
 set -euo pipefail
 out=${1:?usage: bash scripts/gpu-measure.sh OUT}
 cd "$(dirname "$0")/.."
@@ -27,17 +30,40 @@ export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
 if [ -n "${QUICK:-}" ]; then
   rays=(128 256 512)
   bench_size=(--quick --fit-steps 5 --steps 2)
-  room=(--scene-size ci --time-budget 30 --no-final-render)
+  room=(--scene-size ci --time-budget 30 --no-final-render --log-every 5)
 else
   rays=(1024 4096 16384)
   bench_size=(--fit-steps 20 --steps 5)
   room=(--scene-size bench --time-budget 300)
 fi
 
-echo "== building"
-cargo build --release -p train --bin train -p bench --bin bench
-target=${CARGO_TARGET_DIR:-target}
-bin=$target/release
+# The binaries: unpacked from gpu-pack/ (scripts/gpu-pack.sh) where it
+# exists, as on a lent GPU machine, which reaches no registry to build
+# from; built here otherwise.
+if [ -f gpu-pack/train.xz ] && [ -f gpu-pack/bench.xz ]; then
+  echo "== unpacking gpu-pack/, built from $(cat gpu-pack/COMMIT 2>/dev/null || echo 'an unknown commit')"
+  if [ -d .git ] && [ "$(git rev-parse HEAD 2>/dev/null)" != "$(cut -d' ' -f1 gpu-pack/COMMIT 2>/dev/null)" ]; then
+    echo "warning: gpu-pack/ was built from another commit than this checkout's" >&2
+  fi
+  bin=$(mktemp -d)
+  for b in train bench; do
+    # Python's lzma where xz is not installed.
+    if command -v xz >/dev/null 2>&1; then
+      xz -dc "gpu-pack/$b.xz" > "$bin/$b"
+    else
+      python3 -c 'import lzma, shutil, sys; shutil.copyfileobj(lzma.open(sys.argv[1]), open(sys.argv[2], "wb"))' \
+        "gpu-pack/$b.xz" "$bin/$b"
+    fi
+    chmod +x "$bin/$b"
+  done
+  cp gpu-pack/COMMIT "$out/binaries.txt" 2>/dev/null || true
+else
+  echo "== building"
+  cargo build --release -p train --bin train -p bench --bin bench
+  target=${CARGO_TARGET_DIR:-target}
+  bin=$target/release
+  git rev-parse HEAD > "$out/binaries.txt" 2>/dev/null || true
+fi
 
 # GPU memory, sampled every half second while the script runs.
 sampler=""
@@ -74,6 +100,9 @@ out = Path(sys.argv[1])
 rays = sys.argv[2:]
 lines = ["# The GPU's figures (scripts/gpu-measure.sh)", ""]
 lines.append(f"Device: {(out / 'gpu.txt').read_text().strip()}")
+binaries = out / "binaries.txt"
+if binaries.exists():
+    lines.append(f"Binaries built from: {binaries.read_text().strip()}")
 mem = out / "gpu_memory.csv"
 if mem.exists() and mem.stat().st_size > 0:
     used = [float(v) for v in mem.read_text().split() if v.replace(".", "", 1).isdigit()]

@@ -106,34 +106,7 @@ pub enum SceneSizeArg {
     Outdoor,
 }
 
-/// An image size `WxH`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Resolution {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-}
-
-impl std::str::FromStr for Resolution {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let (w, h) = s
-            .split_once(['x', 'X'])
-            .ok_or_else(|| format!("expected WxH (e.g. 320x180), got {s:?}"))?;
-        let parse = |v: &str| {
-            v.trim()
-                .parse::<u32>()
-                .ok()
-                .filter(|&n| n > 0)
-                .ok_or_else(|| format!("expected a positive integer in {s:?}, got {v:?}"))
-        };
-        Ok(Self {
-            width: parse(w)?,
-            height: parse(h)?,
-        })
-    }
-}
+pub use datasets::options::Resolution;
 
 /// Train an OpenNeRF field (colour, depth and an open-set feature head) on a
 /// posed capture or on the built-in synthetic room.

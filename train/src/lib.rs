@@ -131,19 +131,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         Some(path) => TrainConfig::from_file(path, &base)?,
         None => base,
     };
-    config.apply(&config::Overrides {
-        iters: cli.iters,
-        rays: cli.rays,
-        samples: cli.samples,
-        width: cli.width,
-        depth: cli.depth,
-        lambda_open: cli.lambda_open,
-        lambda_depth: cli.lambda_depth,
-        lr: cli.lr,
-        unseen_depth: cli.unseen_depth,
-        seed: cli.seed,
-        log_every: cli.log_every.map(|n| n as usize),
-    });
+    config.apply(&overrides(cli));
     // Said only where the file and the flags keep what the default chose.
     sampling
         .filter(|d| d.kept_by(&config))
@@ -179,6 +167,23 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
 /// Chooses the appearance model (printing the choice), then checks the
 /// whole configuration before anything is written, so that a bad value
 /// from a `--config` file is named with the file.
+/// The flags that override single keys of the configuration.
+fn overrides(cli: &cli::Cli) -> config::Overrides {
+    config::Overrides {
+        iters: cli.iters,
+        rays: cli.rays,
+        samples: cli.samples,
+        width: cli.width,
+        depth: cli.depth,
+        lambda_open: cli.lambda_open,
+        lambda_depth: cli.lambda_depth,
+        lr: cli.lr,
+        unseen_depth: cli.unseen_depth,
+        seed: cli.seed,
+        log_every: cli.log_every.map(|n| n as usize),
+    }
+}
+
 fn choose_appearance_and_check(
     cli: &cli::Cli,
     config: &mut TrainConfig,
