@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Deserializer, Serialize};
 
+use crate::detect::Format;
 use crate::features::{PcaBasis, PcaSetting};
 
 /// A scene format with its loader options. Serialised adjacently tagged,
@@ -47,18 +48,18 @@ impl LoaderOptions {
         }
     }
 
-    /// The format's name (`replica`, `blender`, `llff`, `colmap`,
-    /// `scannet`, `scanner_app`, `record3d` or `polycam`), as serialised.
-    pub fn format(&self) -> &'static str {
+    /// The format these options load (its name, [`Format::name`], is the
+    /// one the command line takes and messages use).
+    pub fn format(&self) -> Format {
         match self {
-            Self::Replica(_) => "replica",
-            Self::Blender(_) => "blender",
-            Self::Llff(_) => "llff",
-            Self::Colmap(_) => "colmap",
-            Self::Scannet(_) => "scannet",
-            Self::ScannerApp(_) => "scanner_app",
-            Self::Record3d(_) => "record3d",
-            Self::Polycam(_) => "polycam",
+            Self::Replica(_) => Format::Replica,
+            Self::Blender(_) => Format::Blender,
+            Self::Llff(_) => Format::Llff,
+            Self::Colmap(_) => Format::Colmap,
+            Self::Scannet(_) => Format::Scannet,
+            Self::ScannerApp(_) => Format::ScannerApp,
+            Self::Record3d(_) => Format::Record3d,
+            Self::Polycam(_) => Format::Polycam,
         }
     }
 }

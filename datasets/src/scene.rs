@@ -157,12 +157,13 @@ impl SceneSource {
     }
 
     /// The scene's kind for names and messages: `synthetic` or the format
-    /// on disk (`replica`, `blender`, `llff`).
+    /// on disk by its command-line name (`replica`, `blender`, `llff`,
+    /// `scanner-app`, ...).
     pub fn kind_name(&self) -> &'static str {
         match self {
             Self::WithFeatures { base, .. } => base.kind_name(),
             Self::Synthetic { .. } => "synthetic",
-            Self::Disk { loader, .. } => loader.format(),
+            Self::Disk { loader, .. } => loader.format().name(),
         }
     }
 }

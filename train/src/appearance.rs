@@ -3,6 +3,7 @@
 //! (`--appearance embedding`, see `model::appearance`), and why. `train`
 //! prints the choice and why.
 
+use datasets::detect::Format;
 use datasets::{Scene, SceneSource};
 use model::{AppearanceCodesConfig, ExposureConfig, OpenNerfConfig};
 
@@ -60,7 +61,7 @@ fn capture(scene: &Scene) -> String {
 
 /// Whether `scene` was loaded from a COLMAP reconstruction.
 pub(crate) fn is_colmap(scene: &Scene) -> bool {
-    matches!(scene.source.base(), SceneSource::Disk { loader, .. } if loader.format() == "colmap")
+    matches!(scene.source.base(), SceneSource::Disk { loader, .. } if loader.format() == Format::Colmap)
 }
 
 /// Chooses from the flag and the configuration (`model` as `--config` and

@@ -10,6 +10,7 @@
 //! captures keep the built-in settings. A `--preset`, a `--config` file
 //! and `--samples` / `--rays` still win.
 
+use datasets::detect::Format;
 use datasets::{Scene, SceneSource};
 
 use crate::config::TrainConfig;
@@ -49,7 +50,7 @@ pub fn for_scene(scene: &Scene) -> Option<SamplingDefault> {
         return Some(COLMAP);
     }
     match scene.source.base() {
-        SceneSource::Disk { loader, .. } if loader.format() == "llff" => Some(LLFF),
+        SceneSource::Disk { loader, .. } if loader.format() == Format::Llff => Some(LLFF),
         _ => None,
     }
 }

@@ -8,6 +8,7 @@
 //! and the phone and nerfstudio captures, not measured better); the coarse
 //! and fine level everywhere. `train` prints the choice and why.
 
+use datasets::detect::Format;
 use datasets::{Scene, SceneSource};
 use model::{OpenNerfConfig, ProposalConfig, UnboundedConfig};
 
@@ -83,25 +84,24 @@ fn capture(scene: &Scene) -> (String, bool) {
         ),
         SceneSource::Synthetic { .. } => ("the synthetic room, a box".into(), false),
         SceneSource::Disk { loader, .. } => match loader.format() {
-            "colmap" => (
+            Format::Colmap => (
                 "a colmap capture, walked around what it looks at: the unbounded field, its rays \
                  from the scene box, measured above the box (docs/measurements/unbounded.md)"
                     .into(),
                 true,
             ),
-            "llff" => (
+            Format::Llff => (
                 "an llff capture: the unbounded field measured level with the box".into(),
                 false,
             ),
-            "blender" if scene.world.as_ref().is_some_and(|w| w.name == "nerfstudio") => (
+            Format::Blender if scene.world.as_ref().is_some_and(|w| w.name == "nerfstudio") => (
                 "a nerfstudio capture: the unbounded field not measured better on one".into(),
                 false,
             ),
-            "blender" => ("a Blender object with its known box".into(), false),
-            "scanner_app" | "record3d" | "polycam" => (
+            Format::Blender => ("a Blender object with its known box".into(), false),
+            phone if phone.is_phone() => (
                 format!(
-                    "a phone capture ({}): the unbounded field not measured better on one",
-                    loader.format()
+                    "a phone capture ({phone}): the unbounded field not measured better on one"
                 ),
                 false,
             ),

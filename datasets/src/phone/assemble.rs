@@ -226,9 +226,9 @@ pub fn assemble(
         ),
     };
     let scene = Scene {
-        name: dir
-            .file_name()
-            .map_or(loader.format().into(), |n| n.to_string_lossy().into_owned()),
+        name: dir.file_name().map_or(loader.format().name().into(), |n| {
+            n.to_string_lossy().into_owned()
+        }),
         frames,
         features,
         scene_box,

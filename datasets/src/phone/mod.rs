@@ -139,7 +139,7 @@ pub fn load_phone(dir: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetEr
     };
     let assembled = assemble(dir, options, capture, loader)?;
     for note in &assembled.notes {
-        eprintln!("{}: {note}", loader.format().replace('_', "-"));
+        eprintln!("{}: {note}", loader.format());
     }
     Ok(assembled.scene)
 }
