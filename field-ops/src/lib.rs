@@ -72,6 +72,7 @@ pub mod allocator;
 pub mod backend;
 pub mod batch_dir;
 pub mod colormap;
+pub mod dataset_arg;
 pub mod depth_image;
 pub mod error;
 pub mod files;

@@ -6,35 +6,8 @@ use clap::Parser;
 
 use field_ops::backend::BackendArgs;
 
-/// Which kind of scene to train on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum DatasetKind {
-    /// The built-in generated room (no files needed).
-    #[default]
-    Synthetic,
-    /// Nice-SLAM Replica (`results/`, `traj.txt`, `cam_params.json`).
-    Replica,
-    /// Blender / nerfstudio `transforms*.json`.
-    Blender,
-    /// LLFF `poses_bounds.npy` with `images_N/`.
-    Llff,
-    /// A COLMAP reconstruction (`images/`, `sparse/0/` or `sparse/`, binary
-    /// or text model).
-    Colmap,
-    /// A ScanNet scene export (`color/`, `depth/`, `pose/`, `intrinsic/`).
-    Scannet,
-    /// A 3D Scanner App "All Data" export (`frame_NNNNN.jpg` + `.json`,
-    /// `depth_NNNNN.png`, `conf_NNNNN.png`, `textured_output.obj`).
-    ScannerApp,
-    /// A Record3D export: EXR + JPG (`metadata.json`, `rgb/`, `depth/`) or
-    /// R3D (the `.r3d` file, or its unzipped `metadata` and `rgbd/`).
-    Record3d,
-    /// A Polycam raw-data export (`keyframes/` with `images/`, `cameras/`,
-    /// `depth/`, `confidence/`; `corrected_*` where present).
-    Polycam,
-    /// Detect the format from the files in `--data` (and print which).
-    Auto,
-}
+/// Which kind of scene to train on (`--dataset`).
+pub use field_ops::dataset_arg::DatasetArg as DatasetKind;
 
 impl Cli {
     /// The scene source asked for: `--dataset`, else `auto` when `--data`
@@ -44,24 +17,6 @@ impl Cli {
             (Some(kind), _) => kind,
             (None, Some(_)) => DatasetKind::Auto,
             (None, None) => DatasetKind::Synthetic,
-        }
-    }
-}
-
-impl DatasetKind {
-    /// Lower-case name as used on the command line and in run names.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Synthetic => "synthetic",
-            Self::Replica => "replica",
-            Self::Blender => "blender",
-            Self::Llff => "llff",
-            Self::Colmap => "colmap",
-            Self::Scannet => "scannet",
-            Self::ScannerApp => "scanner-app",
-            Self::Record3d => "record3d",
-            Self::Polycam => "polycam",
-            Self::Auto => "auto",
         }
     }
 }

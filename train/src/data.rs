@@ -44,8 +44,9 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             std::io::Error::new(std::io::ErrorKind::NotFound, "scene directory not found"),
         ));
     }
-    let format = match kind {
-        DatasetKind::Auto => {
+    let format = match kind.format() {
+        Some(format) => format,
+        None => {
             let found = datasets::detect::detect(&path)?;
             eprintln!(
                 "--dataset auto: {} is a {} scene (it holds {})",
@@ -55,15 +56,6 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
             );
             found.format
         }
-        DatasetKind::Replica => Format::Replica,
-        DatasetKind::Blender => Format::Blender,
-        DatasetKind::Llff => Format::Llff,
-        DatasetKind::Colmap => Format::Colmap,
-        DatasetKind::Scannet => Format::Scannet,
-        DatasetKind::ScannerApp => Format::ScannerApp,
-        DatasetKind::Record3d => Format::Record3d,
-        DatasetKind::Polycam => Format::Polycam,
-        DatasetKind::Synthetic => unreachable!("handled above"),
     };
     let mut loader = loader_options(cli, format)?;
     if let Some(margin) = cli.box_margin {

@@ -8,40 +8,15 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use clip::vision::{DenseOptions, Vlm};
-use datasets::detect::Format;
 use datasets::imageio::save_rgb8;
 use datasets::npy::NpyInfo;
 use datasets::{Scene, SceneSource};
 use field_ops::OpsError;
 use field_ops::backend::BackendArgs;
 use field_ops::colormap::{to_u8, turbo};
+use field_ops::dataset_arg::DatasetArg;
 use field_ops::images::pca_colors;
 use model::clip::DenseVariant;
-
-/// The scene formats `extract` reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ExtractFormat {
-    /// Detected from the directory's files.
-    Auto,
-    /// Nice-SLAM Replica.
-    Replica,
-    /// Blender / nerfstudio `transforms.json`.
-    Blender,
-    /// LLFF (`poses_bounds.npy`).
-    Llff,
-    /// A COLMAP workspace.
-    Colmap,
-    /// ScanNet.
-    Scannet,
-    /// A 3D Scanner App "All Data" export.
-    ScannerApp,
-    /// A Record3D export (EXR + JPG, or R3D).
-    Record3d,
-    /// A Polycam raw-data export.
-    Polycam,
-    /// The built-in synthetic scene (`--data` not used).
-    Synthetic,
-}
 
 /// Arguments of `extract`.
 #[derive(Debug, Clone, clap::Args)]
@@ -55,8 +30,8 @@ pub struct ExtractArgs {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Scene format.
-    #[arg(long, value_enum, default_value_t = ExtractFormat::Auto)]
-    pub dataset: ExtractFormat,
+    #[arg(long, value_enum, default_value_t = DatasetArg::Auto)]
+    pub dataset: DatasetArg,
     /// Output directory: `<frame>.npy` (f16, rows x cols x D), the stamp
     /// `vlm_features.json` and `previews/`.
     #[arg(long)]
@@ -81,13 +56,13 @@ pub struct ExtractArgs {
 fn scene_of(args: &ExtractArgs) -> Result<Scene, OpsError> {
     let invalid = |m: String| OpsError::Invalid(m);
     let source = match (args.dataset, &args.data) {
-        (ExtractFormat::Synthetic, Some(d)) => {
+        (DatasetArg::Synthetic, Some(d)) => {
             return Err(invalid(format!(
                 "--data {} is given with --dataset synthetic (the built-in scene reads no files)",
                 d.display()
             )));
         }
-        (ExtractFormat::Synthetic, None) => SceneSource::Synthetic {
+        (DatasetArg::Synthetic, None) => SceneSource::Synthetic {
             seed: 0,
             size: "ci".into(),
             pca: None,
@@ -97,16 +72,9 @@ fn scene_of(args: &ExtractArgs) -> Result<Scene, OpsError> {
             if !path.exists() {
                 return Err(invalid(format!("--data {}: not found", path.display())));
             }
-            let format = match f {
-                ExtractFormat::Replica => Format::Replica,
-                ExtractFormat::Blender => Format::Blender,
-                ExtractFormat::Llff => Format::Llff,
-                ExtractFormat::Colmap => Format::Colmap,
-                ExtractFormat::Scannet => Format::Scannet,
-                ExtractFormat::ScannerApp => Format::ScannerApp,
-                ExtractFormat::Record3d => Format::Record3d,
-                ExtractFormat::Polycam => Format::Polycam,
-                _ => datasets::detect::detect(path)?.format,
+            let format = match f.format() {
+                Some(format) => format,
+                None => datasets::detect::detect(path)?.format,
             };
             SceneSource::Disk {
                 loader: format.default_loader(),
