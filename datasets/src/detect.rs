@@ -74,6 +74,20 @@ impl Format {
         matches!(self, Self::ScannerApp | Self::Record3d | Self::Polycam)
     }
 
+    /// What this format is, in a few words (for `--help`).
+    pub fn description(self) -> &'static str {
+        match self {
+            Self::Replica => "Nice-SLAM Replica",
+            Self::Blender => "Blender / nerfstudio transforms",
+            Self::Llff => "LLFF",
+            Self::Colmap => "A COLMAP reconstruction",
+            Self::Scannet => "A ScanNet scene export",
+            Self::ScannerApp => "A 3D Scanner App \"All Data\" export",
+            Self::Record3d => "A Record3D export",
+            Self::Polycam => "A Polycam raw-data export",
+        }
+    }
+
     /// What a directory of this format holds, for messages.
     pub fn needs(self) -> &'static str {
         match self {
