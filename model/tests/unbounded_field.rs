@@ -138,16 +138,19 @@ fn every_backend_renders_the_same_weights_alike() {
     let rays = camera_rays(6, 3);
     for (name, config) in configs(8) {
         let config = config.with_hash(Some(hash.clone()));
-        let reference = {
-            let _seeded = seeded();
-            Device::flex().seed(6);
-            config.init(&Device::flex())
-        };
         let render = |m: &OpenNerf| {
             let out = m.render(&RenderRequest::train(&rays).with_randomized(false));
             (vec(out.fine.rgb), vec(out.fine.depth))
         };
-        let (rgb, depth) = render(&reference);
+        // The parameters are drawn from the generator when first used: under
+        // the lock, so that no other test's draws come between.
+        let (reference, rgb, depth) = {
+            let _seeded = seeded();
+            Device::flex().seed(6);
+            let m = config.init(&Device::flex());
+            let (rgb, depth) = render(&m);
+            (m, rgb, depth)
+        };
         for (device_name, device) in devices(true) {
             let m = reference.clone().fork(&device);
             let (r, d) = render(&m);
