@@ -78,10 +78,7 @@ pub fn train_new_with_stages(
     write_json(&run.split(), &split)?;
     stages.attach(run.dir.join(STAGES_FILE))?;
     let _ = std::fs::remove_file(run.metrics());
-    let device = training_device(session.backend, session.device_index);
-    if session.backend == crate::backend::BackendKind::Wgpu {
-        eprintln!("{}", field_ops::backend::wgpu_settings());
-    }
+    let device = session_device(session);
     device.seed(config.seed);
     let model = config
         .model
@@ -180,10 +177,7 @@ pub fn resume(
             format!("frame index out of range for a scene of {n} frames"),
         ));
     }
-    let device = training_device(session.backend, session.device_index);
-    if session.backend == crate::backend::BackendKind::Wgpu {
-        eprintln!("{}", field_ops::backend::wgpu_settings());
-    }
+    let device = session_device(session);
     let (model, optim) = restore(&config, &ckpt, &path, &device)?;
     if iterations.is_some() {
         write_json(&run.config(), &config)?;
@@ -201,4 +195,14 @@ pub fn resume(
         session,
         stages,
     })
+}
+
+/// The session's training device; on wgpu, says how the backend runs
+/// (fusion, where compiled kernels are kept).
+fn session_device(session: &SessionOptions) -> burn::tensor::Device {
+    let device = training_device(session.backend, session.device_index);
+    if session.backend == crate::backend::BackendKind::Wgpu {
+        eprintln!("{}", field_ops::backend::wgpu_settings());
+    }
+    device
 }
