@@ -8,6 +8,7 @@
 
 pub mod balance;
 pub mod blender;
+pub mod capture_kind;
 pub mod colmap;
 pub mod detect;
 pub mod error;

@@ -109,3 +109,41 @@ pub fn checked_similarity(
         translation: [rows[0][3], rows[1][3], rows[2][3]],
     })
 }
+
+/// The smallest spread of the optical axes, per camera, that gives a
+/// focus: the least eigenvalue of `sum (I - d d^T)` over the cameras'
+/// axes `d` divided by their number (0 for parallel axes; axes on a cone
+/// of half-angle `a` about one direction give `sin^2 a`, so this is about
+/// 8 degrees).
+pub const MIN_AXIS_SPREAD: f64 = 0.02;
+
+/// The point nearest to every camera's optical axis in the least-squares
+/// sense; `None` for fewer than two cameras, axes spread less than
+/// [`MIN_AXIS_SPREAD`], or a point behind most of the cameras.
+pub fn focus_point(poses: &[Pose]) -> Option<Vec3> {
+    use nalgebra::{Matrix3, Vector3};
+    if poses.len() < 2 {
+        return None;
+    }
+    let axis =
+        |p: &Pose| Vector3::new(p.rotation[0][2], p.rotation[1][2], p.rotation[2][2]).normalize();
+    let mut a = Matrix3::zeros();
+    let mut b = Vector3::zeros();
+    for p in poses {
+        let d = axis(p);
+        let m = Matrix3::identity() - d * d.transpose();
+        a += m;
+        b += m * Vector3::from(p.translation);
+    }
+    let spread = a.symmetric_eigenvalues().min() / poses.len() as f64;
+    // A NaN spread (non-finite poses) has no focus either.
+    if spread.is_nan() || spread < MIN_AXIS_SPREAD {
+        return None;
+    }
+    let f = a.cholesky()?.solve(&b);
+    let in_front = poses
+        .iter()
+        .filter(|p| (f - Vector3::from(p.translation)).dot(&axis(p)) > 0.0)
+        .count();
+    (2 * in_front > poses.len() && f.iter().all(|v| v.is_finite())).then(|| [f.x, f.y, f.z])
+}
