@@ -4,7 +4,7 @@
 //! scene whose content reaches far past the region the cameras look at.
 //! `train` picks its defaults by this kind and prints it with its evidence.
 
-use model::geometry::{Pose, Vec3, dot, norm, sub};
+use model::geometry::{Pose, SceneBox, Vec3, dot, norm, sub};
 
 use crate::poses::focus_point;
 use crate::scene::{Frame, Scene, SceneSource};
@@ -115,17 +115,30 @@ pub fn kind_from(e: &CaptureEvidence) -> CaptureKind {
     };
     if e.depth_past_box.is_some_and(|s| s > PAST_THE_BOX) {
         CaptureKind::OpenScene
-    } else if e.depth_past_box.is_some() && 2 * e.inside_box > e.cameras {
+    } else if e.depth_past_box.is_some() && most(e.inside_box, e.cameras) {
         // Measured depth all round the cameras: they stand in what they
         // see, however short the stretch of the walk.
         CaptureKind::Room
     } else if e.direction_agreement > ONE_WAY {
         CaptureKind::ForwardFacing
-    } else if e.cameras > 0 && 2 * e.at_focus > e.cameras {
+    } else if most(e.at_focus, e.cameras) {
         object
     } else {
         CaptureKind::Room
     }
+}
+
+/// Whether `some` of `all` is a majority (none of none is not).
+pub fn most(some: usize, all: usize) -> bool {
+    2 * some > all
+}
+
+/// How many of `centres` lie inside `scene_box`.
+pub fn cameras_inside(scene_box: &SceneBox, centres: impl IntoIterator<Item = Vec3>) -> usize {
+    centres
+        .into_iter()
+        .filter(|c| scene_box.contains(*c))
+        .count()
 }
 
 impl CaptureEvidence {
@@ -180,10 +193,7 @@ fn measure(scene: &Scene) -> CaptureEvidence {
         .fold([0.0; 3], |m, a| [m[0] + a[0], m[1] + a[1], m[2] + a[2]]);
     let n = axes.len().max(1) as f64;
     let direction_agreement = norm(mean) / n;
-    let inside_box = centres
-        .iter()
-        .filter(|c| scene.scene_box.contains(**c))
-        .count();
+    let inside_box = cameras_inside(&scene.scene_box, centres.iter().copied());
     let sampled = sample_frames(&scene.frames);
     let (dense, sparse): (Vec<&Frame>, Vec<&Frame>) = scene
         .frames
@@ -355,5 +365,32 @@ mod tests {
             ..evidence(0, 0.1)
         };
         assert_eq!(kind_from(&room), CaptureKind::Room);
+    }
+
+    #[test]
+    fn most_cameras_inside_the_box_is_a_majority_of_them() {
+        let b = SceneBox {
+            min: [-1.0; 3],
+            max: [1.0; 3],
+        };
+        // A walk through the box, and an orbit around it at radius 4.
+        let walk = (0..10).map(|i| [-0.9 + 0.2 * i as f64, 0.0, 0.3]);
+        let orbit = (0..10).map(|i| {
+            let a = i as f64 * 0.6;
+            [4.0 * a.cos(), 4.0 * a.sin(), 0.5]
+        });
+        assert_eq!(cameras_inside(&b, walk.clone()), 10);
+        assert!(most(10, 10));
+        assert_eq!(cameras_inside(&b, orbit.clone()), 0);
+        assert!(!most(0, 10));
+        // Half inside is not a majority; one more inside is.
+        let half: Vec<Vec3> = walk.clone().take(5).chain(orbit.clone().take(5)).collect();
+        assert_eq!(cameras_inside(&b, half.clone()), 5);
+        assert!(!most(5, 10));
+        let more: Vec<Vec3> = half.into_iter().chain(walk.take(1)).collect();
+        assert_eq!(cameras_inside(&b, more.clone()), 6);
+        assert!(most(6, more.len()));
+        assert_eq!(cameras_inside(&b, std::iter::empty()), 0);
+        assert!(!most(0, 0));
     }
 }

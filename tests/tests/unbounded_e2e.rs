@@ -14,7 +14,10 @@ use datasets::Scene;
 use datasets::synthetic::{SceneSize, generate};
 use tests::{max_abs_diff, run_weights, scratch_dir, serial, tiny_config};
 use train::TrainConfig;
-use train::field_choice::{FieldArg, SamplerArg, apply, choose};
+use train::settings::args::{FieldArg, SamplerArg};
+use train::settings::choices::Flags;
+use train::settings::table::{Extent, Sampler};
+use train::settings::{choices_for, write};
 
 fn outdoor() -> &'static Scene {
     static SCENE: OnceLock<Scene> = OnceLock::new();
@@ -26,9 +29,16 @@ fn outdoor() -> &'static Scene {
 fn config(field: FieldArg, sampler: SamplerArg, iterations: usize) -> TrainConfig {
     let scene = outdoor();
     let mut c = tiny_config(scene, iterations);
-    let choice = choose(field, sampler, scene);
-    println!("{}", choice.message());
-    apply(&choice, &mut c.model, false, scene).expect("no grid asked for");
+    let choices = choices_for(
+        scene,
+        &Flags {
+            field,
+            sampler,
+            ..Flags::default()
+        },
+    );
+    println!("{}", write::field_line(&choices));
+    write::apply_field(&choices, &mut c.model, scene);
     c
 }
 
@@ -36,8 +46,12 @@ fn config(field: FieldArg, sampler: SamplerArg, iterations: usize) -> TrainConfi
 fn auto_contracts_the_outdoor_scene_and_beats_the_box() {
     let _guard = serial();
     let scene = outdoor();
-    let auto = choose(FieldArg::Auto, SamplerArg::Auto, scene);
-    assert!(auto.unbounded && !auto.proposal, "{}", auto.message());
+    let auto = choices_for(scene, &Flags::default());
+    assert!(
+        auto.extent.value == Extent::Unbounded && auto.sampler.value == Sampler::CoarseFine,
+        "{}",
+        write::field_line(&auto)
+    );
     let iterations = 300;
     let mut psnr = Vec::new();
     for field in [FieldArg::Box, FieldArg::Auto] {

@@ -164,7 +164,7 @@ pub struct Cli {
     /// unless --colmap-depth gives dense depth (docs/measurements/unbounded.md); `on`
     /// elsewhere is an error. `train` prints its choice.
     #[arg(long, value_enum)]
-    pub sparse_depth: Option<crate::depth_choice::SparseDepthArg>,
+    pub sparse_depth: Option<crate::settings::args::SparseDepthArg>,
     /// Scenes on disk: grow the scene box by this fraction of its largest
     /// side on every side (0.5: a box twice as large). The field models
     /// only what lies in the box; what lies past it is painted on its
@@ -192,11 +192,13 @@ pub struct Cli {
     /// Override: total training iterations (the schedule's length).
     #[arg(long)]
     pub iters: Option<usize>,
-    /// Override: rays per batch [default: 256; 128 for LLFF captures, 64
-    /// for COLMAP captures, which `train` says when it starts].
+    /// Override: rays per batch [default: 256; 128 for a forward-facing
+    /// capture, 64 for a photographed object walked around, which `train`
+    /// says when it starts: docs/reference/capture-defaults.md].
     #[arg(long)]
     pub rays: Option<usize>,
-    /// Override: samples per ray and level [default: 48; LLFF: 16].
+    /// Override: samples per ray and level [default: 48; a forward-facing
+    /// capture: 16].
     #[arg(long)]
     pub samples: Option<usize>,
     /// Override: width of the MLP trunk.
@@ -324,18 +326,19 @@ pub struct Cli {
     /// `unbounded` (Mip-NeRF 360's contraction: the ball around the scene
     /// box kept, everything beyond contracted, rays from where they enter
     /// the scene box to effectively infinite distance; no occupancy grid)
-    /// or `auto` (unbounded for the synthetic outdoor scene and COLMAP
-    /// captures, where it was measured better, box otherwise,
-    /// docs/measurements/unbounded.md). `train` prints its choice and why.
-    #[arg(long, value_enum, default_value_t = crate::field_choice::FieldArg::Auto)]
-    pub field: crate::field_choice::FieldArg,
+    /// or `auto` (unbounded for a photographed object walked around and
+    /// for an open scene, where it was measured better, box otherwise:
+    /// docs/reference/capture-defaults.md). `train` prints its choice and
+    /// why.
+    #[arg(long, value_enum, default_value_t = crate::settings::args::FieldArg::Auto)]
+    pub field: crate::settings::args::FieldArg,
     /// Where the MLP samples: `coarse-fine` (Mip-NeRF's two levels of the
     /// one MLP, `--samples` each), `proposal` (Mip-NeRF 360: two rounds of
     /// 64 samples of a small density MLP, trained by the interlevel loss,
     /// then `--samples` of the MLP) or `auto` (coarse-fine, measured more
     /// accurate and faster at the default sizes: docs/measurements/unbounded.md).
-    #[arg(long, value_enum, default_value_t = crate::field_choice::SamplerArg::Auto)]
-    pub sampler: crate::field_choice::SamplerArg,
+    #[arg(long, value_enum, default_value_t = crate::settings::args::SamplerArg::Auto)]
+    pub sampler: crate::settings::args::SamplerArg,
     /// The photographs' appearance: `exposure` learns a gain and an offset
     /// per colour channel for each training photograph (captures whose
     /// photographs differ in exposure or white balance), applied to its
@@ -345,11 +348,12 @@ pub struct Cli {
     /// direction (nerfacto's appearance embedding, `model.appearance.dim`
     /// numbers, 16 by default), and renders every other view with the zero
     /// code; `none` takes every photograph as taken at one exposure; `auto`
-    /// is `embedding` for a COLMAP capture with the unbounded field, else
+    /// is `embedding` for a photographed object walked around (measured to
+    /// lift its held-out views: docs/measurements/unbounded.md), else
     /// `none`, unless the `--config` file sets `model.exposure` or
-    /// `model.appearance` (docs/measurements/unbounded.md). `train` prints its choice.
-    #[arg(long, value_enum, default_value_t = crate::appearance::AppearanceArg::Auto)]
-    pub appearance: crate::appearance::AppearanceArg,
+    /// `model.appearance`. `train` prints its choice.
+    #[arg(long, value_enum, default_value_t = crate::settings::args::AppearanceArg::Auto)]
+    pub appearance: crate::settings::args::AppearanceArg,
     /// Refine the training photographs' camera poses with the field: `on`
     /// learns a small rotation about each camera's centre and a shift of
     /// that centre per training photograph (nerfstudio's camera optimiser,
@@ -360,19 +364,20 @@ pub struct Cli {
     /// the `--config` file sets `model.pose` (docs/measurements/unbounded.md). `train`
     /// prints its choice.
     #[arg(long, value_enum)]
-    pub pose_refine: Option<crate::pose_choice::PoseRefineArg>,
+    pub pose_refine: Option<crate::settings::args::PoseRefineArg>,
     /// Give the field's MLP a multiresolution hash encoding of each
     /// sample beside its IPE (Instant-NGP's, as nerfacto uses it: 16
     /// levels from 16 to 512 cells across the field's domain, 2^15 rows of
     /// 2 learned features each; `model.hash` in a `--config` file sets
     /// others): fine detail is learned in far fewer iterations, at about
     /// twice the seconds per iteration on the CPU. `auto` (the default) is
-    /// `on` for a COLMAP capture with the unbounded field, where it was
-    /// measured to lift the held-out views at equal seconds, else `off`
-    /// unless the `--config` file sets `model.hash` (docs/measurements/unbounded.md).
+    /// `on` for a photographed object walked around, where it was
+    /// measured to lift the held-out views at equal seconds
+    /// (docs/measurements/unbounded.md), else `off` unless the `--config`
+    /// file sets `model.hash`.
     /// `train` prints its choice.
     #[arg(long, value_enum)]
-    pub hash_grid: Option<crate::hash_choice::HashGridArg>,
+    pub hash_grid: Option<crate::settings::args::HashGridArg>,
     /// Cells per axis of the occupancy grid, in 2..=256; a refresh costs one
     /// density query per cell [default: 32].
     #[arg(long)]

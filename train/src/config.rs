@@ -319,8 +319,8 @@ impl TrainConfig {
             return bad("model.num_samples must be at least 1".into());
         }
         crate::occupancy::validate(&self.occupancy).map_err(TrainError::Config)?;
-        crate::field_choice::validate(&self.model).map_err(TrainError::Config)?;
-        crate::hash_choice::validate(&self.model).map_err(TrainError::Config)?;
+        crate::model_checks::field(&self.model).map_err(TrainError::Config)?;
+        crate::model_checks::hash(&self.model).map_err(TrainError::Config)?;
         if let Some(a) = &self.model.appearance
             && !(1..=1024).contains(&a.dim)
         {

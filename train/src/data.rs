@@ -13,8 +13,8 @@ use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
 
 use crate::cli::{Cli, DatasetKind, SceneSizeArg};
-use crate::depth_choice::{self, SparseDepthArg};
 use crate::error::TrainError;
+use crate::settings::args::SparseDepthArg;
 
 /// How to build the scene of a new run, from the command-line options.
 pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
@@ -190,7 +190,7 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
             _ => defaults.images.clone(),
         },
         depth: cli.colmap_depth,
-        sparse_depth: depth_choice::loader_flag(cli.sparse_depth, cli.colmap_depth)?,
+        sparse_depth: crate::settings::depth::loader_flag(cli.sparse_depth, cli.colmap_depth)?,
         stride: cli.stride.unwrap_or(defaults.stride),
         ..defaults
     }))

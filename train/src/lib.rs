@@ -9,10 +9,8 @@
 #![warn(missing_docs)]
 
 pub mod accuracy;
-pub mod appearance;
 pub mod backend;
 pub mod batch;
-pub mod capture_defaults;
 pub mod checkpoint;
 // Flag help is written for `--help`, where `<out>` names a placeholder,
 // not an HTML tag.
@@ -21,20 +19,18 @@ pub mod cli;
 pub mod config;
 pub mod curve;
 pub mod data;
-pub mod depth_choice;
 pub mod error;
 pub mod evaluate;
-pub mod field_choice;
-pub mod hash_choice;
 pub mod interrupt;
 pub mod loss_config;
 pub mod metrics_log;
+pub mod model_checks;
 pub mod occupancy;
-pub mod pose_choice;
 pub mod preset;
 pub mod progress;
 pub mod report;
 pub mod schedule;
+pub mod settings;
 pub mod step;
 pub mod step_report;
 pub mod summary;
@@ -118,30 +114,10 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     if scene.features.is_none() {
         eprintln!("{}", report::NO_FEATURES_WARNING);
     }
-    let dim = scene.features.as_ref().map_or(0, |f| f.dim());
-    let mut base = TrainConfig::default_run(dim);
-    let choice = field_choice::choose(cli.field, cli.sampler, &scene);
-    eprintln!("{}", choice.message());
-    let sampling = capture_defaults::for_scene(&scene).filter(|_| cli.preset.is_none());
-    sampling.inspect(|d| d.apply(&mut base));
-    if let Some(p) = cli.preset {
-        apply_preset(p, &mut base, &scene, !choice.unbounded);
+    let settings::Resolved { config, lines, .. } = settings::resolve(cli, &scene)?;
+    for line in &lines {
+        eprintln!("{line}");
     }
-    let mut config = match &cli.config {
-        Some(path) => TrainConfig::from_file(path, &base)?,
-        None => base,
-    };
-    config.apply(&overrides(cli));
-    // Said only where the file and the flags keep what the default chose.
-    sampling
-        .filter(|d| d.kept_by(&config))
-        .inspect(|d| eprintln!("{}", d.message()));
-    apply_novel_and_grid_flags(cli, &mut config);
-    depth_choice::apply(cli.sparse_depth, &scene, &mut config)?;
-    let grid = config.occupancy.enabled;
-    field_choice::apply(&choice, &mut config.model, grid, &scene)?;
-    field_choice::ray_start(&config.model).inspect(|m| eprintln!("{m}"));
-    choose_appearance_and_check(cli, &mut config, &scene)?;
     eprintln!(
         "scene {}: {} frames, features: {}; training {} iterations on {} into {}",
         scene.name,
@@ -162,134 +138,6 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
         &session,
         stages,
     )
-}
-
-/// Chooses the appearance model (printing the choice), then checks the
-/// whole configuration before anything is written, so that a bad value
-/// from a `--config` file is named with the file.
-/// The flags that override single keys of the configuration.
-fn overrides(cli: &cli::Cli) -> config::Overrides {
-    config::Overrides {
-        iters: cli.iters,
-        rays: cli.rays,
-        samples: cli.samples,
-        width: cli.width,
-        depth: cli.depth,
-        lambda_open: cli.lambda_open,
-        lambda_depth: cli.lambda_depth,
-        lr: cli.lr,
-        unseen_depth: cli.unseen_depth,
-        seed: cli.seed,
-        log_every: cli.log_every.map(|n| n as usize),
-    }
-}
-
-fn choose_appearance_and_check(
-    cli: &cli::Cli,
-    config: &mut TrainConfig,
-    scene: &datasets::Scene,
-) -> Result<(), TrainError> {
-    let appearance = appearance::choose(cli.appearance, &config.model, scene);
-    eprintln!("{}", appearance.message());
-    appearance::apply(&appearance, &mut config.model, scene);
-    let pose = pose_choice::choose(cli.pose_refine, &config.model);
-    eprintln!("{}", pose.message());
-    pose_choice::apply(&pose, &mut config.model, scene);
-    let hash = hash_choice::choose(cli.hash_grid, &config.model, scene);
-    hash_choice::apply(&hash, &mut config.model);
-    eprintln!("{}", hash.message(&config.model));
-    match (config.validate(), &cli.config) {
-        (Err(TrainError::Config(msg)), Some(path)) => Err(TrainError::Config(format!(
-            "{msg} (the configuration of {}, with the flags laid over it)",
-            path.display()
-        ))),
-        _ => Ok(()),
-    }
-}
-
-/// Lays preset `p` over `base` with the settings for `scene`'s kind (and
-/// its occupancy grid when `grid`), and says what it set.
-fn apply_preset(p: preset::Preset, base: &mut TrainConfig, scene: &datasets::Scene, grid: bool) {
-    let centres = scene.frames.iter().map(|f| f.camera.pose.center());
-    let count = preset::CameraCount::of(&scene.scene_box, centres);
-    let kind = count.kind();
-    let s = p.apply(base, kind, grid);
-    eprintln!(
-        "preset {} with the {} settings ({} of {} cameras inside the scene box): \
-         {} samples per ray and level, {} rays a batch, {} iterations{}",
-        p.name(),
-        kind.name(),
-        count.inside,
-        count.all,
-        s.samples,
-        s.rays,
-        s.iterations,
-        if grid {
-            ""
-        } else {
-            ", no occupancy grid (the field is unbounded)"
-        },
-    );
-}
-
-/// Lays the novel-view, occupancy-grid and head top-k flags over the configuration.
-fn apply_novel_and_grid_flags(cli: &cli::Cli, config: &mut TrainConfig) {
-    if cli.occupancy_grid {
-        config.occupancy.enabled = true;
-    }
-    if let Some(r) = cli.grid_resolution {
-        config.occupancy.resolution = r;
-    }
-    let grid = &mut config.occupancy;
-    let flags = [
-        (cli.grid_early_samples, &mut grid.early_samples),
-        (cli.grid_early_updates, &mut grid.early_updates),
-        (cli.grid_dilation, &mut grid.dilation),
-        (cli.grid_keep_dropped, &mut grid.keep_dropped_updates),
-    ];
-    for (flag, field) in flags {
-        if let Some(v) = flag {
-            *field = v;
-        }
-    }
-    if let Some(k) = cli.head_top_k {
-        config.model.head_top_k = (k > 0).then_some(k);
-    }
-    let novel = &mut config.novel;
-    if let Some(n) = cli.novel_views {
-        novel.views = n;
-    }
-    if let Some(a) = cli.novel_after {
-        novel.after = Some(a);
-    }
-    if let Some(m) = cli.novel_views_mode {
-        novel.mode = m;
-    }
-    if let Some(w) = cli.novel_depth_weight {
-        novel.depth_weight = w;
-    }
-    if let Some(s) = cli.novel_scale {
-        novel.scale = s;
-    }
-    if let Some(e) = cli.novel_max_color_error {
-        novel.max_color_error = e.is_finite().then_some(e);
-    }
-    if let Some(o) = cli.novel_oracle {
-        novel.oracle = Some(o);
-    }
-    if let Some(n) = cli.novel_normalisation {
-        novel.normalisation = n;
-    }
-    if let Some(w) = cli.novel_color_weight {
-        novel.color_weight = w;
-    }
-    if cli.novel_keep_fog {
-        novel.mask_features = false;
-    }
-    if let Some(c) = &cli.extractor_command {
-        // Refused before this point (`validate::cli`) when it cannot be split.
-        novel.extractor = validate::extractor_words(c).ok();
-    }
 }
 
 /// The directory this crate was compiled from (its manifest directory).

@@ -11,8 +11,6 @@
 //! gave a higher PSNR at every preset's budget and the same segmentation
 //! on average (docs/measurements/sweep-and-presets.md, "The presets on the room").
 
-use model::geometry::{SceneBox, Vec3};
-
 use crate::config::TrainConfig;
 
 /// A named trade of speed for accuracy: the settings and the length of a
@@ -50,37 +48,6 @@ impl SceneKind {
         match self {
             SceneKind::Object => "object",
             SceneKind::Room => "room",
-        }
-    }
-}
-
-/// How many of a scene's cameras stand inside its scene box.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct CameraCount {
-    /// Camera centres inside the box.
-    pub inside: usize,
-    /// All cameras.
-    pub all: usize,
-}
-
-impl CameraCount {
-    /// Counts the camera centres inside `scene_box`.
-    pub fn of(scene_box: &SceneBox, camera_centres: impl IntoIterator<Item = Vec3>) -> Self {
-        let (mut inside, mut all) = (0usize, 0usize);
-        for c in camera_centres {
-            all += 1;
-            inside += usize::from(scene_box.contains(c));
-        }
-        Self { inside, all }
-    }
-
-    /// `Room` when more than half of the cameras stand inside the box,
-    /// `Object` otherwise (and with no camera).
-    pub fn kind(self) -> SceneKind {
-        if 2 * self.inside > self.all {
-            SceneKind::Room
-        } else {
-            SceneKind::Object
         }
     }
 }
@@ -167,34 +134,5 @@ mod tests {
                     && room.iterations * room.rays < obj.iterations * obj.rays
             );
         }
-    }
-
-    #[test]
-    fn scene_kind_counts_the_cameras_inside_the_box() {
-        let b = SceneBox {
-            min: [-1.0; 3],
-            max: [1.0; 3],
-        };
-        // A walk through the box, and an orbit around it at radius 4.
-        let walk = (0..10).map(|i| [-0.9 + 0.2 * i as f64, 0.0, 0.3]);
-        let orbit = (0..10).map(|i| {
-            let a = i as f64 * 0.6;
-            [4.0 * a.cos(), 4.0 * a.sin(), 0.5]
-        });
-        assert_eq!(CameraCount::of(&b, walk.clone()).kind(), SceneKind::Room);
-        assert_eq!(CameraCount::of(&b, orbit.clone()).kind(), SceneKind::Object);
-        // Half inside is not a majority; one more inside is.
-        let half: Vec<Vec3> = walk.clone().take(5).chain(orbit.clone().take(5)).collect();
-        assert_eq!(
-            CameraCount::of(&b, half.clone()),
-            CameraCount { inside: 5, all: 10 }
-        );
-        assert_eq!(CameraCount::of(&b, half.clone()).kind(), SceneKind::Object);
-        let more = half.into_iter().chain(walk.take(1));
-        assert_eq!(CameraCount::of(&b, more).kind(), SceneKind::Room);
-        assert_eq!(
-            CameraCount::of(&b, std::iter::empty()).kind(),
-            SceneKind::Object
-        );
     }
 }

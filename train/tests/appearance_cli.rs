@@ -44,7 +44,7 @@ fn the_choice_is_printed_and_the_exposure_saved_and_loaded_with_the_run() {
     let plain = tmp.path().join("plain");
     let err = tiny_run(tmp.path(), &plain, TINY, &[]);
     assert!(
-        err.contains("appearance: none (auto: a synthetic scene"),
+        err.contains("appearance: none (auto: a room stood in"),
         "{err}"
     );
     assert!(saved_exposure(&plain).is_null());

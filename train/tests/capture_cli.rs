@@ -11,14 +11,21 @@ use common::{TINY, s, train};
 
 const IMAGES: usize = 4;
 
-/// The text model of a small rig: one PINHOLE camera (40x30), four images
-/// looking along +z from x = 0, 0.2, 0.4, 0.6 (world-to-camera rotation
-/// identity), 30 points around the origin.
+/// The text model of a small rig walked around an object: one PINHOLE
+/// camera (40x30), four images 3 units from the origin looking at it from
+/// 0.5 rad apart about the y axis (world-to-camera: that rotation, then 3
+/// along +z), 30 points around the origin.
 fn model_text() -> [String; 3] {
     let cameras = "# Camera list\n1 PINHOLE 40 30 38 38 20 15\n".to_string();
     let mut images = "# Image list\n".to_string();
     for i in 0..IMAGES {
-        images += &format!("{} 1 0 0 0 {} 0 3 1 img{i}.png\n\n", i + 1, -0.2 * i as f64);
+        let half = 0.25 * i as f64;
+        images += &format!(
+            "{} {:.9} 0 {:.9} 0 0 0 3 1 img{i}.png\n\n",
+            i + 1,
+            half.cos(),
+            half.sin()
+        );
     }
     let mut points = "# 3D point list\n".to_string();
     for i in 0..30 {
@@ -105,22 +112,26 @@ fn a_colmap_text_model_trains_and_records_its_frame() {
     assert!(err.contains("--frame colmap"), "{err}");
     // Auto: the unbounded field with appearance codes, each said so.
     assert!(
-        err.contains("field: unbounded (auto: a colmap capture"),
+        err.contains("field: unbounded (auto: a photographed object walked around"),
         "{err}"
     );
     assert!(
         err.contains("appearance: a learned appearance code per photograph")
-            && err.contains("(auto: a colmap capture with the unbounded field"),
+            && err.contains("(auto: a photographed object walked around: appearance codes"),
         "{err}"
     );
-    // With the box field asked for, no codes.
+    // With the box field asked for, the capture's other settings stay:
+    // one flag changes one setting.
     let boxed = tmp.path().join("boxed");
     let o = run(tmp.path(), &data, &boxed, &["--field", "box"]);
     let box_err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{box_err}");
     assert!(
         box_err.contains("field: box (--field box)")
-            && box_err.contains("appearance: none (auto: a colmap capture)"),
+            && box_err.contains(
+                "appearance: a learned appearance code per photograph (held-out and novel \
+                 views: the zero code) (auto: a photographed object walked around"
+            ),
         "{box_err}"
     );
     let meta: datasets::SceneMeta =

@@ -565,7 +565,7 @@ fn field_and_sampler_flags_are_checked_and_the_choice_is_printed() {
     let (_, stderr) = text(&r);
     assert!(r.status.success(), "{stderr}");
     assert!(
-        stderr.contains("field: unbounded (auto: the synthetic outdoor scene"),
+        stderr.contains("field: unbounded (auto: an open scene reaching far past its box"),
         "{stderr}"
     );
     assert!(
@@ -644,7 +644,7 @@ fn field_and_sampler_flags_are_checked_and_the_choice_is_printed() {
     let (_, stderr) = text(&r);
     assert!(r.status.success(), "{stderr}");
     assert!(
-        stderr.contains("field: box (auto: the synthetic room"),
+        stderr.contains("field: box (auto: a room stood in"),
         "{stderr}"
     );
 }

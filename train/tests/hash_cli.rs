@@ -47,7 +47,7 @@ fn the_choice_is_printed_and_the_tables_saved_and_loaded_with_the_run() {
     let plain = tmp.path().join("plain");
     let err = tiny_run(tmp.path(), &plain, TINY, &[]);
     assert!(
-        err.contains("hash grid: none, the IPE alone (auto: not measured"),
+        err.contains("hash grid: none, the IPE alone (auto: a room stood in: not measured"),
         "{err}"
     );
     assert!(json(&plain.join("config.json"))["model"]["hash"].is_null());

@@ -54,7 +54,7 @@ fn an_llff_capture_trains_with_its_sampling_default_unless_told_otherwise() {
     assert_eq!(sizes(&out), (16, 128));
     assert!(
         err.contains(
-            "sampling: 16 samples per ray and level, 128 rays a batch (auto: an LLFF capture"
+            "sampling: 16 samples per ray and level, 128 rays a batch (auto: a forward-facing capture"
         ),
         "{err}"
     );
@@ -104,7 +104,7 @@ fn a_colmap_capture_trains_with_64_rays_a_batch_unless_told_otherwise() {
     let err = one_iteration(&out, &data);
     assert_eq!(sizes(&out), (48, 64));
     assert!(
-        err.contains("sampling: 64 rays a batch (auto: a COLMAP capture"),
+        err.contains("sampling: 64 rays a batch (auto: a photographed object walked around"),
         "{err}"
     );
 

@@ -8,12 +8,13 @@
 //! * Robust box: per axis (after that rotation) the 2nd and 98th
 //!   percentiles of the sparse points. With fewer than [`MIN_POINTS`]
 //!   points (COLMAP's known-poses workflow, poses exported from another
-//!   system) the cameras give the frame ([`FrameFit`]): centred on their
-//!   focus, the point their optical axes pass closest to, and spanning the
-//!   camera centres mirrored through it, so that an object photographed
-//!   from all around sits in the middle of a box that holds every camera;
-//!   when the axes are too close to parallel for a focus (a forward-facing
-//!   capture), the camera centres' own robust box.
+//!   system) the cameras give the frame ([`FrameFit`]): a cube centred on
+//!   their focus, the point their optical axes pass closest to, as wide as
+//!   the narrowest view spans at the cameras' median distance from it (what
+//!   every camera sees there: an object photographed from all around fills
+//!   it, as it fills the photographs); when the axes are too close to
+//!   parallel for a focus (a forward-facing capture), the camera centres'
+//!   own robust box.
 //! * Seen region: the robust box grown to hold what every camera sees at
 //!   the depth of its own points (its image corners at the median depth of
 //!   the sparse points in front of it). Sparse points lie on textured
@@ -117,7 +118,8 @@ impl FrameFit {
             FrameFit::Points(n) => format!("fitted to the {n} sparse points of points3D"),
             FrameFit::CameraFocus(n) => format!(
                 "points3D has {n} points (fewer than {MIN_POINTS}), so the frame is fitted to the \
-                 cameras: centred where their optical axes pass closest, sized to hold every camera"
+                 cameras: centred where their optical axes pass closest, as wide as every camera \
+                 sees at its median distance from there"
             ),
             FrameFit::CameraCentres(n) => format!(
                 "points3D has {n} points (fewer than {MIN_POINTS}) and the cameras' optical axes \
@@ -141,23 +143,45 @@ pub fn frame_fit(points: &[Vec3], poses: &[Pose]) -> FrameFit {
 }
 
 /// The points the robust box is taken over: the sparse points; with fewer
-/// than [`MIN_POINTS`], the camera centres and their mirror images through
-/// the cameras' [`focus_point`] (a set symmetric about the focus, so the
-/// box is centred on it), or the camera centres alone without a focus.
-pub fn box_basis(points: &[Vec3], poses: &[Pose]) -> Vec<Vec3> {
+/// than [`MIN_POINTS`], the corners of the cube the cameras see around
+/// their [`focus_point`] ([`seen_around`]), or the camera centres alone
+/// without a focus.
+pub fn box_basis(points: &[Vec3], cameras: &[Camera]) -> Vec<Vec3> {
     if points.len() >= MIN_POINTS {
         return points.to_vec();
     }
-    let centres: Vec<Vec3> = poses.iter().map(Pose::center).collect();
-    match focus_point(poses) {
+    let poses: Vec<Pose> = cameras.iter().map(|c| c.pose).collect();
+    match focus_point(&poses) {
         Some(f) => {
-            let mirrored = centres
-                .iter()
-                .map(|c| std::array::from_fn(|k| 2.0 * f[k] - c[k]));
-            centres.iter().copied().chain(mirrored).collect()
+            let r = seen_around(cameras, f);
+            (0..8)
+                .map(|i| std::array::from_fn(|k| f[k] + if i >> k & 1 == 1 { r } else { -r }))
+                .collect()
         }
-        None => centres,
+        None => poses.iter().map(Pose::center).collect(),
     }
+}
+
+/// Half the width every camera sees at the cameras' median distance from
+/// `focus`: that distance times the tangent of the narrowest half field
+/// of view among them.
+pub fn seen_around(cameras: &[Camera], focus: Vec3) -> f64 {
+    let mut distances: Vec<f64> = cameras
+        .iter()
+        .map(|c| {
+            let p = c.pose.center();
+            norm([focus[0] - p[0], focus[1] - p[1], focus[2] - p[2]])
+        })
+        .collect();
+    distances.sort_by(f64::total_cmp);
+    let half_tan = cameras
+        .iter()
+        .map(|c| {
+            let k = &c.intrinsics;
+            (0.5 * f64::from(k.width) / k.fx).min(0.5 * f64::from(k.height) / k.fy)
+        })
+        .fold(f64::INFINITY, f64::min);
+    percentile(&distances, 0.5) * half_tan
 }
 
 /// Each camera's image corners at the median depth of the `points` in
@@ -196,8 +220,7 @@ pub fn seen_corners(cameras: &[Camera], points: &[Vec3]) -> Vec<Vec3> {
 /// The region the scene frame is fitted to: the robust box of
 /// [`box_basis`] grown to hold the robust box of [`seen_corners`].
 pub fn seen_region(cameras: &[Camera], points: &[Vec3]) -> Option<(Vec3, Vec3)> {
-    let poses: Vec<Pose> = cameras.iter().map(|c| c.pose).collect();
-    let (mut lo, mut hi) = robust_box(&box_basis(points, &poses))?;
+    let (mut lo, mut hi) = robust_box(&box_basis(points, cameras))?;
     if let Some((clo, chi)) = robust_box(&seen_corners(cameras, points)) {
         for k in 0..3 {
             lo[k] = lo[k].min(clo[k]);
@@ -397,19 +420,32 @@ mod tests {
         let f = focus_point(&poses).expect("axes spread");
         assert!((0..3).all(|k| (f[k] - target[k]).abs() < 1e-9), "{f:?}");
         assert_eq!(frame_fit(&[], &poses), FrameFit::CameraFocus(0));
-        // The box basis is symmetric about the focus: its robust box is
-        // centred there and holds every camera centre.
-        let (lo, hi) = robust_box(&box_basis(&[], &poses)).expect("basis");
+        // The box basis is a cube about the focus, as wide as the views
+        // span there: focal 100 px over 100 px spans +-0.5 at depth 1, and
+        // every camera is sqrt(4^2 + 2^2) from the target.
+        let cams: Vec<Camera> = poses
+            .iter()
+            .map(|&pose| Camera {
+                pose,
+                ..camera([0.0; 3], 100.0)
+            })
+            .collect();
+        let (lo, hi) = robust_box(&box_basis(&[], &cams)).expect("basis");
         assert!((0..3).all(|k| (lo[k] + hi[k] - 2.0 * target[k]).abs() < 1e-9));
-        assert!(hi[0] - lo[0] > 6.0 && hi[1] - lo[1] > 6.0, "{lo:?} {hi:?}");
+        let half = 0.5 * 20f64.sqrt();
         assert!(
-            (hi[2] - lo[2] - 4.0).abs() < 1e-9,
-            "cameras 2 above, mirrors 2 below"
+            (0..3).all(|k| (hi[k] - lo[k] - 2.0 * half).abs() < 1e-9),
+            "{lo:?} {hi:?}"
+        );
+        // The cameras stand outside it, looking in.
+        assert!(
+            cams.iter()
+                .all(|c| !SceneBox { min: lo, max: hi }.contains(c.pose.center()))
         );
         // Enough sparse points take precedence over the cameras.
         let pts = vec![[0.0; 3]; MIN_POINTS];
         assert_eq!(frame_fit(&pts, &poses), FrameFit::Points(MIN_POINTS));
-        assert_eq!(box_basis(&pts, &poses), pts);
+        assert_eq!(box_basis(&pts, &cams), pts);
     }
 
     #[test]
@@ -430,7 +466,14 @@ mod tests {
             .collect();
         assert_eq!(focus_point(&parallel), None);
         assert_eq!(frame_fit(&[], &parallel), FrameFit::CameraCentres(0));
-        assert_eq!(box_basis(&[], &parallel), centres);
+        let parallel_cams: Vec<Camera> = parallel
+            .iter()
+            .map(|&pose| Camera {
+                pose,
+                ..camera([0.0; 3], 50.0)
+            })
+            .collect();
+        assert_eq!(box_basis(&[], &parallel_cams), centres);
         // Cameras looking outwards from a ring: their axes meet behind them.
         let ring: Vec<Vec3> = (0..6)
             .map(|i| [(1.0 * i as f64).cos(), (1.0 * i as f64).sin(), 0.0])

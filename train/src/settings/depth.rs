@@ -1,31 +1,17 @@
 //! Whether a COLMAP capture's sparse points supervise the field's depth
-//! (`--sparse-depth`, see `datasets::colmap::sparse_depth`), and why.
-//! `train` prints the choice.
+//! (`--sparse-depth`, see `datasets::colmap::sparse_depth`): where the
+//! loaded scene has them, a quarter of each batch is drawn from them.
 
 use datasets::options::LoaderOptions;
 use datasets::{Scene, SceneSource};
 
+use super::args::SparseDepthArg;
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 
 /// The share of each batch drawn from the pixels with a sparse depth
 /// target: 64 of 256 rays, the measured setting (docs/measurements/unbounded.md).
 pub const SPARSE_DEPTH_SHARE: usize = 4;
-
-/// Whether the sparse points are depth targets (`--sparse-depth`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum SparseDepthArg {
-    /// `on` for COLMAP captures whose model has sparse points (unless
-    /// `--colmap-depth` gives dense depth), where it was measured to lift
-    /// the held-out views (docs/measurements/unbounded.md); `off` elsewhere.
-    #[default]
-    Auto,
-    /// No depth from the sparse points.
-    Off,
-    /// The sparse points' depths at the pixels of their features (COLMAP
-    /// captures only).
-    On,
-}
 
 /// Whether the loader makes sparse depth targets: a COLMAP capture under
 /// `auto` or `on`, unless its dense depth maps are the targets. Errors
@@ -133,18 +119,19 @@ pub fn choose(
 }
 
 /// Draws part of each batch of `config` from the sparse depth targets
-/// when `scene` has them (see [`choose`]), and says so.
+/// when `scene` has them (see [`choose`]), and returns the line that says
+/// so.
 pub fn apply(
     arg: Option<SparseDepthArg>,
     scene: &Scene,
     config: &mut TrainConfig,
-) -> Result<(), TrainError> {
+) -> Result<Option<String>, TrainError> {
     let sampler = &mut config.sampler;
-    if let Some(sparse) = choose(arg, scene, sampler.rays_per_batch, sampler.depth_rays)? {
-        sampler.depth_rays = sparse.rays;
-        eprintln!("{}", sparse.message());
-    }
-    Ok(())
+    let sparse = choose(arg, scene, sampler.rays_per_batch, sampler.depth_rays)?;
+    Ok(sparse.map(|s| {
+        sampler.depth_rays = s.rays;
+        s.message()
+    }))
 }
 
 #[cfg(test)]

@@ -1,0 +1,135 @@
+//! The one place where a new run's settings are decided, in one pass:
+//! the built-in configuration, then the defaults of the capture's kind
+//! (told from the loaded scene's content, [`datasets::capture_kind`]; one
+//! row of [`table`]), then `--preset`, then the `--config` file, then the
+//! flags. Every per-capture setting (field, sampler, appearance, hash
+//! encoding, pose refinement, occupancy grid, sizes) records who decided
+//! it, and `train` prints each with that reason. Nothing decided here is
+//! read back to decide something else.
+
+pub mod args;
+pub mod choices;
+pub mod depth;
+pub mod flags;
+pub mod sizes;
+pub mod table;
+pub mod write;
+
+use std::path::Path;
+
+use datasets::Scene;
+use datasets::capture_kind::{CaptureKind, capture_kind};
+
+use crate::cli::Cli;
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+use choices::{Choices, Layer};
+use sizes::Sizes;
+use table::Extent;
+
+/// A new run's configuration, and the lines that say how it was decided.
+#[derive(Debug, Clone)]
+pub struct Resolved {
+    /// The configuration the run trains with.
+    pub config: TrainConfig,
+    /// The capture's kind, whose row gave the defaults.
+    pub kind: CaptureKind,
+    /// One line per decision, in the order `train` prints them.
+    pub lines: Vec<String>,
+}
+
+/// Decides the configuration of a new run of `scene` from the command
+/// line (see the module docs).
+pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
+    let (kind, evidence) = capture_kind(scene);
+    let row = table::row(kind);
+    let mut lines = vec![format!(
+        "capture: {} ({})",
+        kind.describe(),
+        evidence.describe()
+    )];
+    let patch = cli.config.as_deref().map(read_patch).transpose()?;
+    let mut choices = Choices::of_row(&row);
+    if let Some(p) = cli.preset {
+        choices = choices.overlaid(Layer::of_preset(p));
+    }
+    if let Some(patch) = &patch {
+        choices = choices.overlaid(Layer::of_file(patch));
+    }
+    choices = choices.overlaid(Layer::of_flags(&flags::of_cli(cli)));
+    lines.push(write::field_line(&choices));
+
+    let dim = scene.features.as_ref().map_or(0, |f| f.dim());
+    let mut base = TrainConfig::default_run(dim);
+    let sizes = Sizes::of_row(&row).filter(|_| cli.preset.is_none());
+    if let Some(p) = cli.preset {
+        let unbounded = choices.extent.value == Extent::Unbounded;
+        let s = p.apply(&mut base, row.preset, !unbounded);
+        lines.push(format!(
+            "preset {} with the {} settings ({}): {} samples per ray and level, {} rays a \
+             batch, {} iterations{}",
+            p.name(),
+            row.preset.name(),
+            kind.describe(),
+            s.samples,
+            s.rays,
+            s.iterations,
+            if unbounded {
+                ", no occupancy grid (the field is unbounded)"
+            } else {
+                ""
+            },
+        ));
+    }
+    sizes.inspect(|s| s.apply(&mut base));
+    let mut config = match (&patch, &cli.config) {
+        (Some(patch), Some(path)) => {
+            TrainConfig::merged(&base, patch.clone()).map_err(|e| TrainError::json(path, e))?
+        }
+        _ => base,
+    };
+    config.apply(&flags::overrides(cli));
+    flags::apply_novel_and_grid(cli, &mut config);
+    let set_by_file = |section: &str, key: &str| {
+        patch
+            .as_ref()
+            .is_some_and(|p| p[section].get(key).is_some())
+    };
+    let samples_set = cli.samples.is_some() || set_by_file("model", "num_samples");
+    let rays_set = cli.rays.is_some() || set_by_file("sampler", "rays_per_batch");
+    if let Some(s) = sizes.filter(|s| s.kept(samples_set, rays_set)) {
+        lines.push(s.line(&choices::By::Kind(kind, row.sizes_why).reason()));
+    }
+    lines.extend(depth::apply(cli.sparse_depth, scene, &mut config)?);
+    write::apply(&choices, &mut config, scene)?;
+    lines.extend(write::ray_start_line(&config.model));
+    lines.push(write::appearance_line(&choices));
+    lines.push(write::pose_line(&choices));
+    lines.push(write::hash_line(&choices, &config.model));
+    // Checked again, without the file's name, where the run starts.
+    if let (Err(TrainError::Config(msg)), Some(path)) = (config.validate(), &cli.config) {
+        return Err(TrainError::Config(format!(
+            "{msg} (the configuration of {}, with the flags laid over it)",
+            path.display()
+        )));
+    }
+    Ok(Resolved {
+        config,
+        kind,
+        lines,
+    })
+}
+
+/// The settings of `scene`'s capture kind with `flags` laid over them (no
+/// preset, no file): what a library caller building its own configuration
+/// writes with [`write::apply`].
+pub fn choices_for(scene: &Scene, flags: &choices::Flags) -> Choices {
+    let (kind, _) = capture_kind(scene);
+    Choices::of_row(&table::row(kind)).overlaid(Layer::of_flags(flags))
+}
+
+/// The `--config` file as JSON.
+fn read_patch(path: &Path) -> Result<serde_json::Value, TrainError> {
+    let text = std::fs::read_to_string(path).map_err(|e| TrainError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| TrainError::json(path, e))
+}

@@ -1,0 +1,193 @@
+//! The defaults of each kind of capture: one row per
+//! [`CaptureKind`], one column per setting, each with the page that
+//! measured it. `train` lays a preset, the `--config` file and the flags
+//! over the row of the capture it loaded.
+
+use datasets::capture_kind::CaptureKind;
+
+use crate::preset::SceneKind;
+
+/// The field's extent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Extent {
+    /// The scene box mapped to `[-pi, pi]^3`.
+    Box,
+    /// Mip-NeRF 360's contraction beyond the ball around the scene box.
+    Unbounded,
+}
+
+/// Where the MLP's samples are placed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sampler {
+    /// Mip-NeRF's coarse and fine level of the one MLP.
+    CoarseFine,
+    /// Mip-NeRF 360's proposal rounds, then the MLP.
+    Proposal,
+}
+
+/// How the photographs' appearance is modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Appearance {
+    /// One exposure for every photograph.
+    None,
+    /// A learned gain and offset per training photograph.
+    Exposure,
+    /// A learned code per training photograph.
+    Embedding,
+}
+
+/// One row of the table: what a kind of capture trains with unless told
+/// otherwise, and why.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// The capture kind.
+    pub kind: CaptureKind,
+    /// The field's extent.
+    pub extent: Extent,
+    /// Why this extent.
+    pub extent_why: &'static str,
+    /// Samples per ray and level (`None`: the built-in 48).
+    pub samples: Option<usize>,
+    /// Rays per batch (`None`: the built-in 256).
+    pub rays: Option<usize>,
+    /// Why these sizes (when the row sets any).
+    pub sizes_why: &'static str,
+    /// The appearance model.
+    pub appearance: Appearance,
+    /// The hash encoding beside the IPE.
+    pub hash: bool,
+    /// Why these appearance and hash settings.
+    pub photographs_why: &'static str,
+    /// Which settings of a `--preset` apply.
+    pub preset: SceneKind,
+}
+
+/// Why every row keeps the coarse and fine sampler.
+pub const SAMPLER_WHY: &str = "more accurate and faster than the proposal sampler at these sizes";
+
+/// Why every row keeps the poses as given.
+pub const POSE_WHY: &str = "not measured to lift held-out views (docs/measurements/unbounded.md)";
+
+/// Why a row leaves a setting off.
+pub const NOT_MEASURED: &str = "not measured to help this capture";
+
+/// The row of `kind`.
+pub fn row(kind: CaptureKind) -> Row {
+    let plain = Row {
+        kind,
+        extent: Extent::Box,
+        extent_why: "",
+        samples: None,
+        rays: None,
+        sizes_why: "",
+        appearance: Appearance::None,
+        hash: false,
+        photographs_why: NOT_MEASURED,
+        preset: SceneKind::Object,
+    };
+    match kind {
+        CaptureKind::RenderedObject => Row {
+            extent_why: "its region is known and nothing lies past it",
+            photographs_why: "renders, at one exposure",
+            ..plain
+        },
+        CaptureKind::PhotographedObject => Row {
+            extent: Extent::Unbounded,
+            extent_why: "the unbounded field, its rays from the scene box, measured above the box \
+                         (docs/measurements/unbounded.md)",
+            rays: Some(64),
+            sizes_why: "more updates in the same seconds fit it better, \
+                        docs/measurements/unbounded.md",
+            appearance: Appearance::Embedding,
+            hash: true,
+            photographs_why: "appearance codes and the hash encoding were measured to lift the \
+                              held-out views at equal seconds (docs/measurements/unbounded.md)",
+            ..plain
+        },
+        CaptureKind::Room => Row {
+            extent_why: "the cameras stand inside its box",
+            preset: SceneKind::Room,
+            ..plain
+        },
+        CaptureKind::ForwardFacing => Row {
+            extent_why: "the unbounded field measured level with the box \
+                         (docs/measurements/unbounded.md)",
+            samples: Some(16),
+            rays: Some(128),
+            sizes_why: "more iterations in the same seconds fit it better, \
+                        docs/measurements/fern.md",
+            preset: SceneKind::Room,
+            ..plain
+        },
+        CaptureKind::OpenScene => Row {
+            extent: Extent::Unbounded,
+            extent_why: "its content reaches far past the box (docs/measurements/unbounded.md)",
+            ..plain
+        },
+    }
+}
+
+/// The table as Markdown: one row per kind, the sizes as `train` uses
+/// them (the built-in 48 samples and 256 rays where a row keeps them).
+pub fn markdown() -> String {
+    let mut s = String::from(
+        "| capture kind | field | sampler | samples per ray and level | rays a batch | \
+         appearance | hash grid | preset settings |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for kind in CaptureKind::ALL {
+        let r = row(kind);
+        s.push_str(&format!(
+            "| {} | {} | coarse-fine | {} | {} | {} | {} | {} |\n",
+            kind.describe(),
+            match r.extent {
+                Extent::Box => "box",
+                Extent::Unbounded => "unbounded",
+            },
+            r.samples.unwrap_or(48),
+            r.rays.unwrap_or(256),
+            match r.appearance {
+                Appearance::None => "none",
+                Appearance::Exposure => "exposure",
+                Appearance::Embedding => "codes",
+            },
+            if r.hash { "on" } else { "off" },
+            r.preset.name(),
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table in the reference docs is the one `train` uses.
+    #[test]
+    fn the_documented_table_is_the_one_in_use() {
+        let table = markdown();
+        println!("{table}");
+        let page = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../docs/reference/capture-defaults.md"
+        );
+        let text = std::fs::read_to_string(page).expect("the reference page");
+        assert!(
+            text.contains(&table),
+            "docs/reference/capture-defaults.md lacks the table train uses:\n{table}"
+        );
+    }
+
+    #[test]
+    fn every_row_says_why_it_differs_from_the_built_in_settings() {
+        for kind in CaptureKind::ALL {
+            let r = row(kind);
+            assert!(!r.extent_why.is_empty(), "{kind:?}");
+            if r.samples.is_some() || r.rays.is_some() {
+                assert!(r.sizes_why.contains("docs/"), "{kind:?}");
+            }
+            if r.appearance != Appearance::None || r.hash {
+                assert!(r.photographs_why.contains("docs/"), "{kind:?}");
+            }
+        }
+    }
+}

@@ -1,0 +1,201 @@
+//! Writes the decided settings into the configuration (keeping the
+//! sub-settings a `--config` file gave), and the lines `train` prints for
+//! them.
+
+use datasets::Scene;
+use model::{
+    AppearanceCodesConfig, ExposureConfig, HashGridConfig, OpenNerfConfig, PoseCorrectionConfig,
+    ProposalConfig, UnboundedConfig,
+};
+
+use super::choices::{By, Choices};
+use super::table::{Appearance, Extent, Sampler};
+use crate::config::TrainConfig;
+use crate::error::TrainError;
+
+/// The radius, in the field's normalised units, of the ball an unbounded
+/// field keeps as it is: the ball around the scene box (the region the
+/// cameras see in detail, which the loaders fit to the capture's points),
+/// so that space beyond the box, the cameras' surroundings included, is
+/// contracted.
+pub fn contraction_radius(scene: &Scene) -> f32 {
+    let corner = scene.scene_box.normalize_point(scene.scene_box.max);
+    (corner[0] * corner[0] + corner[1] * corner[1] + corner[2] * corner[2]).sqrt() as f32
+}
+
+/// Writes `choices` into `config` for `scene`. The occupancy grid a preset
+/// turns on stays off an unbounded field (it covers the scene box, not
+/// contracted space); asked for by the file or a flag, it is refused there.
+pub fn apply(choices: &Choices, config: &mut TrainConfig, scene: &Scene) -> Result<(), TrainError> {
+    let unbounded = choices.extent.value == Extent::Unbounded;
+    let grid = choices.grid.value && !(unbounded && matches!(choices.grid.by, By::Preset(_)));
+    if unbounded && grid {
+        return Err(TrainError::Config(format!(
+            "the occupancy grid covers the scene box, and the field is unbounded ({}): \
+             train without --occupancy-grid (and without occupancy.enabled in --config), \
+             or with --field box",
+            choices.extent.by.reason()
+        )));
+    }
+    config.occupancy.enabled = grid;
+    apply_field(choices, &mut config.model, scene);
+    let model = &mut config.model;
+    let frames = scene.frames.len();
+    let appearance = choices.appearance.value;
+    model.exposure = (appearance == Appearance::Exposure).then(|| ExposureConfig::new(frames));
+    let dim = model.appearance.as_ref().map(|a| a.dim);
+    model.appearance = (appearance == Appearance::Embedding).then(|| {
+        let codes = AppearanceCodesConfig::new(frames);
+        match dim {
+            Some(d) => codes.with_dim(d),
+            None => codes,
+        }
+    });
+    model.pose = choices
+        .pose
+        .value
+        .then(|| PoseCorrectionConfig::new(frames));
+    model.hash = choices
+        .hash
+        .value
+        .then(|| model.hash.clone().unwrap_or_else(HashGridConfig::new));
+    Ok(())
+}
+
+/// Sets the field's extent and sampler on `model` for `scene`, keeping the
+/// settings a `--config` file gave them.
+pub fn apply_field(choices: &Choices, model: &mut OpenNerfConfig, scene: &Scene) {
+    let unbounded = choices.extent.value == Extent::Unbounded;
+    model.unbounded = match model.unbounded.take() {
+        // A radius of 0 (a file that leaves it out) is the scene's.
+        Some(mut given) if unbounded => {
+            if given.radius == 0.0 {
+                given.radius = contraction_radius(scene);
+            }
+            given.start_at_box.get_or_insert(true);
+            Some(given)
+        }
+        _ if unbounded => {
+            Some(UnboundedConfig::new(contraction_radius(scene)).with_start_at_box(Some(true)))
+        }
+        _ => None,
+    };
+    let proposal = choices.sampler.value == Sampler::Proposal;
+    model.proposal = match model.proposal.take() {
+        Some(given) if proposal => Some(given),
+        _ if proposal => Some(ProposalConfig::new()),
+        _ => None,
+    };
+}
+
+/// The field line.
+pub fn field_line(choices: &Choices) -> String {
+    format!(
+        "field: {} ({}); sampler: {} ({})",
+        match choices.extent.value {
+            Extent::Box => "box",
+            Extent::Unbounded => "unbounded",
+        },
+        choices.extent.by.reason(),
+        match choices.sampler.value {
+            Sampler::CoarseFine => "coarse-fine",
+            Sampler::Proposal => "proposal",
+        },
+        choices.sampler.by.reason(),
+    )
+}
+
+/// Where an unbounded field's rays start, in words (`None` for a box
+/// field).
+pub fn ray_start_line(model: &OpenNerfConfig) -> Option<String> {
+    let u = model.unbounded.as_ref()?;
+    Some(if u.start_at_box == Some(true) {
+        format!(
+            "unbounded field: rays start where they enter the scene box, or {} radii of the kept \
+             ball from the camera where that is farther (model.unbounded.start_at_box)",
+            u.near
+        )
+    } else {
+        format!(
+            "unbounded field: rays start {} radii of the kept ball from the camera \
+             (model.unbounded.start_at_box false)",
+            u.near
+        )
+    })
+}
+
+/// The appearance line.
+pub fn appearance_line(choices: &Choices) -> String {
+    let what = match choices.appearance.value {
+        Appearance::Exposure => "a learned exposure per photograph",
+        Appearance::Embedding => {
+            "a learned appearance code per photograph (held-out and novel views: the zero code)"
+        }
+        Appearance::None => "none",
+    };
+    format!("appearance: {what} ({})", choices.appearance.by.reason())
+}
+
+/// The camera pose line.
+pub fn pose_line(choices: &Choices) -> String {
+    let reason = choices.pose.by.reason();
+    if choices.pose.value {
+        format!(
+            "camera poses: refined with the field, training photographs only; held-out and \
+             novel views keep their poses ({reason})"
+        )
+    } else {
+        format!("camera poses: as given ({reason})")
+    }
+}
+
+/// The hash grid line, with the grid's sizes from `model`.
+pub fn hash_line(choices: &Choices, model: &OpenNerfConfig) -> String {
+    let reason = choices.hash.by.reason();
+    match &model.hash {
+        Some(h) => format!(
+            "hash grid: {} levels of 2^{} rows x {} features, {} to {} cells across, beside the \
+             IPE ({reason})",
+            h.levels, h.log2_table, h.features, h.base_resolution, h.max_resolution
+        ),
+        None => format!("hash grid: none, the IPE alone ({reason})"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::choices::{Flags, Layer};
+    use super::super::{args::HashGridArg, choices_for};
+    use super::*;
+
+    fn synthetic() -> Scene {
+        use datasets::synthetic::{SceneSize, generate};
+        generate(0, SceneSize::Ci).expect("the tiny scene")
+    }
+
+    #[test]
+    fn the_hash_grid_follows_the_file_and_the_flags_win() {
+        let scene = synthetic();
+        let hash = |file: serde_json::Value, flag: Option<HashGridArg>| {
+            let mut config = TrainConfig::default_run(4);
+            if let Some(levels) = file["model"]["hash"]["levels"].as_u64() {
+                config.model.hash = Some(HashGridConfig::new().with_levels(levels as usize));
+            }
+            let choices = choices_for(&scene, &Flags::default())
+                .overlaid(Layer::of_file(&file))
+                .overlaid(Layer::of_flags(&Flags {
+                    hash_grid: flag,
+                    ..Flags::default()
+                }));
+            apply(&choices, &mut config, &scene).expect("applies");
+            config.model.hash
+        };
+        let none = serde_json::json!({});
+        assert!(hash(none.clone(), None).is_none(), "the room's row: off");
+        let file = serde_json::json!({"model": {"hash": {"levels": 4}}});
+        let kept = hash(file.clone(), None).expect("the file's grid");
+        assert_eq!(kept.levels, 4, "the configuration's settings are kept");
+        assert!(hash(file, Some(HashGridArg::Off)).is_none());
+        assert!(hash(none, Some(HashGridArg::On)).is_some());
+    }
+}
