@@ -92,6 +92,9 @@ pub struct CaptureEvidence {
     pub inside_box: usize,
     /// Why the views are renders (`None`: photographs).
     pub rendered: Option<String>,
+    /// The plain colour most rendered views have behind the object (`None`
+    /// for photographs and the built-in scenes).
+    pub plain_background: Option<[f32; 3]>,
     /// Frames (of those sampled) with dense depth.
     pub dense_depth_frames: usize,
     /// Frames with sparse depth targets (a few pixels, e.g. from points).
@@ -212,6 +215,7 @@ fn measure(scene: &Scene) -> CaptureEvidence {
         direction_agreement,
         inside_box,
         rendered: rendered(scene, &sampled),
+        plain_background: plain_background(&sampled),
         dense_depth_frames: dense.len(),
         sparse_depth_frames: sparse.len(),
         depth_past_box: (!dense_sampled.is_empty()).then(|| past_box(scene, &dense_sampled)),
@@ -243,7 +247,10 @@ fn rendered(scene: &Scene, sampled: &[&Frame]) -> Option<String> {
     if matches!(scene.source.base(), SceneSource::Synthetic { .. }) {
         return Some("the built-in synthetic scene".into());
     }
-    let plain: Vec<f64> = sampled.iter().filter_map(|f| plain_share(f)).collect();
+    let plain: Vec<f64> = sampled
+        .iter()
+        .filter_map(|f| plain_share(f).map(|(share, _)| share))
+        .collect();
     if sampled.is_empty() || 2 * plain.len() <= sampled.len() {
         return None;
     }
@@ -254,9 +261,20 @@ fn rendered(scene: &Scene, sampled: &[&Frame]) -> Option<String> {
     ))
 }
 
-/// The share of `f`'s pixels exactly its corners' colour (to 1/255), when
-/// all four corners agree on it and it is at least [`PLAIN_BACKGROUND`].
-fn plain_share(f: &Frame) -> Option<f64> {
+/// The corner colour of the first of `sampled` with a plain background,
+/// when most of them have one.
+fn plain_background(sampled: &[&Frame]) -> Option<[f32; 3]> {
+    let plain: Vec<[f32; 3]> = sampled
+        .iter()
+        .filter_map(|f| plain_share(f).map(|(_, colour)| colour))
+        .collect();
+    (!sampled.is_empty() && 2 * plain.len() > sampled.len()).then(|| plain[0])
+}
+
+/// The share of `f`'s pixels exactly its corners' colour (to 1/255), and
+/// that colour, when all four corners agree on it and it is at least
+/// [`PLAIN_BACKGROUND`].
+fn plain_share(f: &Frame) -> Option<(f64, [f32; 3])> {
     let img = &f.rgb;
     let (w, h) = (img.width, img.height);
     if w == 0 || h == 0 {
@@ -277,7 +295,7 @@ fn plain_share(f: &Frame) -> Option<f64> {
         .filter(|c| same([c[0], c[1], c[2]]))
         .count();
     let share = equal as f64 / total as f64;
-    (share >= PLAIN_BACKGROUND).then_some(share)
+    (share >= PLAIN_BACKGROUND).then_some((share, corner))
 }
 
 /// The share of the frames' depth points (every 8th pixel in each axis)
@@ -325,6 +343,7 @@ mod tests {
             direction_agreement: agreement,
             inside_box: 0,
             rendered: None,
+            plain_background: None,
             dense_depth_frames: 0,
             sparse_depth_frames: 0,
             depth_past_box: None,

@@ -89,7 +89,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     // The run directory does not exist yet: the record waits in the log.
     let mut stages = field_ops::stages::StageLog::pending();
     stages.begin("scene");
-    let scene = match &cli.vlm {
+    let mut scene = match &cli.vlm {
         Some(model) => vlm::prepare(
             &source,
             &vlm::VlmRequest {
@@ -114,7 +114,13 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
     if scene.features.is_none() {
         eprintln!("{}", report::NO_FEATURES_WARNING);
     }
-    let settings::Resolved { config, lines, .. } = settings::resolve(cli, &scene)?;
+    let settings::Resolved {
+        config,
+        lines,
+        background,
+        ..
+    } = settings::resolve(cli, &scene)?;
+    scene.background = background;
     for line in &lines {
         eprintln!("{line}");
     }

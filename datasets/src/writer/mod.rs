@@ -14,8 +14,10 @@
 //! ```
 //!
 //! [`write_nerfstudio`] writes a scene as a nerfstudio `transforms.json`
-//! capture instead (per-frame intrinsics and distortion, depth, masks).
+//! capture instead (per-frame intrinsics and distortion, depth, masks), and
+//! [`write_colmap_text`] as a COLMAP text model without points.
 
+mod colmap;
 mod nerfstudio;
 
 use std::io::Write;
@@ -28,6 +30,7 @@ use crate::npy::write_npy_f16;
 use crate::points::write_ply;
 use crate::scene::{DepthImage, Frame, RgbImage, Scene};
 
+pub use colmap::write_colmap_text;
 pub use nerfstudio::{NERFSTUDIO_DEPTH_UNIT, write_depth_mm, write_nerfstudio};
 
 /// Depth PNG scale of the Nice-SLAM layout (value = metres * scale).

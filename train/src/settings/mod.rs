@@ -34,6 +34,9 @@ pub struct Resolved {
     pub config: TrainConfig,
     /// The capture's kind, whose row gave the defaults.
     pub kind: CaptureKind,
+    /// The colour composited behind the field: the loader's, or for a
+    /// rendered object the plain colour around it in its views.
+    pub background: Option<[f32; 3]>,
     /// One line per decision, in the order `train` prints them.
     pub lines: Vec<String>,
 }
@@ -58,6 +61,17 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     }
     choices = choices.overlaid(Layer::of_flags(&flags::of_cli(cli)));
     lines.push(write::field_line(&choices));
+    let background = match (scene.background, kind, evidence.plain_background) {
+        (None, CaptureKind::RenderedObject, Some(c)) => {
+            lines.push(format!(
+                "background: ({:.3}, {:.3}, {:.3}) composited behind the field (auto: a rendered \
+                 object: its views show that plain colour around it)",
+                c[0], c[1], c[2]
+            ));
+            Some(c)
+        }
+        (given, ..) => given,
+    };
 
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
@@ -116,6 +130,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     Ok(Resolved {
         config,
         kind,
+        background,
         lines,
     })
 }
