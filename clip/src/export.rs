@@ -5,10 +5,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use crate::tower::{ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling};
 use burn::module::Param;
 use burn::nn::{LayerNorm, Linear};
 use burn::tensor::Tensor;
-use model::clip::{ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling};
 use serde_json::{Map, Value, json};
 
 use crate::error::ClipError;

@@ -2,10 +2,10 @@
 //! [`ClipTextEncoder`]: Hugging Face (`CLIPModel`,
 //! `CLIPTextModelWithProjection`) and OpenCLIP / OpenAI (`CLIP`).
 
+use crate::tower::{ClipTextConfig, ClipTextEncoder};
 use burn::module::Param;
 use burn::nn::{LayerNorm, Linear};
 use burn::tensor::{Device, Tensor, TensorData};
-use model::clip::{ClipTextConfig, ClipTextEncoder};
 
 use crate::config::Sizes;
 use crate::error::ClipError;

@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use model::clip::{ClipTextConfig, ClipTextEncoder, ClipVisionConfig, ClipVisionEncoder};
+use crate::tower::{ClipTextConfig, ClipTextEncoder, ClipVisionConfig, ClipVisionEncoder};
 use serde_json::{Map, Value, json};
 
 use super::config::{OPENAI_MEAN, OPENAI_STD};
@@ -194,9 +194,9 @@ pub fn save_hf_clip_model(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tower::DenseVariant;
     use crate::vision::Vlm;
     use burn::tensor::{Device, Distribution, Int, Tensor, TensorData};
-    use model::clip::DenseVariant;
 
     fn tokenizer_fixture() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tokenizer")

@@ -3,9 +3,9 @@
 //! `CLIPVisionModelWithProjection`) and OpenCLIP / OpenAI (`visual.*`,
 //! packed attention projections, a `visual.proj` matrix).
 
+use crate::tower::{ClipVisionConfig, ClipVisionEncoder};
 use burn::nn::Linear;
 use burn::tensor::Device;
-use model::clip::{ClipVisionConfig, ClipVisionEncoder};
 
 use crate::error::ClipError;
 use crate::layout::{linear_from_torch, param1, param2, set_norm, split_in_proj};

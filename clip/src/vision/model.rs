@@ -4,10 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::tower::resample::{antialiased_bilinear_weights, resample_chw};
+use crate::tower::sliding::{WindowPlan, plan_windows};
+use crate::tower::{ClipVisionConfig, ClipVisionEncoder, DenseVariant};
 use burn::tensor::{Device, Tensor, TensorData};
-use model::clip::resample::{antialiased_bilinear_weights, resample_chw};
-use model::clip::sliding::{WindowPlan, plan_windows};
-use model::clip::{ClipVisionConfig, ClipVisionEncoder, DenseVariant};
 
 use super::config::{ImageNorm, build_vision_config, hf_vision_options, open_clip_vision_options};
 use super::layout::{VisionLayout, is_vision_tensor};
