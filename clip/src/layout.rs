@@ -1,8 +1,11 @@
-//! The two naming schemes of CLIP text weights and how each maps onto
-//! [`ClipTextEncoder`]: Hugging Face (`CLIPModel`,
-//! `CLIPTextModelWithProjection`) and OpenCLIP / OpenAI (`CLIP`).
+//! The two naming schemes of CLIP weights, Hugging Face (`CLIPModel`,
+//! `CLIPTextModelWithProjection`, `CLIPVisionModelWithProjection`) and
+//! OpenCLIP / OpenAI (`CLIP`), how each maps the text tower onto
+//! [`ClipTextEncoder`], and the residual attention block that both towers
+//! name alike (the vision tower's mapping is in
+//! [`crate::vision::layout`]).
 
-use crate::tower::{ClipTextConfig, ClipTextEncoder};
+use crate::tower::{ClipTextConfig, ClipTextEncoder, ResidualAttentionBlock};
 use burn::module::Param;
 use burn::nn::{LayerNorm, Linear};
 use burn::tensor::{Device, Tensor, TensorData};
@@ -11,14 +14,15 @@ use crate::config::Sizes;
 use crate::error::ClipError;
 use crate::tensors::{HostTensor, TensorFile, transpose};
 
-/// A naming scheme.
+/// A naming scheme (one for both towers of a checkpoint).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
     /// `text_model.embeddings.token_embedding.weight`, `text_model.encoder.layers.N...`,
-    /// `text_projection.weight`.
+    /// `text_projection.weight`; `vision_model.*`, `visual_projection.weight`.
     HuggingFace,
     /// `token_embedding.weight`, `positional_embedding`,
-    /// `transformer.resblocks.N...`, `ln_final`, `text_projection`.
+    /// `transformer.resblocks.N...`, `ln_final`, `text_projection`;
+    /// `visual.*`.
     OpenClip,
 }
 
@@ -157,21 +161,7 @@ impl Layout {
                 enc.position_embedding =
                     param2(take(HF_POSITIONS, &[config.context_length, w])?, device);
                 for (i, block) in enc.blocks.iter_mut().enumerate() {
-                    let p = self.block_prefix(i);
-                    let mut lin =
-                        |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
-                            let weight = take(&format!("{p}{name}.weight"), &[d_out, d_in])?;
-                            let bias = take(&format!("{p}{name}.bias"), &[d_out])?;
-                            Ok(linear_from_torch(weight, Some(bias), device))
-                        };
-                    block.attn.q_proj = lin("self_attn.q_proj", w, w)?;
-                    block.attn.k_proj = lin("self_attn.k_proj", w, w)?;
-                    block.attn.v_proj = lin("self_attn.v_proj", w, w)?;
-                    block.attn.out_proj = lin("self_attn.out_proj", w, w)?;
-                    block.mlp.fc1 = lin("mlp.fc1", w, m)?;
-                    block.mlp.fc2 = lin("mlp.fc2", m, w)?;
-                    set_norm(&mut block.ln1, &p, "layer_norm1", w, &mut take, device)?;
-                    set_norm(&mut block.ln2, &p, "layer_norm2", w, &mut take, device)?;
+                    self.load_block(block, &self.block_prefix(i), [w, m], &mut take, device)?;
                 }
                 set_norm(
                     &mut enc.final_ln,
@@ -190,22 +180,7 @@ impl Layout {
                 enc.position_embedding =
                     param2(take(OC_POSITIONS, &[config.context_length, w])?, device);
                 for (i, block) in enc.blocks.iter_mut().enumerate() {
-                    let p = self.block_prefix(i);
-                    let packed = take(&format!("{p}attn.in_proj_weight"), &[3 * w, w])?;
-                    let bias = take(&format!("{p}attn.in_proj_bias"), &[3 * w])?;
-                    [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
-                        split_in_proj(&packed, &bias, w, device);
-                    let mut lin =
-                        |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
-                            let weight = take(&format!("{p}{name}.weight"), &[d_out, d_in])?;
-                            let bias = take(&format!("{p}{name}.bias"), &[d_out])?;
-                            Ok(linear_from_torch(weight, Some(bias), device))
-                        };
-                    block.attn.out_proj = lin("attn.out_proj", w, w)?;
-                    block.mlp.fc1 = lin("mlp.c_fc", w, m)?;
-                    block.mlp.fc2 = lin("mlp.c_proj", m, w)?;
-                    set_norm(&mut block.ln1, &p, "ln_1", w, &mut take, device)?;
-                    set_norm(&mut block.ln2, &p, "ln_2", w, &mut take, device)?;
+                    self.load_block(block, &self.block_prefix(i), [w, m], &mut take, device)?;
                 }
                 set_norm(&mut enc.final_ln, "", "ln_final", w, &mut take, device)?;
                 enc.projection = if file.contains("text_projection.weight") {
@@ -225,6 +200,61 @@ impl Layout {
         }
         Ok(enc)
     }
+}
+
+/// The tensor lookup of a load: a name and the shape it must have.
+pub(crate) trait Take: FnMut(&str, &[usize]) -> Result<HostTensor, ClipError> {}
+impl<F: FnMut(&str, &[usize]) -> Result<HostTensor, ClipError>> Take for F {}
+
+impl Layout {
+    /// One residual attention block's weights, named under `prefix` (the
+    /// names are the same in the text and the vision tower), into `block`
+    /// of `width` channels and an MLP of `mlp_width`.
+    pub(crate) fn load_block(
+        self,
+        block: &mut ResidualAttentionBlock,
+        prefix: &str,
+        [width, mlp_width]: [usize; 2],
+        take: &mut impl Take,
+        device: &Device,
+    ) -> Result<(), ClipError> {
+        let (p, w, m) = (prefix, width, mlp_width);
+        let (fc1, fc2, ln1, ln2) = match self {
+            Self::HuggingFace => {
+                block.attn.q_proj = take_linear(take, p, "self_attn.q_proj", [w, w], device)?;
+                block.attn.k_proj = take_linear(take, p, "self_attn.k_proj", [w, w], device)?;
+                block.attn.v_proj = take_linear(take, p, "self_attn.v_proj", [w, w], device)?;
+                block.attn.out_proj = take_linear(take, p, "self_attn.out_proj", [w, w], device)?;
+                ("mlp.fc1", "mlp.fc2", "layer_norm1", "layer_norm2")
+            }
+            Self::OpenClip => {
+                let packed = take(&format!("{p}attn.in_proj_weight"), &[3 * w, w])?;
+                let bias = take(&format!("{p}attn.in_proj_bias"), &[3 * w])?;
+                [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
+                    split_in_proj(&packed, &bias, w, device);
+                block.attn.out_proj = take_linear(take, p, "attn.out_proj", [w, w], device)?;
+                ("mlp.c_fc", "mlp.c_proj", "ln_1", "ln_2")
+            }
+        };
+        block.mlp.fc1 = take_linear(take, p, fc1, [w, m], device)?;
+        block.mlp.fc2 = take_linear(take, p, fc2, [m, w], device)?;
+        set_norm(&mut block.ln1, p, ln1, w, take, device)?;
+        set_norm(&mut block.ln2, p, ln2, w, take, device)
+    }
+}
+
+/// The linear layer `{prefix}{name}` (PyTorch's weight and bias) mapping
+/// `d_in` to `d_out` channels.
+fn take_linear(
+    take: &mut impl Take,
+    prefix: &str,
+    name: &str,
+    [d_in, d_out]: [usize; 2],
+    device: &Device,
+) -> Result<Linear, ClipError> {
+    let weight = take(&format!("{prefix}{name}.weight"), &[d_out, d_in])?;
+    let bias = take(&format!("{prefix}{name}.bias"), &[d_out])?;
+    Ok(linear_from_torch(weight, Some(bias), device))
 }
 
 /// OpenCLIP's packed attention input projection (`in_proj_weight`, `[3 w,
@@ -253,7 +283,7 @@ pub(crate) fn set_norm(
     prefix: &str,
     name: &str,
     width: usize,
-    take: &mut impl FnMut(&str, &[usize]) -> Result<HostTensor, ClipError>,
+    take: &mut impl Take,
     device: &Device,
 ) -> Result<(), ClipError> {
     norm.gamma = param1(take(&format!("{prefix}{name}.weight"), &[width])?, device);
