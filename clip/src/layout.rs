@@ -154,50 +154,39 @@ impl Layout {
         let (w, m, e) = (config.width, config.mlp_width, config.embed_dim);
         let layout = self.name();
         let mut take = |name: &str, shape: &[usize]| file.take(name, shape, layout);
-        match self {
-            Self::HuggingFace => {
-                enc.token_embedding.weight =
-                    param2(take(HF_TOKENS, &[config.vocab_size, w])?, device);
-                enc.position_embedding =
-                    param2(take(HF_POSITIONS, &[config.context_length, w])?, device);
-                for (i, block) in enc.blocks.iter_mut().enumerate() {
-                    self.load_block(block, &self.block_prefix(i), [w, m], &mut take, device)?;
-                }
-                set_norm(
-                    &mut enc.final_ln,
-                    "text_model.",
-                    "final_layer_norm",
-                    w,
-                    &mut take,
-                    device,
-                )?;
-                enc.projection =
-                    linear_from_torch(take("text_projection.weight", &[e, w])?, None, device);
-            }
-            Self::OpenClip => {
-                enc.token_embedding.weight =
-                    param2(take(OC_TOKENS, &[config.vocab_size, w])?, device);
-                enc.position_embedding =
-                    param2(take(OC_POSITIONS, &[config.context_length, w])?, device);
-                for (i, block) in enc.blocks.iter_mut().enumerate() {
-                    self.load_block(block, &self.block_prefix(i), [w, m], &mut take, device)?;
-                }
-                set_norm(&mut enc.final_ln, "", "ln_final", w, &mut take, device)?;
-                enc.projection = if file.contains("text_projection.weight") {
-                    let weight = file.take("text_projection.weight", &[e, w], layout)?;
-                    let bias = file.take_optional("text_projection.bias", &[e], layout)?;
-                    linear_from_torch(weight, bias, device)
-                } else {
-                    // A `[width, embed_dim]` matrix applied as `x @ P`: already
-                    // Burn's `[d_in, d_out]` layout.
-                    let p = file.take("text_projection", &[w, e], layout)?;
-                    Linear {
-                        weight: param2(p, device),
-                        bias: None,
-                    }
-                };
-            }
+        let (tokens, positions, final_ln) = match self {
+            Self::HuggingFace => (HF_TOKENS, HF_POSITIONS, ("text_model.", "final_layer_norm")),
+            Self::OpenClip => (OC_TOKENS, OC_POSITIONS, ("", "ln_final")),
+        };
+        enc.token_embedding.weight = param2(take(tokens, &[config.vocab_size, w])?, device);
+        enc.position_embedding = param2(take(positions, &[config.context_length, w])?, device);
+        for (i, block) in enc.blocks.iter_mut().enumerate() {
+            self.load_block(block, &self.block_prefix(i), [w, m], &mut take, device)?;
         }
+        set_norm(
+            &mut enc.final_ln,
+            final_ln.0,
+            final_ln.1,
+            w,
+            &mut take,
+            device,
+        )?;
+        enc.projection = match self {
+            Self::HuggingFace => {
+                linear_from_torch(take("text_projection.weight", &[e, w])?, None, device)
+            }
+            Self::OpenClip if file.contains("text_projection.weight") => {
+                let weight = file.take("text_projection.weight", &[e, w], layout)?;
+                let bias = file.take_optional("text_projection.bias", &[e], layout)?;
+                linear_from_torch(weight, bias, device)
+            }
+            // A `[width, embed_dim]` matrix applied as `x @ P`: already
+            // Burn's `[d_in, d_out]` layout.
+            Self::OpenClip => Linear {
+                weight: param2(file.take("text_projection", &[w, e], layout)?, device),
+                bias: None,
+            },
+        };
         Ok(enc)
     }
 }
