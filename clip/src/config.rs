@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use model::clip::{ClipActivation, ClipTextConfig, EotPooling};
+use crate::tower::{ClipActivation, ClipTextConfig, EotPooling};
 use serde_json::Value;
 
 use crate::error::{ClipError, read_text};

@@ -5,10 +5,12 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use crate::tower::{
+    ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling, ResidualAttentionBlock,
+};
 use burn::module::Param;
 use burn::nn::{LayerNorm, Linear};
 use burn::tensor::Tensor;
-use model::clip::{ClipActivation, ClipTextConfig, ClipTextEncoder, EotPooling};
 use serde_json::{Map, Value, json};
 
 use crate::error::ClipError;
@@ -63,6 +65,28 @@ pub(crate) fn put_norm(
     Ok(())
 }
 
+/// Inserts one residual attention block's tensors under `prefix` in
+/// Hugging Face's names (the same in the text and the vision tower).
+pub(crate) fn put_hf_block(
+    out: &mut BTreeMap<String, HostTensor>,
+    prefix: &str,
+    b: &ResidualAttentionBlock,
+    path: &Path,
+) -> Result<(), ClipError> {
+    for (name, l) in [
+        ("self_attn.q_proj", &b.attn.q_proj),
+        ("self_attn.k_proj", &b.attn.k_proj),
+        ("self_attn.v_proj", &b.attn.v_proj),
+        ("self_attn.out_proj", &b.attn.out_proj),
+        ("mlp.fc1", &b.mlp.fc1),
+        ("mlp.fc2", &b.mlp.fc2),
+    ] {
+        put_linear(out, &format!("{prefix}.{name}"), l, path)?;
+    }
+    put_norm(out, &format!("{prefix}.layer_norm1"), &b.ln1, path)?;
+    put_norm(out, &format!("{prefix}.layer_norm2"), &b.ln2, path)
+}
+
 /// The encoder's tensors under Hugging Face names (PyTorch's `[out, in]`
 /// linear weights).
 pub fn hf_tensors(
@@ -70,12 +94,6 @@ pub fn hf_tensors(
     path: &Path,
 ) -> Result<BTreeMap<String, HostTensor>, ClipError> {
     let mut out = BTreeMap::new();
-    let put_linear = |out: &mut BTreeMap<String, HostTensor>, name: &str, l: &Linear| {
-        put_linear(out, name, l, path)
-    };
-    let put_norm = |out: &mut BTreeMap<String, HostTensor>, name: &str, n: &LayerNorm| {
-        put_norm(out, name, n, path)
-    };
     out.insert(
         "text_model.embeddings.token_embedding.weight".into(),
         host(&enc.token_embedding.weight, path)?,
@@ -85,22 +103,10 @@ pub fn hf_tensors(
         host(&enc.position_embedding, path)?,
     );
     for (i, b) in enc.blocks.iter().enumerate() {
-        let p = format!("text_model.encoder.layers.{i}");
-        put_linear(&mut out, &format!("{p}.self_attn.q_proj"), &b.attn.q_proj)?;
-        put_linear(&mut out, &format!("{p}.self_attn.k_proj"), &b.attn.k_proj)?;
-        put_linear(&mut out, &format!("{p}.self_attn.v_proj"), &b.attn.v_proj)?;
-        put_linear(
-            &mut out,
-            &format!("{p}.self_attn.out_proj"),
-            &b.attn.out_proj,
-        )?;
-        put_linear(&mut out, &format!("{p}.mlp.fc1"), &b.mlp.fc1)?;
-        put_linear(&mut out, &format!("{p}.mlp.fc2"), &b.mlp.fc2)?;
-        put_norm(&mut out, &format!("{p}.layer_norm1"), &b.ln1)?;
-        put_norm(&mut out, &format!("{p}.layer_norm2"), &b.ln2)?;
+        put_hf_block(&mut out, &format!("text_model.encoder.layers.{i}"), b, path)?;
     }
-    put_norm(&mut out, "text_model.final_layer_norm", &enc.final_ln)?;
-    put_linear(&mut out, "text_projection", &enc.projection)?;
+    put_norm(&mut out, "text_model.final_layer_norm", &enc.final_ln, path)?;
+    put_linear(&mut out, "text_projection", &enc.projection, path)?;
     Ok(out)
 }
 

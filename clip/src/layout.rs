@@ -1,24 +1,28 @@
-//! The two naming schemes of CLIP text weights and how each maps onto
-//! [`ClipTextEncoder`]: Hugging Face (`CLIPModel`,
-//! `CLIPTextModelWithProjection`) and OpenCLIP / OpenAI (`CLIP`).
+//! The two naming schemes of CLIP weights, Hugging Face (`CLIPModel`,
+//! `CLIPTextModelWithProjection`, `CLIPVisionModelWithProjection`) and
+//! OpenCLIP / OpenAI (`CLIP`), how each maps the text tower onto
+//! [`ClipTextEncoder`], and the residual attention block that both towers
+//! name alike (the vision tower's mapping is in
+//! [`crate::vision::layout`]).
 
+use crate::tower::{ClipTextConfig, ClipTextEncoder, ResidualAttentionBlock};
 use burn::module::Param;
 use burn::nn::{LayerNorm, Linear};
 use burn::tensor::{Device, Tensor, TensorData};
-use model::clip::{ClipTextConfig, ClipTextEncoder};
 
 use crate::config::Sizes;
 use crate::error::ClipError;
 use crate::tensors::{HostTensor, TensorFile, transpose};
 
-/// A naming scheme.
+/// A naming scheme (one for both towers of a checkpoint).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
     /// `text_model.embeddings.token_embedding.weight`, `text_model.encoder.layers.N...`,
-    /// `text_projection.weight`.
+    /// `text_projection.weight`; `vision_model.*`, `visual_projection.weight`.
     HuggingFace,
     /// `token_embedding.weight`, `positional_embedding`,
-    /// `transformer.resblocks.N...`, `ln_final`, `text_projection`.
+    /// `transformer.resblocks.N...`, `ln_final`, `text_projection`;
+    /// `visual.*`.
     OpenClip,
 }
 
@@ -150,81 +154,96 @@ impl Layout {
         let (w, m, e) = (config.width, config.mlp_width, config.embed_dim);
         let layout = self.name();
         let mut take = |name: &str, shape: &[usize]| file.take(name, shape, layout);
-        match self {
-            Self::HuggingFace => {
-                enc.token_embedding.weight =
-                    param2(take(HF_TOKENS, &[config.vocab_size, w])?, device);
-                enc.position_embedding =
-                    param2(take(HF_POSITIONS, &[config.context_length, w])?, device);
-                for (i, block) in enc.blocks.iter_mut().enumerate() {
-                    let p = self.block_prefix(i);
-                    let mut lin =
-                        |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
-                            let weight = take(&format!("{p}{name}.weight"), &[d_out, d_in])?;
-                            let bias = take(&format!("{p}{name}.bias"), &[d_out])?;
-                            Ok(linear_from_torch(weight, Some(bias), device))
-                        };
-                    block.attn.q_proj = lin("self_attn.q_proj", w, w)?;
-                    block.attn.k_proj = lin("self_attn.k_proj", w, w)?;
-                    block.attn.v_proj = lin("self_attn.v_proj", w, w)?;
-                    block.attn.out_proj = lin("self_attn.out_proj", w, w)?;
-                    block.mlp.fc1 = lin("mlp.fc1", w, m)?;
-                    block.mlp.fc2 = lin("mlp.fc2", m, w)?;
-                    set_norm(&mut block.ln1, &p, "layer_norm1", w, &mut take, device)?;
-                    set_norm(&mut block.ln2, &p, "layer_norm2", w, &mut take, device)?;
-                }
-                set_norm(
-                    &mut enc.final_ln,
-                    "text_model.",
-                    "final_layer_norm",
-                    w,
-                    &mut take,
-                    device,
-                )?;
-                enc.projection =
-                    linear_from_torch(take("text_projection.weight", &[e, w])?, None, device);
-            }
-            Self::OpenClip => {
-                enc.token_embedding.weight =
-                    param2(take(OC_TOKENS, &[config.vocab_size, w])?, device);
-                enc.position_embedding =
-                    param2(take(OC_POSITIONS, &[config.context_length, w])?, device);
-                for (i, block) in enc.blocks.iter_mut().enumerate() {
-                    let p = self.block_prefix(i);
-                    let packed = take(&format!("{p}attn.in_proj_weight"), &[3 * w, w])?;
-                    let bias = take(&format!("{p}attn.in_proj_bias"), &[3 * w])?;
-                    [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
-                        split_in_proj(&packed, &bias, w, device);
-                    let mut lin =
-                        |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
-                            let weight = take(&format!("{p}{name}.weight"), &[d_out, d_in])?;
-                            let bias = take(&format!("{p}{name}.bias"), &[d_out])?;
-                            Ok(linear_from_torch(weight, Some(bias), device))
-                        };
-                    block.attn.out_proj = lin("attn.out_proj", w, w)?;
-                    block.mlp.fc1 = lin("mlp.c_fc", w, m)?;
-                    block.mlp.fc2 = lin("mlp.c_proj", m, w)?;
-                    set_norm(&mut block.ln1, &p, "ln_1", w, &mut take, device)?;
-                    set_norm(&mut block.ln2, &p, "ln_2", w, &mut take, device)?;
-                }
-                set_norm(&mut enc.final_ln, "", "ln_final", w, &mut take, device)?;
-                enc.projection = if file.contains("text_projection.weight") {
-                    let weight = file.take("text_projection.weight", &[e, w], layout)?;
-                    let bias = file.take_optional("text_projection.bias", &[e], layout)?;
-                    linear_from_torch(weight, bias, device)
-                } else {
-                    // A `[width, embed_dim]` matrix applied as `x @ P`: already
-                    // Burn's `[d_in, d_out]` layout.
-                    let p = file.take("text_projection", &[w, e], layout)?;
-                    Linear {
-                        weight: param2(p, device),
-                        bias: None,
-                    }
-                };
-            }
+        let (tokens, positions, final_ln) = match self {
+            Self::HuggingFace => (HF_TOKENS, HF_POSITIONS, ("text_model.", "final_layer_norm")),
+            Self::OpenClip => (OC_TOKENS, OC_POSITIONS, ("", "ln_final")),
+        };
+        enc.token_embedding.weight = param2(take(tokens, &[config.vocab_size, w])?, device);
+        enc.position_embedding = param2(take(positions, &[config.context_length, w])?, device);
+        for (i, block) in enc.blocks.iter_mut().enumerate() {
+            self.load_block(block, &self.block_prefix(i), [w, m], &mut take, device)?;
         }
+        set_norm(
+            &mut enc.final_ln,
+            final_ln.0,
+            final_ln.1,
+            w,
+            &mut take,
+            device,
+        )?;
+        enc.projection = match self {
+            Self::HuggingFace => {
+                linear_from_torch(take("text_projection.weight", &[e, w])?, None, device)
+            }
+            Self::OpenClip if file.contains("text_projection.weight") => {
+                let weight = file.take("text_projection.weight", &[e, w], layout)?;
+                let bias = file.take_optional("text_projection.bias", &[e], layout)?;
+                linear_from_torch(weight, bias, device)
+            }
+            // A `[width, embed_dim]` matrix applied as `x @ P`: already
+            // Burn's `[d_in, d_out]` layout.
+            Self::OpenClip => Linear {
+                weight: param2(file.take("text_projection", &[w, e], layout)?, device),
+                bias: None,
+            },
+        };
         Ok(enc)
     }
+}
+
+/// The tensor lookup of a load: a name and the shape it must have.
+pub(crate) trait Take: FnMut(&str, &[usize]) -> Result<HostTensor, ClipError> {}
+impl<F: FnMut(&str, &[usize]) -> Result<HostTensor, ClipError>> Take for F {}
+
+impl Layout {
+    /// One residual attention block's weights, named under `prefix` (the
+    /// names are the same in the text and the vision tower), into `block`
+    /// of `width` channels and an MLP of `mlp_width`.
+    pub(crate) fn load_block(
+        self,
+        block: &mut ResidualAttentionBlock,
+        prefix: &str,
+        [width, mlp_width]: [usize; 2],
+        take: &mut impl Take,
+        device: &Device,
+    ) -> Result<(), ClipError> {
+        let (p, w, m) = (prefix, width, mlp_width);
+        let (fc1, fc2, ln1, ln2) = match self {
+            Self::HuggingFace => {
+                block.attn.q_proj = take_linear(take, p, "self_attn.q_proj", [w, w], device)?;
+                block.attn.k_proj = take_linear(take, p, "self_attn.k_proj", [w, w], device)?;
+                block.attn.v_proj = take_linear(take, p, "self_attn.v_proj", [w, w], device)?;
+                block.attn.out_proj = take_linear(take, p, "self_attn.out_proj", [w, w], device)?;
+                ("mlp.fc1", "mlp.fc2", "layer_norm1", "layer_norm2")
+            }
+            Self::OpenClip => {
+                let packed = take(&format!("{p}attn.in_proj_weight"), &[3 * w, w])?;
+                let bias = take(&format!("{p}attn.in_proj_bias"), &[3 * w])?;
+                [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
+                    split_in_proj(&packed, &bias, w, device);
+                block.attn.out_proj = take_linear(take, p, "attn.out_proj", [w, w], device)?;
+                ("mlp.c_fc", "mlp.c_proj", "ln_1", "ln_2")
+            }
+        };
+        block.mlp.fc1 = take_linear(take, p, fc1, [w, m], device)?;
+        block.mlp.fc2 = take_linear(take, p, fc2, [m, w], device)?;
+        set_norm(&mut block.ln1, p, ln1, w, take, device)?;
+        set_norm(&mut block.ln2, p, ln2, w, take, device)
+    }
+}
+
+/// The linear layer `{prefix}{name}` (PyTorch's weight and bias) mapping
+/// `d_in` to `d_out` channels.
+fn take_linear(
+    take: &mut impl Take,
+    prefix: &str,
+    name: &str,
+    [d_in, d_out]: [usize; 2],
+    device: &Device,
+) -> Result<Linear, ClipError> {
+    let weight = take(&format!("{prefix}{name}.weight"), &[d_out, d_in])?;
+    let bias = take(&format!("{prefix}{name}.bias"), &[d_out])?;
+    Ok(linear_from_torch(weight, Some(bias), device))
 }
 
 /// OpenCLIP's packed attention input projection (`in_proj_weight`, `[3 w,
@@ -253,7 +272,7 @@ pub(crate) fn set_norm(
     prefix: &str,
     name: &str,
     width: usize,
-    take: &mut impl FnMut(&str, &[usize]) -> Result<HostTensor, ClipError>,
+    take: &mut impl Take,
     device: &Device,
 ) -> Result<(), ClipError> {
     norm.gamma = param1(take(&format!("{prefix}{name}.weight"), &[width])?, device);

@@ -4,8 +4,8 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+use crate::tower::{ClipTextConfig, ClipTextEncoder, EotPooling};
 use burn::tensor::{Device, Int, Tensor, TensorData};
-use model::clip::{ClipTextConfig, ClipTextEncoder, EotPooling};
 use serde_json::Value;
 
 use crate::config::{build_config, hf_options, open_clip_options};

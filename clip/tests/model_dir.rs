@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use clip::model_dir::{TextModel, load_encoder};
+use clip::tower::ClipTextConfig;
 use clip::{ClipError, embed_texts};
-use model::clip::ClipTextConfig;
 
 fn tokenizer_fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tokenizer")
@@ -267,7 +267,7 @@ fn a_clip_model_file_with_its_vision_tower_and_nested_config_loads() {
         serde_json::json!({ "text_config": { "num_attention_heads": 2, "hidden_act": "gelu" } });
     std::fs::write(dir.join("config.json"), gelu.to_string()).expect("write");
     let m = TextModel::load(&dir, &device).expect("gelu");
-    assert_eq!(m.config.activation, model::clip::ClipActivation::Gelu);
+    assert_eq!(m.config.activation, clip::tower::ClipActivation::Gelu);
     assert_ne!(
         m.embed(&texts).expect("embed"),
         plain.embed(&texts).expect("embed")

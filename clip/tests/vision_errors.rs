@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
 use clip::tensors::{HostTensor, write_f32};
+use clip::tower::{ClipTextConfig, ClipVisionConfig};
 use clip::vision::export::{hf_vision_tensors, save_hf_clip_model};
 use clip::vision::{DenseOptions, VisionModel, Vlm};
-use model::clip::{ClipTextConfig, ClipVisionConfig};
 use serde_json::Value;
 
 fn fixtures() -> PathBuf {

@@ -14,8 +14,8 @@ use std::process::Command;
 use std::time::Instant;
 
 use burn::tensor::{Tensor, TensorData};
+use clip::tower::DenseVariant;
 use clip::vision::{DenseOptions, VisionModel};
-use model::clip::DenseVariant;
 
 mod common;
 use common::{devices, floats, max_abs_diff, python, read_json, require_python};
@@ -94,7 +94,7 @@ fn check_model(dir: &Path) {
         // model's input, so no windows; the resizing alone.
         let down = &r["resize_down"];
         assert_eq!(down["short_side"].as_u64(), Some(16));
-        let shrunk = model::clip::sliding::WindowPlan {
+        let shrunk = clip::tower::sliding::WindowPlan {
             resized: (16, 24),
             ..plan.clone()
         };

@@ -133,7 +133,7 @@ pub struct VlmSource {
     /// The CLIP model directory (both towers).
     pub model: std::path::PathBuf,
     /// The dense variant of its last block.
-    pub dense: model::clip::DenseVariant,
+    pub dense: model::dense_variant::DenseVariant,
     /// Short side images were resized to, in pixels.
     pub short_side: usize,
 }

@@ -13,8 +13,8 @@ use std::process::{Command, Output};
 use std::sync::OnceLock;
 
 use burn::tensor::Device;
+use clip::ClipTextConfig;
 use datasets::SceneMeta;
-use model::clip::ClipTextConfig;
 
 /// An untrained tiny field on the synthetic CI scene (as in `cli.rs`).
 fn run_dir() -> &'static Path {

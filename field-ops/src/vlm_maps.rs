@@ -15,13 +15,12 @@ use serde::{Deserialize, Serialize};
 use crate::error::OpsError;
 
 /// The value parser of a `--dense` flag (`train --vlm`, `eval extract`,
-/// `bench-vlm`): one of the [`DenseVariant`](model::clip::DenseVariant)
+/// `bench-vlm`): one of the [`DenseVariant`](clip::DenseVariant)
 /// names, listed with what each does in `--help` and by clap when a value
 /// is not one of them.
-pub fn dense_variant_parser()
--> impl clap::builder::TypedValueParser<Value = model::clip::DenseVariant> {
+pub fn dense_variant_parser() -> impl clap::builder::TypedValueParser<Value = clip::DenseVariant> {
     use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-    use model::clip::DenseVariant;
+    use clip::DenseVariant;
     let help = |v: DenseVariant| match v {
         DenseVariant::Naclip => "key-key attention plus a Gaussian window over the patches",
         DenseVariant::Clearclip => "query-query attention",
@@ -47,7 +46,7 @@ pub struct Stamp {
     /// SHA-256 of its weights file.
     pub weights_sha256: String,
     /// The dense variant.
-    pub dense: model::clip::DenseVariant,
+    pub dense: clip::DenseVariant,
     /// Short side in pixels.
     pub short_side: usize,
     /// Channels.

@@ -5,9 +5,9 @@
 //! entry point, [`OpenNerf::render`], for training (coarse/fine, dense) and
 //! inference (marched with early ray termination) ([`render`]),
 //! empty-space skipping with the occupancy grid, its update and byte/hex
-//! formats ([`occupancy`]), the losses ([`loss`]) and CLIP's text and vision
-//! transformers, which embed free-text queries and make dense image features
-//! ([`clip`]). No file I/O.
+//! formats ([`occupancy`]), the losses ([`loss`]) and the names of CLIP's
+//! dense variants, which scene files record ([`dense_variant`]; CLIP's
+//! transformers are the `clip` crate's). No file I/O.
 //!
 //! # Use from another crate
 //!
@@ -75,8 +75,8 @@
 #![warn(missing_docs)]
 
 pub mod appearance;
-pub mod clip;
 pub mod composite;
+pub mod dense_variant;
 pub mod exposure;
 pub mod field;
 pub mod geometry;

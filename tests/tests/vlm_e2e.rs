@@ -10,10 +10,10 @@ use std::path::{Path, PathBuf};
 use burn::tensor::Device;
 use clap::Parser;
 use clip::vision::export::save_hf_clip_model;
+use clip::{ClipTextConfig, ClipVisionConfig};
 use datasets::{SceneMeta, SceneSource};
 use eval::commands::query::{QueryArgs, query_command};
 use eval::commands::segment::{SegmentArgs, segment_command};
-use model::clip::{ClipTextConfig, ClipVisionConfig};
 use tests::{scratch_dir, serial};
 use train::cli::Cli;
 
@@ -140,7 +140,7 @@ fn train_with_a_clip_model_then_query_and_segment_with_its_text_tower() {
             .expect("meta");
     assert_eq!(meta.feature_dim, Some(12));
     let vlm = meta.source.vlm().expect("the run records its model");
-    assert_eq!(vlm.dense, model::clip::DenseVariant::Clearclip);
+    assert_eq!(vlm.dense, clip::DenseVariant::Clearclip);
     assert_eq!(vlm.short_side, 32);
     assert!(matches!(meta.source.base(), SceneSource::Synthetic { .. }));
     // The novel views were read by the model in process (no command given).

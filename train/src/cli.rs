@@ -112,7 +112,7 @@ pub struct Cli {
     /// `clearclip` (query-query attention) or `maskclip` (values only)
     /// [default: naclip].
     #[arg(long, requires = "vlm", value_parser = field_ops::vlm_maps::dense_variant_parser())]
-    pub dense: Option<model::clip::DenseVariant>,
+    pub dense: Option<clip::DenseVariant>,
     /// --vlm resizes each image's short side to this many pixels (at least
     /// the model's input size) before sliding windows of the input size over
     /// it every half window; the maps have one cell per patch, so larger is

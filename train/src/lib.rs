@@ -95,7 +95,7 @@ pub fn run_cli(cli: &cli::Cli, stop: &interrupt::StopFlag) -> Result<RunOutcome,
             &vlm::VlmRequest {
                 model: model.clone(),
                 options: clip::DenseOptions {
-                    variant: cli.dense.unwrap_or(model::clip::DenseVariant::Naclip),
+                    variant: cli.dense.unwrap_or(clip::DenseVariant::Naclip),
                     short_side: cli.short_side,
                     ..clip::DenseOptions::default()
                 },

@@ -181,7 +181,7 @@ mod tests {
                 pca: datasets::features::PcaSetting::Auto,
                 vlm: Some(datasets::VlmSource {
                     model: "/clip".into(),
-                    dense: model::clip::DenseVariant::Naclip,
+                    dense: clip::DenseVariant::Naclip,
                     short_side: 336,
                 }),
             },

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use model::clip::{ClipActivation, ClipVisionConfig};
+use crate::tower::{ClipActivation, ClipVisionConfig};
 use serde_json::Value;
 
 use super::layout::VisionSizes;

@@ -6,13 +6,14 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use model::clip::{ClipTextConfig, ClipTextEncoder, ClipVisionConfig, ClipVisionEncoder};
+use crate::tower::{ClipTextConfig, ClipTextEncoder, ClipVisionConfig, ClipVisionEncoder};
 use serde_json::{Map, Value, json};
 
 use super::config::{OPENAI_MEAN, OPENAI_STD};
 use crate::error::ClipError;
 use crate::export::{
-    hf_activation, hf_tensors, host, put_linear, put_norm, text_config_json, write_json,
+    hf_activation, hf_tensors, host, put_hf_block, put_linear, put_norm, text_config_json,
+    write_json,
 };
 use crate::tensors::{HostTensor, transpose, write_f32};
 
@@ -56,19 +57,12 @@ pub fn hf_vision_tensors(
     );
     put_norm(&mut out, "vision_model.pre_layrnorm", &enc.pre_ln, path)?;
     for (i, b) in enc.blocks.iter().enumerate() {
-        let pre = format!("vision_model.encoder.layers.{i}");
-        for (name, l) in [
-            ("self_attn.q_proj", &b.attn.q_proj),
-            ("self_attn.k_proj", &b.attn.k_proj),
-            ("self_attn.v_proj", &b.attn.v_proj),
-            ("self_attn.out_proj", &b.attn.out_proj),
-            ("mlp.fc1", &b.mlp.fc1),
-            ("mlp.fc2", &b.mlp.fc2),
-        ] {
-            put_linear(&mut out, &format!("{pre}.{name}"), l, path)?;
-        }
-        put_norm(&mut out, &format!("{pre}.layer_norm1"), &b.ln1, path)?;
-        put_norm(&mut out, &format!("{pre}.layer_norm2"), &b.ln2, path)?;
+        put_hf_block(
+            &mut out,
+            &format!("vision_model.encoder.layers.{i}"),
+            b,
+            path,
+        )?;
     }
     put_norm(&mut out, "vision_model.post_layernorm", &enc.post_ln, path)?;
     put_linear(&mut out, "visual_projection", &enc.projection, path)?;
@@ -194,9 +188,9 @@ pub fn save_hf_clip_model(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tower::DenseVariant;
     use crate::vision::Vlm;
     use burn::tensor::{Device, Distribution, Int, Tensor, TensorData};
-    use model::clip::DenseVariant;
 
     fn tokenizer_fixture() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/tokenizer")

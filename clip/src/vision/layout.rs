@@ -1,26 +1,15 @@
-//! The two naming schemes of CLIP vision weights and how each maps onto
-//! [`ClipVisionEncoder`]: Hugging Face (`CLIPModel`,
+//! How each naming scheme of CLIP weights ([`Layout`]) maps the vision
+//! tower onto [`ClipVisionEncoder`]: Hugging Face (`CLIPModel`,
 //! `CLIPVisionModelWithProjection`) and OpenCLIP / OpenAI (`visual.*`,
 //! packed attention projections, a `visual.proj` matrix).
 
+use crate::tower::{ClipVisionConfig, ClipVisionEncoder};
 use burn::nn::Linear;
 use burn::tensor::Device;
-use model::clip::{ClipVisionConfig, ClipVisionEncoder};
 
 use crate::error::ClipError;
-use crate::layout::{linear_from_torch, param1, param2, set_norm, split_in_proj};
+use crate::layout::{Layout, linear_from_torch, param1, param2, set_norm};
 use crate::tensors::{HostTensor, TensorFile};
-
-/// A naming scheme of vision weights.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum VisionLayout {
-    /// `vision_model.embeddings.patch_embedding.weight`,
-    /// `vision_model.encoder.layers.N...`, `visual_projection.weight`.
-    HuggingFace,
-    /// `visual.conv1.weight`, `visual.transformer.resblocks.N...`,
-    /// `visual.proj`.
-    OpenClip,
-}
 
 const HF_PATCH: &str = "vision_model.embeddings.patch_embedding.weight";
 const OC_PATCH: &str = "visual.conv1.weight";
@@ -49,18 +38,15 @@ pub fn is_vision_tensor(name: &str) -> bool {
         || name == "visual_projection.weight"
 }
 
-impl VisionLayout {
-    /// The name used in messages.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::HuggingFace => "Hugging Face",
-            Self::OpenClip => "OpenCLIP",
-        }
-    }
-
+/// The vision tower in each naming scheme: Hugging Face's
+/// `vision_model.embeddings.patch_embedding.weight`,
+/// `vision_model.encoder.layers.N...`, `visual_projection.weight`;
+/// OpenCLIP's `visual.conv1.weight`, `visual.transformer.resblocks.N...`,
+/// `visual.proj`.
+impl Layout {
     /// The scheme of `file` (read with [`is_vision_tensor`]), told by its
     /// patch embedding's name.
-    pub fn detect(file: &TensorFile) -> Result<Self, ClipError> {
+    pub fn detect_vision(file: &TensorFile) -> Result<Self, ClipError> {
         if file.contains(HF_PATCH) {
             return Ok(Self::HuggingFace);
         }
@@ -87,14 +73,14 @@ impl VisionLayout {
         Err(ClipError::invalid(&file.path, message))
     }
 
-    fn block_prefix(self, i: usize) -> String {
+    fn vision_block_prefix(self, i: usize) -> String {
         match self {
             Self::HuggingFace => format!("vision_model.encoder.layers.{i}."),
             Self::OpenClip => format!("visual.transformer.resblocks.{i}."),
         }
     }
 
-    fn names(self) -> (&'static str, &'static str, &'static str) {
+    fn vision_names(self) -> (&'static str, &'static str, &'static str) {
         match self {
             Self::HuggingFace => (
                 HF_PATCH,
@@ -106,8 +92,8 @@ impl VisionLayout {
     }
 
     /// The sizes the tensor shapes give.
-    pub fn sizes(self, file: &TensorFile) -> Result<VisionSizes, ClipError> {
-        let (patch, positions, fc1) = self.names();
+    pub fn vision_sizes(self, file: &TensorFile) -> Result<VisionSizes, ClipError> {
+        let (patch, positions, fc1) = self.vision_names();
         let shape = |name: &str| {
             file.shape(name)
                 .map(<[usize]>::to_vec)
@@ -136,16 +122,16 @@ impl VisionLayout {
             return Err(bad(positions, &pos, "[1 + grid * grid, width]"));
         }
         let layers = (0..)
-            .take_while(|&i| file.contains(&format!("{}{fc1}", self.block_prefix(i))))
+            .take_while(|&i| file.contains(&format!("{}{fc1}", self.vision_block_prefix(i))))
             .count();
         if layers == 0 {
             return Err(ClipError::MissingTensor {
                 path: file.path.clone(),
-                name: format!("{}{fc1}", self.block_prefix(0)),
+                name: format!("{}{fc1}", self.vision_block_prefix(0)),
                 layout: self.name(),
             });
         }
-        let mlp = shape(&format!("{}{fc1}", self.block_prefix(0)))?;
+        let mlp = shape(&format!("{}{fc1}", self.vision_block_prefix(0)))?;
         let embed_dim = match self {
             Self::HuggingFace => match file.shape("visual_projection.weight") {
                 Some([e, w]) if *w == width => *e,
@@ -182,7 +168,7 @@ impl VisionLayout {
     }
 
     /// The encoder with `file`'s weights (every tensor checked against `config`).
-    pub fn build(
+    pub fn build_vision(
         self,
         file: &mut TensorFile,
         config: &ClipVisionConfig,
@@ -198,7 +184,7 @@ impl VisionLayout {
         let g = config.grid();
         let layout = self.name();
         let mut take = |name: &str, shape: &[usize]| file.take(name, shape, layout);
-        let (patch_name, pos_name, _) = self.names();
+        let (patch_name, pos_name, _) = self.vision_names();
         let patch = take(patch_name, &[w, 3, p, p])?;
         enc.patch_embedding = linear_from_torch(
             HostTensor {
@@ -225,35 +211,13 @@ impl VisionLayout {
         set_norm(&mut enc.pre_ln, pre.0, pre.1, w, &mut take, device)?;
         set_norm(&mut enc.post_ln, post.0, post.1, w, &mut take, device)?;
         for (i, block) in enc.blocks.iter_mut().enumerate() {
-            let pre = self.block_prefix(i);
-            let mut lin = |name: &str, d_in: usize, d_out: usize| -> Result<Linear, ClipError> {
-                let weight = take(&format!("{pre}{name}.weight"), &[d_out, d_in])?;
-                let bias = take(&format!("{pre}{name}.bias"), &[d_out])?;
-                Ok(linear_from_torch(weight, Some(bias), device))
-            };
-            match self {
-                Self::HuggingFace => {
-                    block.attn.q_proj = lin("self_attn.q_proj", w, w)?;
-                    block.attn.k_proj = lin("self_attn.k_proj", w, w)?;
-                    block.attn.v_proj = lin("self_attn.v_proj", w, w)?;
-                    block.attn.out_proj = lin("self_attn.out_proj", w, w)?;
-                    block.mlp.fc1 = lin("mlp.fc1", w, m)?;
-                    block.mlp.fc2 = lin("mlp.fc2", m, w)?;
-                    set_norm(&mut block.ln1, &pre, "layer_norm1", w, &mut take, device)?;
-                    set_norm(&mut block.ln2, &pre, "layer_norm2", w, &mut take, device)?;
-                }
-                Self::OpenClip => {
-                    block.attn.out_proj = lin("attn.out_proj", w, w)?;
-                    block.mlp.fc1 = lin("mlp.c_fc", w, m)?;
-                    block.mlp.fc2 = lin("mlp.c_proj", m, w)?;
-                    let packed = take(&format!("{pre}attn.in_proj_weight"), &[3 * w, w])?;
-                    let bias = take(&format!("{pre}attn.in_proj_bias"), &[3 * w])?;
-                    [block.attn.q_proj, block.attn.k_proj, block.attn.v_proj] =
-                        split_in_proj(&packed, &bias, w, device);
-                    set_norm(&mut block.ln1, &pre, "ln_1", w, &mut take, device)?;
-                    set_norm(&mut block.ln2, &pre, "ln_2", w, &mut take, device)?;
-                }
-            }
+            self.load_block(
+                block,
+                &self.vision_block_prefix(i),
+                [w, m],
+                &mut take,
+                device,
+            )?;
         }
         enc.projection = match self {
             Self::HuggingFace => {

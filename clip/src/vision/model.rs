@@ -4,14 +4,15 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::tower::resample::{antialiased_bilinear_weights, resample_chw};
+use crate::tower::sliding::{WindowPlan, plan_windows};
+use crate::tower::{ClipVisionConfig, ClipVisionEncoder, DenseVariant};
 use burn::tensor::{Device, Tensor, TensorData};
-use model::clip::resample::{antialiased_bilinear_weights, resample_chw};
-use model::clip::sliding::{WindowPlan, plan_windows};
-use model::clip::{ClipVisionConfig, ClipVisionEncoder, DenseVariant};
 
 use super::config::{ImageNorm, build_vision_config, hf_vision_options, open_clip_vision_options};
-use super::layout::{VisionLayout, is_vision_tensor};
+use super::layout::is_vision_tensor;
 use crate::error::ClipError;
+use crate::layout::Layout;
 use crate::model_dir::weights_file;
 use crate::tensors::TensorFile;
 
@@ -68,7 +69,7 @@ pub struct VisionModel {
     /// Pixel normalisation.
     pub norm: ImageNorm,
     /// Naming scheme of the weights.
-    pub layout: VisionLayout,
+    pub layout: Layout,
     /// What was assumed where the files were silent.
     pub notes: Vec<String>,
     device: Device,
@@ -80,14 +81,14 @@ impl VisionModel {
     pub fn load(dir: &Path, device: &Device) -> Result<Self, ClipError> {
         let weights = weights_file(dir)?;
         let mut file = TensorFile::read(&weights, is_vision_tensor)?;
-        let layout = VisionLayout::detect(&file)?;
-        let sizes = layout.sizes(&file)?;
+        let layout = Layout::detect_vision(&file)?;
+        let sizes = layout.vision_sizes(&file)?;
         let options = match layout {
-            VisionLayout::HuggingFace => hf_vision_options(dir, &sizes)?,
-            VisionLayout::OpenClip => open_clip_vision_options(dir, &sizes)?,
+            Layout::HuggingFace => hf_vision_options(dir, &sizes)?,
+            Layout::OpenClip => open_clip_vision_options(dir, &sizes)?,
         };
         let config = build_vision_config(&sizes, &options, &weights)?;
-        let encoder = layout.build(&mut file, &config, device)?;
+        let encoder = layout.build_vision(&mut file, &config, device)?;
         Ok(Self {
             dir: dir.to_path_buf(),
             weights,
@@ -116,7 +117,7 @@ impl VisionModel {
                 mean: super::config::OPENAI_MEAN,
                 std: super::config::OPENAI_STD,
             },
-            layout: VisionLayout::HuggingFace,
+            layout: Layout::HuggingFace,
             notes: Vec::new(),
             device: device.clone(),
         }

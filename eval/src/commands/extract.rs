@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use clip::DenseVariant;
 use clip::vision::{DenseOptions, Vlm};
 use datasets::imageio::save_rgb8;
 use datasets::npy::NpyInfo;
@@ -16,7 +17,6 @@ use field_ops::backend::BackendArgs;
 use field_ops::colormap::{to_u8, turbo};
 use field_ops::dataset_arg::DatasetArg;
 use field_ops::images::pca_colors;
-use model::clip::DenseVariant;
 
 /// Arguments of `extract`.
 #[derive(Debug, Clone, clap::Args)]

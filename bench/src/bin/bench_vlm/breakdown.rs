@@ -7,8 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::tensor::activation::{sigmoid, softmax};
 use burn::tensor::{Device, Distribution, Tensor};
+use clip::ClipVisionConfig;
+use clip::tower::ResidualAttentionBlock;
 use clip::vision::{DenseOptions, VisionModel};
-use model::clip::{ClipVisionConfig, ResidualAttentionBlock};
 use train::backend::BackendKind;
 
 use super::Geometry;

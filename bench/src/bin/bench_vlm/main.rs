@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, ensure};
 use clap::Parser;
 use clip::vision::DenseOptions;
-use model::clip::{ClipVisionConfig, DenseVariant};
+use clip::{ClipVisionConfig, DenseVariant};
 use serde::Serialize;
 mod breakdown;
 mod cpu;

@@ -5,8 +5,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail, ensure};
 use burn::tensor::{Device, Distribution, Tensor};
 use clip::vision::{DenseOptions, VisionModel};
+use clip::{ClipVisionConfig, DenseVariant};
 use field_ops::backend::{BackendArgs, BackendKind};
-use model::clip::{ClipVisionConfig, DenseVariant};
 use train::backend::vulkan_available;
 
 use super::cpu::timed;

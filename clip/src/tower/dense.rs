@@ -5,8 +5,8 @@
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
 
+use super::DenseVariant;
 use super::block::ResidualAttentionBlock;
-use super::vision_config::DenseVariant;
 
 /// NACLIP's additive attention bias for a `rows x cols` patch grid behind a
 /// class token, `[(1 + n)^2]` row-major with `n = rows * cols`: zero on the

@@ -7,11 +7,12 @@ use burn::module::{Module, Param};
 use burn::nn::{Initializer, LayerNorm, LayerNormConfig, Linear, LinearConfig};
 use burn::tensor::{Device, Tensor, TensorData};
 
+use super::DenseVariant;
 use super::block::{BlockSizes, ResidualAttentionBlock};
 use super::dense::dense_last_block;
-use super::encoder::l2_normalize;
 use super::resample::bicubic_weights;
-use super::vision_config::{ClipVisionConfig, DenseVariant};
+use super::text::l2_normalize;
+use super::vision_config::ClipVisionConfig;
 
 /// CLIP's image encoder.
 #[derive(Module, Debug)]

@@ -1,61 +1,9 @@
-//! Sizes and options of the CLIP vision transformer, and the training-free
-//! dense variants of its last block.
-
-use std::fmt;
-use std::str::FromStr;
+//! Sizes and options of the CLIP vision transformer, and the width of
+//! NACLIP's window.
 
 use burn::config::Config;
-use serde::{Deserialize, Serialize};
 
-use super::config::{ClipActivation, transformer_problem};
-
-/// How the last block turns patch tokens into pixel-aligned features
-/// (training-free; the other blocks run as trained). None of them keeps the
-/// last block's residual connection or MLP.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DenseVariant {
-    /// NACLIP (Hajimiri et al., 2025): key-key attention logits plus a 2D
-    /// Gaussian window over the patch grid (std 5 patches), so that every
-    /// patch attends to itself, its look-alikes and its neighbours.
-    Naclip,
-    /// ClearCLIP (Lan et al., 2024): query-query attention.
-    Clearclip,
-    /// MaskCLIP (Zhou et al., 2022): each token's value, through the output
-    /// projection (no attention across tokens).
-    Maskclip,
-}
-
-impl DenseVariant {
-    /// Every variant, default first.
-    pub const ALL: [Self; 3] = [Self::Naclip, Self::Clearclip, Self::Maskclip];
-
-    /// The name used on the command line and in files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Naclip => "naclip",
-            Self::Clearclip => "clearclip",
-            Self::Maskclip => "maskclip",
-        }
-    }
-}
-
-impl fmt::Display for DenseVariant {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for DenseVariant {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == s)
-            .ok_or_else(|| format!("unknown dense variant {s:?}: naclip, clearclip or maskclip"))
-    }
-}
+use super::text_config::{ClipActivation, transformer_problem};
 
 /// NACLIP's Gaussian window width, in patches.
 pub const NACLIP_STD: f64 = 5.0;
@@ -152,6 +100,7 @@ impl ClipVisionConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::tower::DenseVariant;
 
     #[test]
     fn presets_names_and_problems() {

@@ -8,7 +8,7 @@ use burn::nn::{
 use burn::tensor::{Device, Int, Tensor};
 
 use super::block::ResidualAttentionBlock;
-use super::config::{ClipTextConfig, EotPooling};
+use super::text_config::{ClipTextConfig, EotPooling};
 
 /// CLIP's text encoder: token ids in, one embedding per sequence out.
 #[derive(Module, Debug)]

@@ -7,7 +7,7 @@ use burn::tensor::activation::gelu;
 use burn::tensor::{Device, Tensor};
 
 use super::attention::CausalSelfAttention;
-use super::config::{ClipActivation, ClipTextConfig};
+use super::text_config::{ClipActivation, ClipTextConfig};
 
 /// The two-layer MLP of a block: `fc2(act(fc1(x)))`.
 #[derive(Module, Debug)]
