@@ -6,6 +6,7 @@ use datasets::capture_kind::CaptureKind;
 
 use super::args::{AppearanceArg, FieldArg, HashGridArg, PoseRefineArg, SamplerArg};
 use super::table::{Appearance, Extent, Row, Sampler};
+use crate::cli::Cli;
 use crate::preset::Preset;
 
 /// Who decided a setting.
@@ -237,6 +238,20 @@ pub struct Flags {
     pub pose_refine: Option<PoseRefineArg>,
     /// `--occupancy-grid`.
     pub occupancy_grid: bool,
+}
+
+impl Flags {
+    /// The flags of the command line.
+    pub fn of_cli(cli: &Cli) -> Self {
+        Self {
+            field: cli.field,
+            sampler: cli.sampler,
+            appearance: cli.appearance,
+            hash_grid: cli.hash_grid,
+            pose_refine: cli.pose_refine,
+            occupancy_grid: cli.occupancy_grid,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,43 +1,12 @@
-//! The flags of the command line as the settings pass takes them: those
-//! that decide per-capture settings ([`of_cli`]) and those that set single
-//! keys of the configuration.
+//! The novel-view, occupancy-grid and head flags, each of which sets keys
+//! of the configuration directly.
 
-use super::choices::Flags;
 use crate::cli::Cli;
-use crate::config::{Overrides, TrainConfig};
-
-/// The flags that decide per-capture settings.
-pub fn of_cli(cli: &Cli) -> Flags {
-    Flags {
-        field: cli.field,
-        sampler: cli.sampler,
-        appearance: cli.appearance,
-        hash_grid: cli.hash_grid,
-        pose_refine: cli.pose_refine,
-        occupancy_grid: cli.occupancy_grid,
-    }
-}
-
-/// The flags that override single keys of the configuration.
-pub fn overrides(cli: &Cli) -> Overrides {
-    Overrides {
-        iters: cli.iters,
-        rays: cli.rays,
-        samples: cli.samples,
-        width: cli.width,
-        depth: cli.depth,
-        lambda_open: cli.lambda_open,
-        lambda_depth: cli.lambda_depth,
-        lr: cli.lr,
-        unseen_depth: cli.unseen_depth,
-        seed: cli.seed,
-        log_every: cli.log_every.map(|n| n as usize),
-    }
-}
+use crate::config::TrainConfig;
 
 /// Lays the novel-view, occupancy-grid and head top-k flags over the
 /// configuration (`--occupancy-grid` itself is a decided setting,
-/// [`of_cli`]).
+/// [`super::choices::Flags::of_cli`]).
 pub fn apply_novel_and_grid(cli: &Cli, config: &mut TrainConfig) {
     if let Some(r) = cli.grid_resolution {
         config.occupancy.resolution = r;

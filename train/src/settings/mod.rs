@@ -21,7 +21,7 @@ use datasets::Scene;
 use datasets::capture_kind::{CaptureKind, capture_kind};
 
 use crate::cli::Cli;
-use crate::config::TrainConfig;
+use crate::config::{Overrides, TrainConfig};
 use crate::error::TrainError;
 use choices::{Choices, Layer};
 use sizes::Sizes;
@@ -59,7 +59,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     if let Some(patch) = &patch {
         choices = choices.overlaid(Layer::of_file(patch));
     }
-    choices = choices.overlaid(Layer::of_flags(&flags::of_cli(cli)));
+    choices = choices.overlaid(Layer::of_flags(&choices::Flags::of_cli(cli)));
     lines.push(write::field_line(&choices));
     let background = match (scene.background, kind, evidence.plain_background) {
         (None, CaptureKind::RenderedObject, Some(c)) => {
@@ -102,7 +102,8 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         }
         _ => base,
     };
-    config.apply(&flags::overrides(cli));
+    let flags = overrides(cli);
+    config.apply(&flags);
     flags::apply_novel_and_grid(cli, &mut config);
     let set_by_file = |section: &str, key: &str| {
         patch
@@ -141,6 +142,23 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
 pub fn choices_for(scene: &Scene, flags: &choices::Flags) -> Choices {
     let (kind, _) = capture_kind(scene);
     Choices::of_row(&table::row(kind)).overlaid(Layer::of_flags(flags))
+}
+
+/// The flags that override single keys of the configuration.
+pub fn overrides(cli: &Cli) -> Overrides {
+    Overrides {
+        iters: cli.iters,
+        rays: cli.rays,
+        samples: cli.samples,
+        width: cli.width,
+        depth: cli.depth,
+        lambda_open: cli.lambda_open,
+        lambda_depth: cli.lambda_depth,
+        lr: cli.lr,
+        unseen_depth: cli.unseen_depth,
+        seed: cli.seed,
+        log_every: cli.log_every.map(|n| n as usize),
+    }
 }
 
 /// The `--config` file as JSON.
