@@ -78,6 +78,7 @@ pub mod appearance;
 pub mod clip;
 pub mod composite;
 pub mod exposure;
+pub mod extent;
 pub mod field;
 pub mod geometry;
 pub mod hashgrid;
@@ -95,6 +96,7 @@ pub mod unbounded;
 pub use appearance::{AppearanceCodes, AppearanceCodesConfig};
 pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
+pub use extent::{Extent, Spacing};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use hashgrid::{HashGrid, HashGridConfig};
 pub use loss::{

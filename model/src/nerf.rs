@@ -1,7 +1,7 @@
 //! The OpenNeRF field: the Mip-NeRF MLP (shared by the coarse and the fine
 //! level, or fed by the proposal sampler), the open-set feature head, the
-//! scene's extent (a box, or unbounded with Mip-NeRF 360's contraction) and
-//! the occupancy grid it carries, with point queries. Rendering is
+//! scene's extent (a box, or unbounded with Mip-NeRF 360's contraction, see
+//! [`Extent`]) and the occupancy grid it carries, with point queries. Rendering is
 //! [`OpenNerf::render`] (see [`crate::render`]).
 
 use std::sync::Arc;
@@ -12,14 +12,15 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 use crate::appearance::{AppearanceCodes, AppearanceCodesConfig};
 use crate::exposure::{Exposure, ExposureConfig};
+use crate::extent::Extent;
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
 use crate::geometry::NormalizedRay;
 use crate::hashgrid::{HashGrid, HashGridConfig};
-use crate::mip::{FrustumGaussians, cast_rays, integrated_pos_enc};
+use crate::mip::integrated_pos_enc;
 use crate::occupancy::OccupancyGrid;
 use crate::pose::{PoseCorrection, PoseCorrectionConfig};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::unbounded::{Spacing, UnboundedConfig};
+use crate::unbounded::UnboundedConfig;
 
 /// Configuration of [`OpenNerf`].
 #[derive(Config, Debug)]
@@ -44,7 +45,8 @@ pub struct OpenNerfConfig {
     #[config(default = false)]
     pub coarse_features: bool,
     /// An unbounded scene (Mip-NeRF 360's contraction, rays to effectively
-    /// infinite distance); `None`: the scene box.
+    /// infinite distance); `None`: the scene box. The field's [`Extent`]
+    /// is built from it.
     pub unbounded: Option<UnboundedConfig>,
     /// The proposal sampler (small density MLPs decide where the MLP
     /// samples, `num_samples` per ray); `None`: the coarse and the fine
@@ -81,7 +83,7 @@ impl OpenNerfConfig {
             coarse_features: self.coarse_features,
             proposal: self.proposal.as_ref().map(|p| p.init(device)),
             proposal_config: self.proposal.clone(),
-            unbounded: self.unbounded.clone(),
+            extent: Extent::from_config(self.unbounded.as_ref()),
             exposure: self.exposure.as_ref().map(|e| e.init(device)),
             pose: self.pose.as_ref().map(|p| p.init(device)),
             appearance: self.appearance.as_ref().map(|a| a.init(device)),
@@ -111,9 +113,9 @@ pub struct OpenNerf {
     /// The proposal sampler's rounds (`None`: coarse and fine level).
     #[module(skip)]
     pub proposal_config: Option<ProposalConfig>,
-    /// The contraction of an unbounded scene (`None`: the scene box).
+    /// The scene box, or an unbounded scene with its contraction.
     #[module(skip)]
-    pub unbounded: Option<UnboundedConfig>,
+    pub extent: Extent,
     /// The training photographs' exposure (training loss only).
     pub exposure: Option<Exposure>,
     /// The training photographs' pose corrections (training rays only).
@@ -212,14 +214,10 @@ impl OpenNerf {
         self.occupancy.as_deref()
     }
 
-    /// The grid rendering samples with: the model's grid in a box field;
-    /// none in an unbounded one (a grid covers the scene box only, not
-    /// contracted space).
+    /// The grid rendering samples with: the model's grid where the extent
+    /// takes one ([`Extent::sampler_grid`]).
     pub fn sampler_grid(&self) -> Option<&OccupancyGrid> {
-        match self.unbounded {
-            Some(_) => None,
-            None => self.occupancy(),
-        }
+        self.extent.sampler_grid(self.occupancy())
     }
 
     /// The device the field's weights live on (where rendering uploads its
@@ -247,17 +245,8 @@ impl OpenNerf {
     }
 
     fn query_trunk(&self, points: Tensor<2>, radius: f32) -> (Tensor<2>, Tensor<2>) {
-        let ipe = match &self.unbounded {
-            Some(u) => {
-                let g = u.points(points, radius);
-                let [n, _, _] = g.mean.dims();
-                self.encode_gaussians(g.mean.reshape([n, 3]), g.cov_diag.reshape([n, 3]))
-            }
-            None => {
-                let cov = points.zeros_like().add_scalar(radius * radius);
-                self.encode_gaussians(points, cov)
-            }
-        };
+        let g = self.extent.points(points, radius);
+        let ipe = self.encode_gaussians(g.mean, g.cov_diag);
         self.mlp.trunk_density(ipe)
     }
 
@@ -285,46 +274,6 @@ impl OpenNerf {
         match self.proposal_sampler() {
             Some((p, _)) => p.round_samples() + self.num_samples,
             None => 2 * self.num_samples,
-        }
-    }
-
-    /// How `s`, the ray coordinate that samples are placed in, relates to
-    /// `t`: normalised disparity in an unbounded scene, normalised distance
-    /// in the box.
-    pub fn spacing(&self) -> Spacing {
-        match self.unbounded {
-            Some(_) => Spacing::Disparity,
-            None => Spacing::Linear,
-        }
-    }
-
-    /// The rays as this field renders them: an unbounded field replaces
-    /// the bounds each ray carries (made for the scene box) with its own
-    /// ([`UnboundedConfig::bound`]); a box field keeps them.
-    pub fn bound_rays<'r>(
-        &self,
-        rays: &'r [NormalizedRay],
-    ) -> std::borrow::Cow<'r, [NormalizedRay]> {
-        match &self.unbounded {
-            Some(u) => rays.iter().map(|r| u.bound(r)).collect(),
-            None => std::borrow::Cow::Borrowed(rays),
-        }
-    }
-
-    /// The frustums between consecutive fence posts as Gaussians in the
-    /// coordinates the MLPs encode (contracted in an unbounded scene).
-    ///
-    /// # Shapes
-    /// - `t_vals`: `[n, samples + 1]`; outputs: `[n, samples, 3]`.
-    pub fn frustums(&self, t_vals: Tensor<2>, rays: &Rays) -> FrustumGaussians {
-        let (o, d, r) = (
-            rays.origins.clone(),
-            rays.directions.clone(),
-            rays.radii.clone(),
-        );
-        match &self.unbounded {
-            Some(u) => u.frustums(t_vals, o, d, r),
-            None => cast_rays(t_vals, o, d, r),
         }
     }
 }

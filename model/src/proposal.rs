@@ -7,7 +7,7 @@
 //!
 //! Sampling happens in `s`, the ray's normalised coordinate: normalised
 //! disparity for an unbounded field, normalised distance in the box (see
-//! [`crate::OpenNerf::spacing`]).
+//! [`crate::extent::Extent::spacing`]).
 
 use burn::config::Config;
 use burn::module::Module;

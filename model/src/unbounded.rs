@@ -24,7 +24,7 @@ pub use contract::{
 };
 pub use dilate::max_dilate_weights_host;
 pub use resample::{anneal_weights_host, sample_pdf_host};
-pub use scene::{CONTRACTED_SCALE, Spacing, UnboundedConfig};
+pub use scene::{CONTRACTED_SCALE, UnboundedConfig};
 pub use spacing::{s_to_t, t_to_s};
 pub use stepfun::{
     INTERLEVEL_EPS, anneal_exponent, anneal_weights, distortion_loss, interlevel_loss,

@@ -72,7 +72,7 @@ fn a_configuration_without_the_new_keys_is_the_box_field_with_two_levels() {
     // Its initial weights draw from the generator the seeded tests use.
     let _seeded = seeded();
     let m = old.init(&Device::flex());
-    assert!(m.proposal.is_none() && m.unbounded.is_none());
+    assert!(m.proposal.is_none() && !m.extent.is_unbounded());
 }
 
 /// Without termination the inference pass renders the training pass's

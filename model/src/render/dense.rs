@@ -70,7 +70,8 @@ pub struct RenderOutputs {
     pub fine: LevelOutputs,
     /// The proposal rounds, in order (empty without the proposal sampler).
     pub proposals: Vec<ProposalLevel>,
-    /// The fine level's posts in `s` (see [`OpenNerf::spacing`]), for the
+    /// The fine level's posts in `s` (see
+    /// [`Extent::spacing`](crate::extent::Extent::spacing)), for the
     /// interlevel and distortion losses; `None` for the box field with
     /// coarse and fine level.
     pub fine_s: Option<Tensor<2>>,
@@ -102,7 +103,7 @@ impl OpenNerf {
         photographs: PerPhotograph,
     ) -> RenderOutputs {
         let model = self;
-        let bounded = model.bound_rays(request.rays);
+        let bounded = model.extent.bound_rays(request.rays);
         let clipped = clip_for_training(model.sampler_grid(), request.grid, &bounded);
         let rays = clipped.rays.as_deref().unwrap_or(&bounded);
         let mut rays = Rays::from_normalized(rays, &model.device());
@@ -170,8 +171,9 @@ impl OpenNerf {
             randomized,
         );
         let fine = self.render_level(rays, t_fine, view_enc, dir_norm, background, mode);
-        let fine_s = self.unbounded.as_ref().map(|_| {
-            self.spacing()
+        let fine_s = self.extent.is_unbounded().then(|| {
+            self.extent
+                .spacing()
                 .t_to_s(fine.t_vals.clone(), rays.near.clone(), rays.far.clone())
         });
         RenderOutputs {
@@ -195,6 +197,7 @@ impl OpenNerf {
         let pass = request.pass;
         let (proposals, s) = self.propose(sampler, rays, &dir_norm, pass.randomized, pass.progress);
         let t = self
+            .extent
             .spacing()
             .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());
         let fine = self.render_level(
@@ -290,7 +293,7 @@ impl OpenNerf {
     /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, ipe_dim]`.
     pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
-        let g = self.frustums(t_vals, rays);
+        let g = self.extent.frustums(t_vals, rays);
         let m = n * (posts - 1);
         self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
     }

@@ -231,7 +231,8 @@ impl OpenNerf {
                 // The proposal rounds are small: evaluated whole.
                 let (_, s_fine) = self.propose(sampler, rays, &dir_norm, false, 1.0);
                 out.samples_evaluated += n * sampler.0.round_samples();
-                self.spacing()
+                self.extent
+                    .spacing()
                     .s_to_t(s_fine, rays.near.clone(), rays.far.clone())
             }
             None => {

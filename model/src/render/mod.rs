@@ -16,9 +16,11 @@
 //!   cancellation through an observer.
 //!
 //! Where the samples go is the model's (see [`ProposalLevel`] and
-//! [`OpenNerf::spacing`]): stratified and resampled posts in the box, in
-//! normalised disparity in an unbounded field, whose rays run over its own
-//! bounds ([`OpenNerf::bound_rays`]); or the proposal rounds.
+//! [`Extent::spacing`](crate::extent::Extent::spacing)): stratified and
+//! resampled posts in the box, in normalised disparity in an unbounded
+//! field, whose rays run over its own bounds
+//! ([`Extent::bound_rays`](crate::extent::Extent::bound_rays)); or the
+//! proposal rounds.
 //!
 //! The grid is a sampler (see [`GridUse`]): before the stratified coarse
 //! samples are placed, each ray's `near`/`far` is narrowed to the span from

@@ -8,15 +8,15 @@ use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
 use crate::nerf::{OpenNerf, Rays};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::sampling::{resample_t_vals, stratified_t_vals};
+use crate::unbounded::anneal_exponent;
 use crate::unbounded::rounds::{Round, resample};
-use crate::unbounded::{Spacing, anneal_exponent};
 
 /// One proposal round's histogram along the rays, what the interlevel loss
 /// makes an upper envelope of the NeRF weights.
 #[derive(Debug, Clone)]
 pub struct ProposalLevel {
-    /// Fence posts in `s` (the ray coordinate, see [`OpenNerf::spacing`]),
+    /// Fence posts in `s` (the ray coordinate, see
+    /// [`Extent::spacing`](crate::extent::Extent::spacing)),
     /// `[n, samples + 1]`.
     pub s_vals: Tensor<2>,
     /// The proposal MLP's compositing weights, `[n, samples]` (with the
@@ -32,18 +32,9 @@ impl OpenNerf {
     /// - output: `[n, num_samples + 1]`.
     pub(super) fn coarse_posts(&self, rays: &Rays, randomized: bool) -> Tensor<2> {
         let (near, far) = (rays.near.clone(), rays.far.clone());
-        match self.spacing() {
-            Spacing::Linear => stratified_t_vals(near, far, self.num_samples, randomized),
-            spacing @ Spacing::Disparity => {
-                let s = stratified_t_vals(
-                    near.zeros_like(),
-                    far.ones_like(),
-                    self.num_samples,
-                    randomized,
-                );
-                spacing.s_to_t(s, near, far)
-            }
-        }
+        self.extent
+            .spacing()
+            .stratified(near, far, self.num_samples, randomized)
     }
 
     /// The fine level's posts, resampled from the coarse `weights` on the
@@ -60,15 +51,10 @@ impl OpenNerf {
         randomized: bool,
     ) -> Tensor<2> {
         let pad = self.resample_padding as f32;
-        match self.spacing() {
-            Spacing::Linear => resample_t_vals(t_coarse, weights, pad, randomized),
-            spacing @ Spacing::Disparity => {
-                let (near, far) = (rays.near.clone(), rays.far.clone());
-                let s = spacing.t_to_s(t_coarse, near.clone(), far.clone());
-                let s = resample_t_vals(s, weights, pad, randomized);
-                spacing.s_to_t(s, near, far)
-            }
-        }
+        let (near, far) = (rays.near.clone(), rays.far.clone());
+        self.extent
+            .spacing()
+            .resampled(t_coarse, weights, near, far, pad, randomized)
     }
 
     /// The proposal rounds along `rays`: each round resamples the last
@@ -112,9 +98,10 @@ impl OpenNerf {
                 break;
             }
             let t = self
+                .extent
                 .spacing()
                 .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());
-            let g = self.frustums(t.clone(), rays);
+            let g = self.extent.frustums(t.clone(), rays);
             let ipe = integrated_pos_enc(g.mean, g.cov_diag, mlp.min_deg, mlp.max_deg);
             let [_, _, dim] = ipe.dims();
             let density = mlp.density(ipe.reshape([n * count, dim]));
