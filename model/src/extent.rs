@@ -16,7 +16,8 @@ use crate::geometry::NormalizedRay;
 use crate::mip::{FrustumGaussians, cast_rays};
 use crate::nerf::Rays;
 use crate::occupancy::OccupancyGrid;
-use crate::sampling::{resample_t_vals, stratified_t_vals};
+use crate::sampling::stratified_t_vals;
+use crate::stepfun::resample_t_vals;
 use crate::unbounded::{UnboundedConfig, s_to_t, t_to_s};
 
 /// Where the field lives.

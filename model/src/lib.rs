@@ -1,6 +1,8 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
-//! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
-//! ([`composite`]), the MLP with its stop-gradient open-set head
+//! Mip-NeRF encodings ([`mip`]), the field's extent, a box or unbounded
+//! ([`extent`], [`unbounded`]), sampling ([`sampling`]) and the step
+//! functions the samplers resample and the losses measure ([`stepfun`]),
+//! compositing ([`composite`]), the MLP with its stop-gradient open-set head
 //! ([`field`]), the model that holds them ([`nerf`]), rendering through one
 //! entry point, [`OpenNerf::render`], for training (coarse/fine, dense) and
 //! inference (marched with early ray termination) ([`render`]),
@@ -91,6 +93,7 @@ pub mod pose;
 pub mod proposal;
 pub mod render;
 pub mod sampling;
+pub mod stepfun;
 pub mod unbounded;
 
 pub use appearance::{AppearanceCodes, AppearanceCodesConfig};

@@ -11,7 +11,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use common::{assert_close, camera_rays, devices, tiny_config, vec};
 use model::geometry::NormalizedRay;
-use model::unbounded::{distortion_loss, interlevel_loss};
+use model::stepfun::{distortion_loss, interlevel_loss};
 use model::{
     FeatureMode, OpenNerf, OpenNerfConfig, ProposalConfig, RenderRequest, Termination,
     UnboundedConfig,

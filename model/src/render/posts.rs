@@ -7,9 +7,9 @@ use burn::tensor::Tensor;
 use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
 use crate::nerf::{OpenNerf, Rays};
+use crate::proposal::rounds::{Round, resample};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::unbounded::anneal_exponent;
-use crate::unbounded::rounds::{Round, resample};
+use crate::stepfun::anneal_exponent;
 
 /// One proposal round's histogram along the rays, what the interlevel loss
 /// makes an upper envelope of the NeRF weights.
