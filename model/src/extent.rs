@@ -14,8 +14,8 @@ use burn::tensor::Tensor;
 
 use crate::geometry::NormalizedRay;
 use crate::mip::{FrustumGaussians, cast_rays};
-use crate::nerf::Rays;
 use crate::occupancy::OccupancyGrid;
+use crate::rays::Rays;
 use crate::sampling::stratified_t_vals;
 use crate::stepfun::resample_t_vals;
 use crate::unbounded::{UnboundedConfig, s_to_t, t_to_s};

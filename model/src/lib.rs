@@ -91,6 +91,7 @@ pub mod nerf;
 pub mod occupancy;
 pub mod pose;
 pub mod proposal;
+pub mod rays;
 pub mod render;
 pub mod sampling;
 pub mod stepfun;
