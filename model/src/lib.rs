@@ -112,8 +112,9 @@ pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid
 pub use pose::{PoseCorrection, PoseCorrectionConfig};
 pub use proposal::{ProposalConfig, ProposalMlp};
 pub use render::{
-    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, PerPhotograph,
-    ProposalLevel, RenderOutputs, RenderPass, RenderRequest, RenderedRays, Termination, Train,
+    Cancelled, ClipStats, FeatureMode, GridUse, Inference, Level, LevelField, LevelOutputs,
+    PerPhotograph, ProposalLevel, RenderOutputs, RenderPass, RenderRequest, RenderedRays,
+    Termination, Train,
 };
 pub use unbounded::UnboundedConfig;
 

@@ -197,12 +197,10 @@ impl OpenNerf {
         self.proposal_config.as_ref().zip(self.proposal.as_ref())
     }
 
-    /// Samples a ray takes over all levels without early termination: the
-    /// coarse and the fine level's, or the proposal rounds' and the MLP's.
+    /// Samples a ray takes over all levels ([`OpenNerf::levels`]) without
+    /// early termination: the coarse and the fine level's, or the proposal
+    /// rounds' and the MLP's.
     pub fn samples_per_ray(&self) -> usize {
-        match self.proposal_sampler() {
-            Some((p, _)) => p.round_samples() + self.num_samples,
-            None => 2 * self.num_samples,
-        }
+        self.levels().iter().map(|level| level.samples).sum()
     }
 }

@@ -43,6 +43,7 @@
 mod dense;
 mod grid;
 mod inference;
+mod levels;
 mod march;
 mod posts;
 
@@ -53,6 +54,7 @@ use crate::occupancy::{OccupancyConfig, OccupancyGrid};
 pub use dense::{LevelOutputs, PerPhotograph, RenderOutputs, Train};
 pub use grid::ClipStats;
 pub use inference::{Cancelled, Inference};
+pub use levels::{Level, LevelField};
 pub use march::{RenderedRays, Termination};
 pub use posts::ProposalLevel;
 
