@@ -82,15 +82,13 @@ impl OpenNerf {
         let (before, last) = levels.split_at(levels.len().saturating_sub(1));
         let mut prev: Option<(Posts, Tensor<2>)> = None;
         for (index, &level) in before.iter().enumerate() {
-            let posts = self.level_posts(&sampler, index, level, prev, rays, randomized);
+            let posts = self.level_posts(&sampler, index, level.samples, prev, rays, randomized);
             let weights = pass.sample(self, level, &posts);
             prev = Some((posts, weights));
         }
-        let level = last.first().copied().unwrap_or(Level {
-            samples: self.num_samples,
-            field: LevelField::Mlp,
-        });
-        let posts = self.level_posts(&sampler, before.len(), level, prev, rays, randomized);
+        // The last level is the NeRF MLP's (`levels` always ends with it).
+        let samples = last.first().map_or(self.num_samples, |level| level.samples);
+        let posts = self.level_posts(&sampler, before.len(), samples, prev, rays, randomized);
         pass.last(self, posts)
     }
 }

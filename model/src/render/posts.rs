@@ -5,7 +5,6 @@
 
 use burn::tensor::Tensor;
 
-use super::levels::Level;
 use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
 use crate::nerf::OpenNerf;
@@ -66,16 +65,16 @@ impl<'a> Sampler<'a> {
 }
 
 impl OpenNerf {
-    /// The posts of `level`, the `index`-th, from the previous level's posts
-    /// and weights (`None` at the first level).
+    /// The posts of the `index`-th level, of `samples` samples, from the
+    /// previous level's posts and weights (`None` at the first level).
     ///
     /// # Shapes
-    /// - output: `[n, level.samples + 1]`.
+    /// - output: `[n, samples + 1]`.
     pub(super) fn level_posts(
         &self,
         sampler: &Sampler<'_>,
         index: usize,
-        level: Level<'_>,
+        samples: usize,
         prev: Option<(Posts, Tensor<2>)>,
         rays: &Rays,
         randomized: bool,
@@ -86,7 +85,7 @@ impl OpenNerf {
             Sampler::CoarseFine => {
                 let pad = self.resample_padding as f32;
                 let t = match prev {
-                    None => spacing.stratified(near, far, level.samples, randomized),
+                    None => spacing.stratified(near, far, samples, randomized),
                     Some((p, w)) => spacing.resampled(p.t, w, near, far, pad, randomized),
                 };
                 Posts { t, s: None }
@@ -106,7 +105,7 @@ impl OpenNerf {
                     dilation: (index > 0).then(|| config.dilation(index)),
                     exponent: *exponent,
                     padding: config.resample_padding,
-                    count: level.samples,
+                    count: samples,
                     randomized,
                 };
                 let s = resample(&round, s, w);
