@@ -15,6 +15,11 @@
 //!   transmittance is below [`Termination::transmittance`]; progress and
 //!   cancellation through an observer.
 //!
+//! Both passes run one loop over the model's levels ([`OpenNerf::levels`]:
+//! the coarse and the fine level of the shared MLP, or the proposal rounds
+//! and the NeRF level), each level placing its posts from the previous
+//! level's weights, the last one the NeRF MLP's.
+//!
 //! Where the samples go is the model's (see [`ProposalLevel`] and
 //! [`Extent::spacing`](crate::extent::Extent::spacing)): stratified and
 //! resampled posts in the box, in normalised disparity in an unbounded
