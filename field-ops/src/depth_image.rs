@@ -27,7 +27,7 @@ pub enum DepthQuantity {
 impl DepthQuantity {
     /// Disparity for an unbounded field, depth for a box field.
     pub fn of(model: &model::OpenNerf) -> Self {
-        if model.unbounded.is_some() {
+        if model.extent.is_unbounded() {
             DepthQuantity::Disparity
         } else {
             DepthQuantity::Depth

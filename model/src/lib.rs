@@ -1,6 +1,8 @@
 //! The OpenNeRF field and its pure math: cameras and rays ([`geometry`]),
-//! Mip-NeRF encodings ([`mip`]), sampling ([`sampling`]), compositing
-//! ([`composite`]), the MLP with its stop-gradient open-set head
+//! Mip-NeRF encodings ([`mip`]), the field's extent, a box or unbounded
+//! ([`extent`], [`unbounded`]), sampling ([`sampling`]) and the step
+//! functions the samplers resample and the losses measure ([`stepfun`]),
+//! compositing ([`composite`]), the MLP with its stop-gradient open-set head
 //! ([`field`]), the model that holds them ([`nerf`]), rendering through one
 //! entry point, [`OpenNerf::render`], for training (coarse/fine, dense) and
 //! inference (marched with early ray termination) ([`render`]),
@@ -78,6 +80,7 @@ pub mod appearance;
 pub mod composite;
 pub mod dense_variant;
 pub mod exposure;
+pub mod extent;
 pub mod field;
 pub mod geometry;
 pub mod hashgrid;
@@ -88,13 +91,16 @@ pub mod nerf;
 pub mod occupancy;
 pub mod pose;
 pub mod proposal;
+pub mod rays;
 pub mod render;
 pub mod sampling;
+pub mod stepfun;
 pub mod unbounded;
 
 pub use appearance::{AppearanceCodes, AppearanceCodesConfig};
 pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
+pub use extent::{Extent, Spacing};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use hashgrid::{HashGrid, HashGridConfig};
 pub use loss::{
@@ -106,8 +112,9 @@ pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid
 pub use pose::{PoseCorrection, PoseCorrectionConfig};
 pub use proposal::{ProposalConfig, ProposalMlp};
 pub use render::{
-    Cancelled, ClipStats, FeatureMode, GridUse, Inference, LevelOutputs, PerPhotograph,
-    ProposalLevel, RenderOutputs, RenderPass, RenderRequest, RenderedRays, Termination, Train,
+    Cancelled, ClipStats, FeatureMode, GridUse, Inference, Level, LevelField, LevelOutputs,
+    PerPhotograph, ProposalLevel, RenderOutputs, RenderPass, RenderRequest, RenderedRays,
+    Termination, Train,
 };
 pub use unbounded::UnboundedConfig;
 

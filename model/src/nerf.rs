@@ -1,25 +1,26 @@
 //! The OpenNeRF field: the Mip-NeRF MLP (shared by the coarse and the fine
 //! level, or fed by the proposal sampler), the open-set feature head, the
-//! scene's extent (a box, or unbounded with Mip-NeRF 360's contraction) and
-//! the occupancy grid it carries, with point queries. Rendering is
+//! scene's extent (a box, or unbounded with Mip-NeRF 360's contraction, see
+//! [`Extent`]) and the occupancy grid it carries, with point queries. Rendering is
 //! [`OpenNerf::render`] (see [`crate::render`]).
 
 use std::sync::Arc;
 
 use burn::config::Config;
 use burn::module::Module;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 
 use crate::appearance::{AppearanceCodes, AppearanceCodesConfig};
 use crate::exposure::{Exposure, ExposureConfig};
+use crate::extent::Extent;
 use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
-use crate::geometry::NormalizedRay;
 use crate::hashgrid::{HashGrid, HashGridConfig};
-use crate::mip::{FrustumGaussians, cast_rays, integrated_pos_enc};
+use crate::mip::integrated_pos_enc;
 use crate::occupancy::OccupancyGrid;
 use crate::pose::{PoseCorrection, PoseCorrectionConfig};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::unbounded::{Spacing, UnboundedConfig};
+pub use crate::rays::Rays;
+use crate::unbounded::UnboundedConfig;
 
 /// Configuration of [`OpenNerf`].
 #[derive(Config, Debug)]
@@ -44,7 +45,8 @@ pub struct OpenNerfConfig {
     #[config(default = false)]
     pub coarse_features: bool,
     /// An unbounded scene (Mip-NeRF 360's contraction, rays to effectively
-    /// infinite distance); `None`: the scene box.
+    /// infinite distance); `None`: the scene box. The field's [`Extent`]
+    /// is built from it.
     pub unbounded: Option<UnboundedConfig>,
     /// The proposal sampler (small density MLPs decide where the MLP
     /// samples, `num_samples` per ray); `None`: the coarse and the fine
@@ -81,7 +83,7 @@ impl OpenNerfConfig {
             coarse_features: self.coarse_features,
             proposal: self.proposal.as_ref().map(|p| p.init(device)),
             proposal_config: self.proposal.clone(),
-            unbounded: self.unbounded.clone(),
+            extent: Extent::from_config(self.unbounded.as_ref()),
             exposure: self.exposure.as_ref().map(|e| e.init(device)),
             pose: self.pose.as_ref().map(|p| p.init(device)),
             appearance: self.appearance.as_ref().map(|a| a.init(device)),
@@ -111,9 +113,9 @@ pub struct OpenNerf {
     /// The proposal sampler's rounds (`None`: coarse and fine level).
     #[module(skip)]
     pub proposal_config: Option<ProposalConfig>,
-    /// The contraction of an unbounded scene (`None`: the scene box).
+    /// The scene box, or an unbounded scene with its contraction.
     #[module(skip)]
-    pub unbounded: Option<UnboundedConfig>,
+    pub extent: Extent,
     /// The training photographs' exposure (training loss only).
     pub exposure: Option<Exposure>,
     /// The training photographs' pose corrections (training rays only).
@@ -129,77 +131,6 @@ pub struct OpenNerf {
     pub occupancy: Option<Arc<OccupancyGrid>>,
 }
 
-/// A batch of rays in the normalised frame (metric `t`) on the device: what
-/// rendering uploads its host rays ([`NormalizedRay`]) into.
-#[derive(Debug, Clone)]
-pub struct Rays {
-    /// Origins, `[n, 3]`.
-    pub origins: Tensor<2>,
-    /// Unnormalised directions, `[n, 3]`.
-    pub directions: Tensor<2>,
-    /// Cone radii at `t = 1`, `[n, 1]`.
-    pub radii: Tensor<2>,
-    /// Near bounds, `[n, 1]`.
-    pub near: Tensor<2>,
-    /// Far bounds, `[n, 1]`.
-    pub far: Tensor<2>,
-    /// Each ray's photograph's appearance code, `[n, appearance_dim]`, for
-    /// a field with codes; `None`: the zero code (every view but a
-    /// training photograph's).
-    pub appearance: Option<Tensor<2>>,
-}
-
-impl Rays {
-    /// Uploads normalised rays to `device`.
-    pub fn from_normalized(rays: &[NormalizedRay], device: &Device) -> Rays {
-        let n = rays.len();
-        let vec3 = |f: &dyn Fn(&NormalizedRay) -> [f32; 3]| {
-            let v: Vec<f32> = rays.iter().flat_map(f).collect();
-            Tensor::from_data(TensorData::new(v, [n, 3]), device)
-        };
-        let scalar = |f: &dyn Fn(&NormalizedRay) -> f32| {
-            let v: Vec<f32> = rays.iter().map(f).collect();
-            Tensor::from_data(TensorData::new(v, [n, 1]), device)
-        };
-        Rays {
-            origins: vec3(&|r: &NormalizedRay| r.origin),
-            directions: vec3(&|r: &NormalizedRay| r.direction),
-            radii: scalar(&|r: &NormalizedRay| r.radius),
-            near: scalar(&|r: &NormalizedRay| r.near),
-            far: scalar(&|r: &NormalizedRay| r.far.max(r.near)),
-            appearance: None,
-        }
-    }
-
-    /// The rays as their corrected cameras see them: origins shifted by
-    /// each ray's `t`, directions turned by its `w` (see
-    /// [`crate::pose::rotate`]); radii, bounds and codes as they were.
-    ///
-    /// # Shapes
-    /// - `correction`: `[self.len(), 6]`, `[w | t]` as
-    ///   [`PoseCorrection::per_ray`] gives it.
-    pub fn corrected(self, correction: Tensor<2>) -> Rays {
-        let [n, _] = correction.dims();
-        let w = correction.clone().slice([0..n, 0..3]);
-        let t = correction.slice([0..n, 3..6]);
-        Rays {
-            origins: self.origins + t,
-            directions: crate::pose::rotate(self.directions, w),
-            ..self
-        }
-    }
-
-    /// Number of rays.
-    pub fn len(&self) -> usize {
-        self.origins.dims()[0]
-    }
-
-    /// Whether there are no rays.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
 impl OpenNerf {
     /// The field with `grid` as its occupancy grid (`None`: no skipping).
     pub fn with_occupancy(mut self, grid: Option<OccupancyGrid>) -> Self {
@@ -212,14 +143,10 @@ impl OpenNerf {
         self.occupancy.as_deref()
     }
 
-    /// The grid rendering samples with: the model's grid in a box field;
-    /// none in an unbounded one (a grid covers the scene box only, not
-    /// contracted space).
+    /// The grid rendering samples with: the model's grid where the extent
+    /// takes one ([`Extent::sampler_grid`]).
     pub fn sampler_grid(&self) -> Option<&OccupancyGrid> {
-        match self.unbounded {
-            Some(_) => None,
-            None => self.occupancy(),
-        }
+        self.extent.sampler_grid(self.occupancy())
     }
 
     /// The device the field's weights live on (where rendering uploads its
@@ -247,17 +174,8 @@ impl OpenNerf {
     }
 
     fn query_trunk(&self, points: Tensor<2>, radius: f32) -> (Tensor<2>, Tensor<2>) {
-        let ipe = match &self.unbounded {
-            Some(u) => {
-                let g = u.points(points, radius);
-                let [n, _, _] = g.mean.dims();
-                self.encode_gaussians(g.mean.reshape([n, 3]), g.cov_diag.reshape([n, 3]))
-            }
-            None => {
-                let cov = points.zeros_like().add_scalar(radius * radius);
-                self.encode_gaussians(points, cov)
-            }
-        };
+        let g = self.extent.points(points, radius);
+        let ipe = self.encode_gaussians(g.mean, g.cov_diag);
         self.mlp.trunk_density(ipe)
     }
 
@@ -279,52 +197,10 @@ impl OpenNerf {
         self.proposal_config.as_ref().zip(self.proposal.as_ref())
     }
 
-    /// Samples a ray takes over all levels without early termination: the
-    /// coarse and the fine level's, or the proposal rounds' and the MLP's.
+    /// Samples a ray takes over all levels ([`OpenNerf::levels`]) without
+    /// early termination: the coarse and the fine level's, or the proposal
+    /// rounds' and the MLP's.
     pub fn samples_per_ray(&self) -> usize {
-        match self.proposal_sampler() {
-            Some((p, _)) => p.round_samples() + self.num_samples,
-            None => 2 * self.num_samples,
-        }
-    }
-
-    /// How `s`, the ray coordinate that samples are placed in, relates to
-    /// `t`: normalised disparity in an unbounded scene, normalised distance
-    /// in the box.
-    pub fn spacing(&self) -> Spacing {
-        match self.unbounded {
-            Some(_) => Spacing::Disparity,
-            None => Spacing::Linear,
-        }
-    }
-
-    /// The rays as this field renders them: an unbounded field replaces
-    /// the bounds each ray carries (made for the scene box) with its own
-    /// ([`UnboundedConfig::bound`]); a box field keeps them.
-    pub fn bound_rays<'r>(
-        &self,
-        rays: &'r [NormalizedRay],
-    ) -> std::borrow::Cow<'r, [NormalizedRay]> {
-        match &self.unbounded {
-            Some(u) => rays.iter().map(|r| u.bound(r)).collect(),
-            None => std::borrow::Cow::Borrowed(rays),
-        }
-    }
-
-    /// The frustums between consecutive fence posts as Gaussians in the
-    /// coordinates the MLPs encode (contracted in an unbounded scene).
-    ///
-    /// # Shapes
-    /// - `t_vals`: `[n, samples + 1]`; outputs: `[n, samples, 3]`.
-    pub fn frustums(&self, t_vals: Tensor<2>, rays: &Rays) -> FrustumGaussians {
-        let (o, d, r) = (
-            rays.origins.clone(),
-            rays.directions.clone(),
-            rays.radii.clone(),
-        );
-        match &self.unbounded {
-            Some(u) => u.frustums(t_vals, o, d, r),
-            None => cast_rays(t_vals, o, d, r),
-        }
+        self.levels().iter().map(|level| level.samples).sum()
     }
 }

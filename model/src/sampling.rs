@@ -1,16 +1,12 @@
-//! Sampling of fence posts along rays: stratified (coarse level) and the
-//! Mip-NeRF blur-resample with inverse-CDF sampling (fine level).
+//! Stratified fence posts along rays (the first level's samples; the
+//! resampling of the later levels is step-function math, see
+//! [`crate::stepfun`]).
 //!
 //! All outputs are detached: the sample positions are never differentiated.
 
-use burn::tensor::{Distribution, Tensor, TensorData};
+use burn::tensor::{Distribution, Tensor};
 
-/// `n` evenly spaced values from `0` to `hi` as a `[1, n]` row.
-fn linspace_row(n: usize, hi: f32, device: &burn::tensor::Device) -> Tensor<2> {
-    let denom = (n.max(2) - 1) as f32;
-    let v: Vec<f32> = (0..n).map(|i| hi * i as f32 / denom).collect();
-    Tensor::from_data(TensorData::new(v, [1, n]), device)
-}
+use crate::stepfun::linspace_row;
 
 /// Stratified fence posts in `[near, far]`: `num_samples + 1` evenly spaced
 /// posts, each jittered uniformly inside its stratum (between the midpoints
@@ -46,155 +42,4 @@ pub fn stratified_t_vals(
     let lower = Tensor::cat(vec![t.slice_dim(1, 0..1), mids], 1);
     let u = Tensor::random([rays, posts], Distribution::Uniform(0.0, 1.0), &device);
     lower.clone().add(upper.sub(lower).mul(u)).detach()
-}
-
-/// Mip-NeRF's blurred weights: pad with the edge values, 2-tap max, 2-tap
-/// mean, plus `padding`. Keeps the shape.
-///
-/// # Shapes
-/// - `weights`: `[rays, samples]`; output: `[rays, samples]`.
-pub fn blur_weights(weights: Tensor<2>, padding: f32) -> Tensor<2> {
-    let [_, s] = weights.dims();
-    let padded = Tensor::cat(
-        vec![
-            weights.clone().slice_dim(1, 0..1),
-            weights.clone(),
-            weights.slice_dim(1, s - 1..s),
-        ],
-        1,
-    );
-    let maxes = padded
-        .clone()
-        .slice_dim(1, 0..s + 1)
-        .max_pair(padded.slice_dim(1, 1..s + 2));
-    maxes
-        .clone()
-        .slice_dim(1, 0..s)
-        .add(maxes.slice_dim(1, 1..s + 1))
-        .mul_scalar(0.5)
-        .add_scalar(padding)
-}
-
-/// The quantiles [`sample_pdf`] inverts the CDF at: `num_posts` evenly
-/// spaced in `[0, 1)`, each jittered uniformly inside its own stratum when
-/// `randomized` (one draw of the backend's generator), so every row is
-/// sorted.
-///
-/// # Shapes
-/// - output: `[rays, num_posts]`.
-pub fn pdf_quantiles(
-    rays: usize,
-    num_posts: usize,
-    randomized: bool,
-    device: &burn::tensor::Device,
-) -> Tensor<2> {
-    let eps = 1e-5f32;
-    if randomized {
-        let step = 1.0 / num_posts as f32;
-        let base = linspace_row(num_posts, step * (num_posts.max(2) - 1) as f32, device);
-        let jitter = Tensor::random(
-            [rays, num_posts],
-            Distribution::Uniform(0.0, (step - f32::EPSILON) as f64),
-            device,
-        );
-        base.add(jitter).clamp_max(1.0 - eps)
-    } else {
-        linspace_row(num_posts, 1.0 - eps, device).repeat_dim(0, rays)
-    }
-}
-
-/// Inverse-CDF sampling of `num_posts` sorted values from the piecewise
-/// constant density with `weights` on the intervals between `bins`
-/// (Mip-NeRF's `sorted_piecewise_constant_pdf`). With `randomized`, each
-/// quantile is jittered inside its own stratum, so the output stays sorted.
-///
-/// # Shapes
-/// - `bins`: `[rays, samples + 1]`, non-decreasing.
-/// - `weights`: `[rays, samples]`, non-negative.
-/// - output: `[rays, num_posts]`, non-decreasing, within `[bins_0, bins_last]`.
-pub fn sample_pdf(
-    bins: Tensor<2>,
-    weights: Tensor<2>,
-    num_posts: usize,
-    randomized: bool,
-) -> Tensor<2> {
-    let [rays, _] = weights.dims();
-    let u = pdf_quantiles(rays, num_posts, randomized, &bins.device());
-    sample_pdf_at(bins, weights, u)
-}
-
-/// [`sample_pdf`] at given quantiles `u` (`[rays, num_posts]`, each row
-/// sorted in `[0, 1]`, e.g. [`pdf_quantiles`]).
-///
-/// # Shapes
-/// - `bins`: `[rays, samples + 1]`; `weights`: `[rays, samples]`; `u`:
-///   `[rays, num_posts]`; output: like `u`.
-pub fn sample_pdf_at(bins: Tensor<2>, weights: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
-    let device = bins.device();
-    let [rays, s] = weights.dims();
-    let eps = 1e-5f32;
-    // A ray with (near) zero total weight gets a uniform pdf.
-    let weight_sum = weights.clone().sum_dim(1);
-    let pad = weight_sum.clone().neg().add_scalar(eps).clamp_min(0.0);
-    let weights = weights.add(pad.clone().div_scalar(s as f32));
-    let pdf = weights.div(weight_sum.add(pad));
-    let mut parts = vec![Tensor::zeros([rays, 1], &device)];
-    if s > 1 {
-        // (Empty slices are avoided: one sample per ray has cdf [0, 1].)
-        parts.push(pdf.slice_dim(1, 0..s - 1).cumsum(1).clamp_max(1.0));
-    }
-    parts.push(Tensor::ones([rays, 1], &device));
-    let cdf = Tensor::cat(parts, 1); // [rays, s + 1]
-    let [_, num_posts] = u.dims();
-    // mask[r, j, i] = u_i >= cdf_j: the interval of u_i starts at the last j
-    // with the mask set and ends at the first j without it.
-    let m = s + 1;
-    let shape = [rays, m, num_posts];
-    let mask = u
-        .clone()
-        .unsqueeze_dim::<3>(1)
-        .expand(shape)
-        .greater_equal(cdf.clone().unsqueeze_dim::<3>(2).expand(shape));
-    let find = |x: Tensor<2>| {
-        let full = x.clone().unsqueeze_dim::<3>(2).expand(shape);
-        let first = x
-            .clone()
-            .slice_dim(1, 0..1)
-            .unsqueeze_dim::<3>(2)
-            .expand(shape);
-        let last = x.slice_dim(1, m - 1..m).unsqueeze_dim::<3>(2).expand(shape);
-        let x0 = first.mask_where(mask.clone(), full.clone()).max_dim(1);
-        let x1 = full.mask_where(mask.clone(), last).min_dim(1);
-        let x0: Tensor<2> = x0.squeeze_dim(1);
-        let x1: Tensor<2> = x1.squeeze_dim(1);
-        (x0, x1)
-    };
-    let (bins_g0, bins_g1) = find(bins);
-    let (cdf_g0, cdf_g1) = find(cdf);
-    let denom = cdf_g1.sub(cdf_g0.clone());
-    let empty = denom.clone().lower_equal_elem(0.0);
-    let t = u
-        .sub(cdf_g0)
-        .div(denom.clamp_min(1e-20))
-        .mask_fill(empty, 0.0)
-        .clamp(0.0, 1.0);
-    bins_g0.clone().add(t.mul(bins_g1.sub(bins_g0))).detach()
-}
-
-/// The fine level's fence posts: blur-resample of the coarse `weights`
-/// (see [`blur_weights`]) and inverse-CDF sampling of `t_vals.len()` new
-/// posts, detached. The new posts replace the coarse ones (no merge).
-///
-/// # Shapes
-/// - `t_vals`: `[rays, samples + 1]`; `weights`: `[rays, samples]`.
-/// - output: `[rays, samples + 1]`.
-pub fn resample_t_vals(
-    t_vals: Tensor<2>,
-    weights: Tensor<2>,
-    resample_padding: f32,
-    randomized: bool,
-) -> Tensor<2> {
-    let [_, posts] = t_vals.dims();
-    let blurred = blur_weights(weights.detach(), resample_padding);
-    sample_pdf(t_vals.detach(), blurred, posts, randomized)
 }

@@ -1,32 +1,20 @@
 //! The math of unbounded scenes (Mip-NeRF 360): the scene contraction and
-//! Gaussians pushed through it ([`mod@contract`]), the normalised-disparity ray
-//! parameterisation ([`spacing`]), and the proposal (interlevel) and
-//! distortion losses with the proposal-weight helpers ([`stepfun`], and
-//! the dilation and the resampling on the host, [`mod@dilate`],
-//! [`mod@resample`], and one proposal round in either form, [`rounds`]), and an
-//! unbounded scene's configuration with the ray coordinate `s` ([`scene`]).
+//! Gaussians pushed through it ([`mod@contract`]), the normalised-disparity
+//! ray parameterisation ([`spacing`]), and an unbounded scene's
+//! configuration: its bounds and its frustums in contracted coordinates
+//! ([`scene`]). The step functions the proposal sampler resamples and the
+//! losses it learns from are [`crate::stepfun`]'s, shared with the box.
 //!
 //! Everything but the configuration is a pure, differentiable function on
-//! tensors; [`crate::OpenNerf`] composes them when its configuration has
-//! an [`UnboundedConfig`].
+//! tensors; [`crate::Extent::Unbounded`] composes them.
 
 pub mod contract;
-pub mod dilate;
-pub mod resample;
-pub mod rounds;
 pub mod scene;
 pub mod spacing;
-pub mod stepfun;
 
 pub use contract::{
     NORM_EPS, cast_rays_contracted, contract, contract_gaussian, contract_jacobian, cov_diagonal,
     frustum_covariance,
 };
-pub use dilate::max_dilate_weights_host;
-pub use resample::{anneal_weights_host, sample_pdf_host};
-pub use scene::{CONTRACTED_SCALE, Spacing, UnboundedConfig};
+pub use scene::{CONTRACTED_SCALE, UnboundedConfig};
 pub use spacing::{s_to_t, t_to_s};
-pub use stepfun::{
-    INTERLEVEL_EPS, anneal_exponent, anneal_weights, distortion_loss, interlevel_loss,
-    max_dilate_weights, outer_measure,
-};

@@ -7,7 +7,8 @@ mod common;
 
 use common::{assert_close, devices, tensor, vec};
 use model::composite::composite;
-use model::sampling::{blur_weights, sample_pdf, stratified_t_vals};
+use model::sampling::stratified_t_vals;
+use model::stepfun::{blur_weights, sample_pdf};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

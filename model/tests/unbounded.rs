@@ -1,9 +1,8 @@
 //! Mip-NeRF 360 math against f64 host references: the contraction (values,
 //! C1 continuity at the unit sphere, finite-difference Jacobians, a
 //! Monte-Carlo covariance of contracted samples, finiteness of values and
-//! gradients at extreme norms), the s-space round trips, and the interlevel
-//! and distortion losses and proposal helpers against brute-force
-//! evaluations of their definitions.
+//! gradients at extreme norms) and the s-space round trips. The step
+//! functions' tests are `stepfun.rs`'s.
 // Index loops mirror the formulas in these reference computations.
 #![allow(clippy::needless_range_loop)]
 
@@ -13,9 +12,8 @@ use burn::tensor::{Device, Tensor};
 use common::{assert_close, devices, tensor, vec};
 use model::mip::cast_rays;
 use model::unbounded::{
-    anneal_exponent, anneal_weights, cast_rays_contracted, contract, contract_gaussian,
-    contract_jacobian, cov_diagonal, distortion_loss, frustum_covariance, interlevel_loss,
-    max_dilate_weights, max_dilate_weights_host, s_to_t, t_to_s,
+    cast_rays_contracted, contract, contract_gaussian, contract_jacobian, cov_diagonal,
+    frustum_covariance, s_to_t, t_to_s,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -503,11 +501,3 @@ fn s_space_round_trips_and_hits_the_ends() {
         assert_close(&s_again, &s_grid.repeat(rays), 1e-6, 0.0, name);
     }
 }
-
-/// The step-function losses and proposal helpers.
-#[path = "unbounded/stepfun.rs"]
-mod stepfun;
-
-/// The proposal sampler's resampling on the host.
-#[path = "unbounded/resample.rs"]
-mod resample;

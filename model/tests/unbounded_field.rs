@@ -11,7 +11,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::{Device, Tensor, TensorData};
 use common::{assert_close, camera_rays, devices, tiny_config, vec};
 use model::geometry::NormalizedRay;
-use model::unbounded::{distortion_loss, interlevel_loss};
+use model::stepfun::{distortion_loss, interlevel_loss};
 use model::{
     FeatureMode, OpenNerf, OpenNerfConfig, ProposalConfig, RenderRequest, Termination,
     UnboundedConfig,
@@ -72,7 +72,7 @@ fn a_configuration_without_the_new_keys_is_the_box_field_with_two_levels() {
     // Its initial weights draw from the generator the seeded tests use.
     let _seeded = seeded();
     let m = old.init(&Device::flex());
-    assert!(m.proposal.is_none() && m.unbounded.is_none());
+    assert!(m.proposal.is_none() && !m.extent.is_unbounded());
 }
 
 /// Without termination the inference pass renders the training pass's

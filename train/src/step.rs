@@ -11,7 +11,7 @@ use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
 use model::exposure::{expose, exposure_penalty};
 use model::geometry::NormalizedRay;
-use model::unbounded::{distortion_loss, interlevel_loss};
+use model::stepfun::{distortion_loss, interlevel_loss};
 use model::{FeatureMode, GridUse, OpenNerf, RenderOutputs, RenderRequest};
 
 use crate::batch::BatchTensors;

@@ -5,13 +5,13 @@
 use burn::tensor::{Int, Tensor};
 
 use super::grid::{ClipStats, clip_for_training};
-use super::posts::ProposalLevel;
+use super::levels::{Level, LevelField, LevelPass};
+use super::posts::{Posts, ProposalLevel};
 use super::sealed::{Sealed, Token};
 use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::composite::{composite, composite_features_mean};
 use crate::mip::pos_enc;
 use crate::nerf::{OpenNerf, Rays};
-use crate::proposal::{ProposalConfig, ProposalMlp};
 
 /// The training pass: both levels of the rendered rays as tensors, with
 /// the autodiff graph when the model is on an autodiff device.
@@ -70,7 +70,8 @@ pub struct RenderOutputs {
     pub fine: LevelOutputs,
     /// The proposal rounds, in order (empty without the proposal sampler).
     pub proposals: Vec<ProposalLevel>,
-    /// The fine level's posts in `s` (see [`OpenNerf::spacing`]), for the
+    /// The fine level's posts in `s` (see
+    /// [`Extent::spacing`](crate::extent::Extent::spacing)), for the
     /// interlevel and distortion losses; `None` for the box field with
     /// coarse and fine level.
     pub fine_s: Option<Tensor<2>>,
@@ -102,7 +103,7 @@ impl OpenNerf {
         photographs: PerPhotograph,
     ) -> RenderOutputs {
         let model = self;
-        let bounded = model.bound_rays(request.rays);
+        let bounded = model.extent.bound_rays(request.rays);
         let clipped = clip_for_training(model.sampler_grid(), request.grid, &bounded);
         let rays = clipped.rays.as_deref().unwrap_or(&bounded);
         let mut rays = Rays::from_normalized(rays, &model.device());
@@ -122,108 +123,131 @@ impl OpenNerf {
             rays = rays.corrected(kept(c));
         }
         rays.appearance = photographs.appearance.map(kept);
-        let mut out = match model.proposal_sampler() {
-            Some(sampler) => model.render_proposed(sampler, &rays, request),
-            None => model.render_levels(
-                &rays,
-                request.pass.randomized,
-                request.background,
-                request.features,
-            ),
+        let (dir_norm, view_enc) = model.view_encoding(&rays);
+        let pass = TrainLevels {
+            rays: &rays,
+            dir_norm,
+            view_enc,
+            background: request.background,
+            mode: request.features,
+            coarse: None,
+            proposals: Vec::new(),
         };
+        let (randomized, progress) = (request.pass.randomized, request.pass.progress);
+        let mut out = model.run_levels(&rays, randomized, progress, pass);
         out.kept = clipped.kept;
         out.clip = clipped.stats;
         out
     }
 }
 
-impl OpenNerf {
-    /// The coarse and the fine level of `rays` with the shared MLP; the
-    /// feature is composited at the fine level (and the coarse one when so
-    /// configured), with detached weights.
-    fn render_levels(
-        &self,
-        rays: &Rays,
-        randomized: bool,
-        background: Option<[f32; 3]>,
-        mode: FeatureMode,
-    ) -> RenderOutputs {
-        let (dir_norm, view_enc) = self.view_encoding(rays);
-        let t_coarse = self.coarse_posts(rays, randomized);
-        let coarse_mode = if self.coarse_features {
-            mode
-        } else {
-            FeatureMode::None
-        };
-        let coarse = self.render_level(
-            rays,
-            t_coarse,
-            view_enc.clone(),
-            dir_norm.clone(),
-            background,
-            coarse_mode,
-        );
-        let t_fine = self.fine_posts(
-            rays,
-            coarse.t_vals.clone(),
-            coarse.weights.clone(),
-            randomized,
-        );
-        let fine = self.render_level(rays, t_fine, view_enc, dir_norm, background, mode);
-        let fine_s = self.unbounded.as_ref().map(|_| {
-            self.spacing()
-                .t_to_s(fine.t_vals.clone(), rays.near.clone(), rays.far.clone())
+/// The training pass's levels: each evaluated whole, its outputs kept
+/// for the losses.
+struct TrainLevels<'r> {
+    rays: &'r Rays,
+    dir_norm: Tensor<2>,
+    view_enc: Tensor<2>,
+    background: Option<[f32; 3]>,
+    mode: FeatureMode,
+    /// The coarse level (the NeRF MLP's level before the last).
+    coarse: Option<LevelOutputs>,
+    /// The proposal rounds, in order.
+    proposals: Vec<ProposalLevel>,
+}
+
+impl LevelPass for TrainLevels<'_> {
+    type Output = RenderOutputs;
+
+    fn sample(&mut self, model: &OpenNerf, level: Level<'_>, posts: &Posts) -> Tensor<2> {
+        let t = posts.t.clone();
+        match level.field {
+            LevelField::Proposal(mlp) => {
+                let weights = model.proposal_weights(mlp, t.clone(), self.rays, &self.dir_norm);
+                let s_vals = match &posts.s {
+                    Some(s) => s.clone(),
+                    None => model.extent.spacing().t_to_s(
+                        t,
+                        self.rays.near.clone(),
+                        self.rays.far.clone(),
+                    ),
+                };
+                self.proposals.push(ProposalLevel {
+                    s_vals,
+                    weights: weights.clone(),
+                });
+                weights
+            }
+            LevelField::Mlp => {
+                // The feature is composited at the coarse level only when
+                // so configured.
+                let mode = if model.coarse_features {
+                    self.mode
+                } else {
+                    FeatureMode::None
+                };
+                let coarse = model.render_level(self.rays, t, self.level_inputs(), mode);
+                let weights = coarse.weights.clone();
+                self.coarse = Some(coarse);
+                weights
+            }
+        }
+    }
+
+    fn last(self, model: &OpenNerf, posts: Posts) -> RenderOutputs {
+        let rays = self.rays;
+        let fine = model.render_level(rays, posts.t, self.level_inputs(), self.mode);
+        // The fine level's posts in `s`: as the proposal sampler drew them,
+        // or (the coarse/fine sampler) from `t` in an unbounded scene.
+        let fine_s = posts.s.or_else(|| {
+            model.extent.is_unbounded().then(|| {
+                model.extent.spacing().t_to_s(
+                    fine.t_vals.clone(),
+                    rays.near.clone(),
+                    rays.far.clone(),
+                )
+            })
         });
         RenderOutputs {
-            coarse: Some(coarse),
+            coarse: self.coarse,
             fine,
-            proposals: Vec::new(),
+            proposals: self.proposals,
             fine_s,
             kept: None,
             clip: None,
         }
     }
+}
 
-    /// The proposal rounds and the NeRF level of `rays`.
-    fn render_proposed(
-        &self,
-        sampler: (&ProposalConfig, &ProposalMlp),
-        rays: &Rays,
-        request: &RenderRequest<'_, Train>,
-    ) -> RenderOutputs {
-        let (dir_norm, view_enc) = self.view_encoding(rays);
-        let pass = request.pass;
-        let (proposals, s) = self.propose(sampler, rays, &dir_norm, pass.randomized, pass.progress);
-        let t = self
-            .spacing()
-            .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());
-        let fine = self.render_level(
-            rays,
-            t,
-            view_enc,
-            dir_norm,
-            request.background,
-            request.features,
-        );
-        RenderOutputs {
-            coarse: None,
-            fine,
-            proposals,
-            fine_s: Some(s),
-            kept: None,
-            clip: None,
+/// What every NeRF level of a training ray takes besides its posts.
+struct LevelInputs {
+    view_enc: Tensor<2>,
+    dir_norm: Tensor<2>,
+    background: Option<[f32; 3]>,
+}
+
+impl TrainLevels<'_> {
+    fn level_inputs(&self) -> LevelInputs {
+        LevelInputs {
+            view_enc: self.view_enc.clone(),
+            dir_norm: self.dir_norm.clone(),
+            background: self.background,
         }
     }
+}
 
+impl OpenNerf {
     fn render_level(
         &self,
         rays: &Rays,
         t_vals: Tensor<2>,
-        view_enc: Tensor<2>,
-        dir_norm: Tensor<2>,
-        background: Option<[f32; 3]>,
+        inputs: LevelInputs,
         mode: FeatureMode,
     ) -> LevelOutputs {
+        let LevelInputs {
+            view_enc,
+            dir_norm,
+            background,
+        } = inputs;
         let [n, posts] = t_vals.dims();
         let s = posts - 1;
         let ipe = self.encode_samples(t_vals.clone(), rays);
@@ -290,7 +314,7 @@ impl OpenNerf {
     /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, ipe_dim]`.
     pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
-        let g = self.frustums(t_vals, rays);
+        let g = self.extent.frustums(t_vals, rays);
         let m = n * (posts - 1);
         self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
     }

@@ -67,7 +67,7 @@ impl RenderPass for Inference<'_> {
         request: &RenderRequest<'_, Self>,
         _: Token,
     ) -> Result<RenderedRays, Cancelled> {
-        let bounded = model.bound_rays(request.rays);
+        let bounded = model.extent.bound_rays(request.rays);
         let clipped = clip_for_inference(model.sampler_grid(), request.grid, &bounded);
         let to_render: &[NormalizedRay] = clipped.rays.as_deref().unwrap_or(&bounded);
         let out = model.render_chunks(to_render, request)?;

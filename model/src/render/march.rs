@@ -8,6 +8,8 @@
 use burn::tensor::{Device, Int, Tensor, TensorData};
 
 use super::FeatureMode;
+use super::levels::{Level, LevelField, LevelPass};
+use super::posts::Posts;
 use crate::composite::{
     FEATURE_ACC_EPS, composite_features_mean, composite_values, expected_depth, over_background,
     segment_weights, t_mids,
@@ -98,6 +100,70 @@ impl RenderedRays {
         self.acc.extend(more.acc);
         self.feature.extend(more.feature);
         self.samples_evaluated += more.samples_evaluated;
+    }
+}
+
+/// The march's levels: the levels before the last evaluated whole (the
+/// proposal rounds, which are small) or marched (the coarse level), the
+/// last marched into `out`.
+struct MarchLevels<'r> {
+    rays: &'r Rays,
+    dir_norm: Tensor<2>,
+    view_enc: Tensor<2>,
+    background: Option<[f32; 3]>,
+    mode: FeatureMode,
+    termination: Termination,
+    out: RenderedRays,
+}
+
+impl MarchLevels<'_> {
+    /// Every ray alive at the start of a march over `t_vals`.
+    fn start(&self, t_vals: Tensor<2>) -> Alive {
+        let n = self.rays.len();
+        Alive {
+            ids: (0..n).collect(),
+            rays: self.rays.clone(),
+            dir_norm: self.dir_norm.clone(),
+            view_enc: self.view_enc.clone(),
+            tau: Tensor::zeros([n, 1], &t_vals.device()),
+            t_vals,
+        }
+    }
+}
+
+impl LevelPass for MarchLevels<'_> {
+    type Output = RenderedRays;
+
+    fn sample(&mut self, model: &OpenNerf, level: Level<'_>, posts: &Posts) -> Tensor<2> {
+        let n = self.rays.len();
+        let t = posts.t.clone();
+        match level.field {
+            LevelField::Proposal(mlp) => {
+                self.out.samples_evaluated += n * level.samples;
+                model.proposal_weights(mlp, t, self.rays, &self.dir_norm)
+            }
+            LevelField::Mlp => {
+                let device = t.device();
+                let alive = self.start(t);
+                let (weights, evaluated) =
+                    model.march_coarse(alive, level.samples, self.termination);
+                self.out.samples_evaluated += evaluated;
+                Tensor::from_data(TensorData::new(weights, [n, level.samples]), &device)
+            }
+        }
+    }
+
+    fn last(mut self, model: &OpenNerf, posts: Posts) -> RenderedRays {
+        let alive = self.start(posts.t);
+        let evaluated = model.march_fine(
+            alive,
+            self.background,
+            self.mode,
+            self.termination,
+            &mut self.out,
+        );
+        self.out.samples_evaluated += evaluated;
+        self.out
     }
 }
 
@@ -211,40 +277,21 @@ impl OpenNerf {
         termination: Termination,
     ) -> RenderedRays {
         let n = rays.len();
-        let mut out = RenderedRays::zeros(n, self.feature_dim(mode));
+        let out = RenderedRays::zeros(n, self.feature_dim(mode));
         if n == 0 {
             return out;
         }
-        let device = rays.origins.device();
         let (dir_norm, view_enc) = self.view_encoding(rays);
-        let s = self.num_samples;
-        let start = |t_vals: Tensor<2>| Alive {
-            ids: (0..n).collect(),
-            rays: rays.clone(),
-            dir_norm: dir_norm.clone(),
-            view_enc: view_enc.clone(),
-            t_vals,
-            tau: Tensor::zeros([n, 1], &device),
+        let pass = MarchLevels {
+            rays,
+            dir_norm,
+            view_enc,
+            background,
+            mode,
+            termination,
+            out,
         };
-        let t_fine = match self.proposal_sampler() {
-            Some(sampler) => {
-                // The proposal rounds are small: evaluated whole.
-                let (_, s_fine) = self.propose(sampler, rays, &dir_norm, false, 1.0);
-                out.samples_evaluated += n * sampler.0.round_samples();
-                self.spacing()
-                    .s_to_t(s_fine, rays.near.clone(), rays.far.clone())
-            }
-            None => {
-                let t_coarse = self.coarse_posts(rays, false);
-                let (weights, evaluated) = self.march_coarse(start(t_coarse.clone()), termination);
-                out.samples_evaluated += evaluated;
-                let weights = Tensor::from_data(TensorData::new(weights, [n, s]), &device);
-                self.fine_posts(rays, t_coarse, weights, false)
-            }
-        };
-        out.samples_evaluated +=
-            self.march_fine(start(t_fine), background, mode, termination, &mut out);
-        out
+        self.run_levels(rays, false, 1.0, pass)
     }
 
     /// The segment's density (and trunk features) of the alive rays.
@@ -267,10 +314,9 @@ impl OpenNerf {
         (density.reshape([m, len]), trunk, t)
     }
 
-    /// Coarse weights `[n * samples]` (0 behind terminated rays) and the
-    /// number of samples evaluated.
-    fn march_coarse(&self, mut alive: Alive, term: Termination) -> (Vec<f32>, usize) {
-        let s = self.num_samples;
+    /// Coarse weights `[n * s]` (0 behind terminated rays) over `s`
+    /// samples and the number of samples evaluated.
+    fn march_coarse(&self, mut alive: Alive, s: usize, term: Termination) -> (Vec<f32>, usize) {
         let n = alive.ids.len();
         let mut weights = vec![0.0f32; n * s];
         let mut evaluated = 0;

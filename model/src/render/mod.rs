@@ -15,10 +15,17 @@
 //!   transmittance is below [`Termination::transmittance`]; progress and
 //!   cancellation through an observer.
 //!
+//! Both passes run one loop over the model's levels ([`OpenNerf::levels`]:
+//! the coarse and the fine level of the shared MLP, or the proposal rounds
+//! and the NeRF level), each level placing its posts from the previous
+//! level's weights, the last one the NeRF MLP's.
+//!
 //! Where the samples go is the model's (see [`ProposalLevel`] and
-//! [`OpenNerf::spacing`]): stratified and resampled posts in the box, in
-//! normalised disparity in an unbounded field, whose rays run over its own
-//! bounds ([`OpenNerf::bound_rays`]); or the proposal rounds.
+//! [`Extent::spacing`](crate::extent::Extent::spacing)): stratified and
+//! resampled posts in the box, in normalised disparity in an unbounded
+//! field, whose rays run over its own bounds
+//! ([`Extent::bound_rays`](crate::extent::Extent::bound_rays)); or the
+//! proposal rounds.
 //!
 //! The grid is a sampler (see [`GridUse`]): before the stratified coarse
 //! samples are placed, each ray's `near`/`far` is narrowed to the span from
@@ -41,6 +48,7 @@
 mod dense;
 mod grid;
 mod inference;
+mod levels;
 mod march;
 mod posts;
 
@@ -51,6 +59,7 @@ use crate::occupancy::{OccupancyConfig, OccupancyGrid};
 pub use dense::{LevelOutputs, PerPhotograph, RenderOutputs, Train};
 pub use grid::ClipStats;
 pub use inference::{Cancelled, Inference};
+pub use levels::{Level, LevelField};
 pub use march::{RenderedRays, Termination};
 pub use posts::ProposalLevel;
 

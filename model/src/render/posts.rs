@@ -1,22 +1,24 @@
-//! Where the MLP samples: the fence posts of the coarse and the fine level,
-//! or of the NeRF level after the proposal rounds (Mip-NeRF 360, section
-//! 3). Shared by the training and the inference pass.
+//! Where each level of the loop ([`super::levels`]) samples: the coarse
+//! level's stratified posts and the fine level's blur-resample of them, or
+//! one proposal round per level (Mip-NeRF 360, section 3), and the
+//! proposal MLP's weights at a round's posts.
 
 use burn::tensor::Tensor;
 
 use crate::composite::compute_weights;
 use crate::mip::integrated_pos_enc;
-use crate::nerf::{OpenNerf, Rays};
+use crate::nerf::OpenNerf;
+use crate::proposal::rounds::{Round, resample};
 use crate::proposal::{ProposalConfig, ProposalMlp};
-use crate::sampling::{resample_t_vals, stratified_t_vals};
-use crate::unbounded::rounds::{Round, resample};
-use crate::unbounded::{Spacing, anneal_exponent};
+use crate::rays::Rays;
+use crate::stepfun::anneal_exponent;
 
 /// One proposal round's histogram along the rays, what the interlevel loss
 /// makes an upper envelope of the NeRF weights.
 #[derive(Debug, Clone)]
 pub struct ProposalLevel {
-    /// Fence posts in `s` (the ray coordinate, see [`OpenNerf::spacing`]),
+    /// Fence posts in `s` (the ray coordinate, see
+    /// [`Extent::spacing`](crate::extent::Extent::spacing)),
     /// `[n, samples + 1]`.
     pub s_vals: Tensor<2>,
     /// The proposal MLP's compositing weights, `[n, samples]` (with the
@@ -24,106 +26,127 @@ pub struct ProposalLevel {
     pub weights: Tensor<2>,
 }
 
+/// A level's fence posts.
+#[derive(Debug, Clone)]
+pub(super) struct Posts {
+    /// In metric `t`, `[n, samples + 1]`.
+    pub t: Tensor<2>,
+    /// In `s`, where the sampler drew them there (the proposal sampler's);
+    /// `None`: drawn in `t`.
+    pub s: Option<Tensor<2>>,
+}
+
+/// How the levels' posts are drawn.
+pub(super) enum Sampler<'a> {
+    /// Stratified at the first level (in `t` in the box, in `s` in an
+    /// unbounded scene), Mip-NeRF's blur-resample of the previous level's
+    /// weights after.
+    CoarseFine,
+    /// One proposal round per level: dilated (after the first), annealed
+    /// with `exponent`, drawn in `s`.
+    Proposal {
+        config: &'a ProposalConfig,
+        exponent: f32,
+    },
+}
+
+impl<'a> Sampler<'a> {
+    /// The sampler of `model` at `progress`, the fraction of training done
+    /// (1 at inference).
+    pub(super) fn of(model: &'a OpenNerf, progress: f32) -> Self {
+        match model.proposal_sampler() {
+            Some((config, _)) => Sampler::Proposal {
+                config,
+                exponent: anneal_exponent(progress, config.anneal_slope),
+            },
+            None => Sampler::CoarseFine,
+        }
+    }
+}
+
 impl OpenNerf {
-    /// The coarse level's posts: stratified in `t` in the box, in `s`
-    /// (normalised disparity) in an unbounded scene.
+    /// The posts of the `index`-th level, of `samples` samples, from the
+    /// previous level's posts and weights (`None` at the first level).
     ///
     /// # Shapes
-    /// - output: `[n, num_samples + 1]`.
-    pub(super) fn coarse_posts(&self, rays: &Rays, randomized: bool) -> Tensor<2> {
-        let (near, far) = (rays.near.clone(), rays.far.clone());
-        match self.spacing() {
-            Spacing::Linear => stratified_t_vals(near, far, self.num_samples, randomized),
-            spacing @ Spacing::Disparity => {
-                let s = stratified_t_vals(
-                    near.zeros_like(),
-                    far.ones_like(),
-                    self.num_samples,
-                    randomized,
-                );
-                spacing.s_to_t(s, near, far)
-            }
-        }
-    }
-
-    /// The fine level's posts, resampled from the coarse `weights` on the
-    /// coarse posts (in `t` in the box, in `s` in an unbounded scene).
-    ///
-    /// # Shapes
-    /// - `t_coarse`: `[n, samples + 1]`; `weights`: `[n, samples]`; output:
-    ///   like `t_coarse`.
-    pub(super) fn fine_posts(
+    /// - output: `[n, samples + 1]`.
+    pub(super) fn level_posts(
         &self,
+        sampler: &Sampler<'_>,
+        index: usize,
+        samples: usize,
+        prev: Option<(Posts, Tensor<2>)>,
         rays: &Rays,
-        t_coarse: Tensor<2>,
-        weights: Tensor<2>,
         randomized: bool,
-    ) -> Tensor<2> {
-        let pad = self.resample_padding as f32;
-        match self.spacing() {
-            Spacing::Linear => resample_t_vals(t_coarse, weights, pad, randomized),
-            spacing @ Spacing::Disparity => {
-                let (near, far) = (rays.near.clone(), rays.far.clone());
-                let s = spacing.t_to_s(t_coarse, near.clone(), far.clone());
-                let s = resample_t_vals(s, weights, pad, randomized);
-                spacing.s_to_t(s, near, far)
+    ) -> Posts {
+        let spacing = self.extent.spacing();
+        let (near, far) = (rays.near.clone(), rays.far.clone());
+        match sampler {
+            Sampler::CoarseFine => {
+                let pad = self.resample_padding as f32;
+                let t = match prev {
+                    None => spacing.stratified(near, far, samples, randomized),
+                    Some((p, w)) => spacing.resampled(p.t, w, near, far, pad, randomized),
+                };
+                Posts { t, s: None }
+            }
+            Sampler::Proposal { config, exponent } => {
+                let (s, w) = match prev {
+                    Some((p, w)) => {
+                        let s = match p.s {
+                            Some(s) => s,
+                            None => spacing.t_to_s(p.t, near.clone(), far.clone()),
+                        };
+                        (s, w)
+                    }
+                    None => whole_ray(rays),
+                };
+                let round = Round {
+                    dilation: (index > 0).then(|| config.dilation(index)),
+                    exponent: *exponent,
+                    padding: config.resample_padding,
+                    count: samples,
+                    randomized,
+                };
+                let s = resample(&round, s, w);
+                let t = spacing.s_to_t(s.clone(), near, far);
+                Posts { t, s: Some(s) }
             }
         }
     }
 
-    /// The proposal rounds along `rays`: each round resamples the last
-    /// histogram (dilated, and annealed at `progress`, the fraction of
-    /// training done; 1 at inference) and evaluates the proposal MLP.
-    /// Returns the rounds and the NeRF level's posts in `s`.
+    /// The proposal MLP's compositing weights at the posts `t`.
     ///
     /// # Shapes
-    /// - `dir_norm`: `[n, 1]`; posts: `[n, num_samples + 1]`.
-    pub(super) fn propose(
+    /// - `t`: `[n, samples + 1]`; `dir_norm`: `[n, 1]`; output: `[n, samples]`.
+    pub(super) fn proposal_weights(
         &self,
-        (cfg, mlp): (&ProposalConfig, &ProposalMlp),
+        mlp: &ProposalMlp,
+        t: Tensor<2>,
         rays: &Rays,
         dir_norm: &Tensor<2>,
-        randomized: bool,
-        progress: f32,
-    ) -> (Vec<ProposalLevel>, Tensor<2>) {
-        let n = rays.len();
-        let device = rays.near.device();
-        let mut s: Tensor<2> = Tensor::cat(
-            vec![
-                Tensor::zeros([n, 1], &device),
-                Tensor::ones([n, 1], &device),
-            ],
-            1,
-        );
-        let mut w: Tensor<2> = Tensor::ones([n, 1], &device);
-        let exponent = anneal_exponent(progress, cfg.anneal_slope);
-        let rounds = cfg.samples.iter().copied().map(|k| k.max(1));
-        let mut levels = Vec::with_capacity(cfg.samples.len());
-        for (round, count) in rounds.chain([self.num_samples]).enumerate() {
-            let spec = Round {
-                dilation: (round > 0).then(|| cfg.dilation(round)),
-                exponent,
-                padding: cfg.resample_padding,
-                count,
-                randomized,
-            };
-            s = resample(&spec, s, w);
-            if round == cfg.samples.len() {
-                break;
-            }
-            let t = self
-                .spacing()
-                .s_to_t(s.clone(), rays.near.clone(), rays.far.clone());
-            let g = self.frustums(t.clone(), rays);
-            let ipe = integrated_pos_enc(g.mean, g.cov_diag, mlp.min_deg, mlp.max_deg);
-            let [_, _, dim] = ipe.dims();
-            let density = mlp.density(ipe.reshape([n * count, dim]));
-            w = compute_weights(density.reshape([n, count]), t, dir_norm.clone());
-            levels.push(ProposalLevel {
-                s_vals: s.clone(),
-                weights: w.clone(),
-            });
-        }
-        (levels, s)
+    ) -> Tensor<2> {
+        let [n, posts] = t.dims();
+        let count = posts - 1;
+        let g = self.extent.frustums(t.clone(), rays);
+        let ipe = integrated_pos_enc(g.mean, g.cov_diag, mlp.min_deg, mlp.max_deg);
+        let [_, _, dim] = ipe.dims();
+        let density = mlp.density(ipe.reshape([n * count, dim]));
+        compute_weights(density.reshape([n, count]), t, dir_norm.clone())
     }
+}
+
+/// The first round's histogram: one interval over the whole ray in `s`,
+/// `[n, 2]` posts and `[n, 1]` weight 1.
+fn whole_ray(rays: &Rays) -> (Tensor<2>, Tensor<2>) {
+    let n = rays.len();
+    let device = rays.near.device();
+    let s = Tensor::cat(
+        vec![
+            Tensor::zeros([n, 1], &device),
+            Tensor::ones([n, 1], &device),
+        ],
+        1,
+    );
+    (s, Tensor::ones([n, 1], &device))
 }

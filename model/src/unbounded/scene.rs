@@ -130,39 +130,3 @@ pub fn box_entry(ray: &NormalizedRay) -> f32 {
     let od = o[0] * d[0] + o[1] * d[1] + o[2] * d[2];
     if dd > 0.0 { (-od / dd).max(0.0) } else { 0.0 }
 }
-
-/// `s`, a ray's normalised coordinate, of metric `t` under `spacing`, and
-/// back: normalised disparity for an unbounded field (so that samples
-/// spread over near and far content as a pixel resolves them), normalised
-/// distance otherwise.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Spacing {
-    /// `s = (t - near) / (far - near)`.
-    Linear,
-    /// `s = (1/t - 1/near) / (1/far - 1/near)` (see [`super::t_to_s`]).
-    Disparity,
-}
-
-impl Spacing {
-    /// Metric `t` to `s`.
-    ///
-    /// # Shapes
-    /// - `t`: `[rays, k]`; `near`, `far`: `[rays, 1]`; output: like `t`.
-    pub fn t_to_s(self, t: Tensor<2>, near: Tensor<2>, far: Tensor<2>) -> Tensor<2> {
-        match self {
-            Spacing::Linear => t.sub(near.clone()).div(far.sub(near).clamp_min(1e-20)),
-            Spacing::Disparity => super::t_to_s(t, near, far),
-        }
-    }
-
-    /// `s` back to metric `t`.
-    ///
-    /// # Shapes
-    /// - `s`: `[rays, k]`; `near`, `far`: `[rays, 1]`; output: like `s`.
-    pub fn s_to_t(self, s: Tensor<2>, near: Tensor<2>, far: Tensor<2>) -> Tensor<2> {
-        match self {
-            Spacing::Linear => near.clone().add(far.sub(near).mul(s)),
-            Spacing::Disparity => super::s_to_t(s, near, far),
-        }
-    }
-}

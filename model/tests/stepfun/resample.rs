@@ -4,8 +4,7 @@
 //! weightless rays and single intervals.
 
 use super::{anneal_weights, assert_close, devices, tensor, vec};
-use model::sampling::{pdf_quantiles, sample_pdf};
-use model::unbounded::{anneal_weights_host, sample_pdf_host};
+use model::stepfun::{anneal_weights_host, pdf_quantiles, sample_pdf, sample_pdf_host};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -145,7 +144,7 @@ fn host_annealing_equals_the_tensor_form() {
 /// sorted.
 #[test]
 fn a_round_resamples_alike_on_the_host_and_on_the_device() {
-    use model::unbounded::rounds::{
+    use model::proposal::rounds::{
         Round, resample, resample_on_device, resample_on_device_in_chunks, resample_on_host,
     };
     let mut rng = ChaCha8Rng::seed_from_u64(34);

@@ -7,7 +7,7 @@
 //! interlevel loss).
 //!
 //! Two forms of the same round: on the host ([`resample_on_host`], the
-//! linear-time loops of [`super::dilate`] and [`super::resample`]: the
+//! linear-time loops of [`crate::stepfun`]'s host forms: the
 //! inputs read back, the posts uploaded) and with tensor ops on the
 //! device ([`resample_on_device`], nothing read back). [`resample`] takes
 //! the host form on the CPU backends, where it is the faster
@@ -15,11 +15,11 @@
 
 use burn::tensor::{Tensor, TensorData};
 
-use super::dilate::max_dilate_weights_host;
-use super::resample::{anneal_weights_host, sample_pdf_host};
-use super::stepfun::{anneal_weights, max_dilate_weights};
 use crate::host_work::{ReadReason, read_back};
-use crate::sampling::{pdf_quantiles, sample_pdf_at};
+use crate::stepfun::{
+    anneal_weights, anneal_weights_host, max_dilate_weights, max_dilate_weights_host,
+    pdf_quantiles, sample_pdf_at, sample_pdf_host,
+};
 
 /// A round's values on the host (the CPU backends' form).
 fn host<const D: usize>(t: Tensor<D>) -> Vec<f32> {
@@ -32,7 +32,7 @@ pub struct Round {
     /// How far the previous histogram is dilated (`None`: the first round,
     /// which resamples the whole ray as it is).
     pub dilation: Option<f32>,
-    /// The annealing exponent ([`super::anneal_exponent`]).
+    /// The annealing exponent ([`crate::stepfun::anneal_exponent`]).
     pub exponent: f32,
     /// Added to the weights before annealing.
     pub padding: f32,

@@ -1,13 +1,13 @@
 //! The proposal sampler of Mip-NeRF 360 (section 3): a small density-only
 //! MLP, queried in rounds along each ray, whose weights decide where the
 //! NeRF MLP samples. It is trained only by the interlevel loss
-//! ([`crate::unbounded::interlevel_loss`]), which makes each round's
+//! ([`crate::stepfun::interlevel_loss`]), which makes each round's
 //! histogram an upper envelope of the NeRF weights; the NeRF MLP is then
 //! evaluated once per ray (no coarse pass of the full-size MLP).
 //!
 //! Sampling happens in `s`, the ray's normalised coordinate: normalised
 //! disparity for an unbounded field, normalised distance in the box (see
-//! [`crate::OpenNerf::spacing`]).
+//! [`crate::extent::Extent::spacing`]).
 
 use burn::config::Config;
 use burn::module::Module;
@@ -16,6 +16,8 @@ use burn::tensor::activation::{relu, softplus};
 use burn::tensor::{Device, Tensor};
 
 use crate::mip::ipe_dim;
+
+pub mod rounds;
 
 /// Configuration of the proposal sampler: its MLP and its sampling rounds.
 #[derive(Config, Debug)]

@@ -1,8 +1,7 @@
-//! Step functions along rays (interval ends `t: [rays, n + 1]`, sorted, and
-//! one weight per interval `w: [rays, n]`): Mip-NeRF 360's interlevel loss,
-//! which makes a proposal histogram an upper envelope of the NeRF one, its
-//! distortion loss, and the dilation and annealing applied to proposal
-//! weights before resampling.
+//! Measures of step functions: the outer measure of one on the intervals
+//! of another, Mip-NeRF 360's interlevel loss built on it (which makes a
+//! proposal histogram an upper envelope of the NeRF one), and its
+//! distortion loss.
 //!
 //! Burn has no `searchsorted`; where a step function is looked up at the
 //! ends of another, the lookup is a broadcast comparison of every end
@@ -12,19 +11,12 @@
 
 use burn::tensor::Tensor;
 
+use super::lo_hi;
+
 /// Weight floor under the interlevel loss's division (f32 machine epsilon,
 /// as multinerf): the loss is then `~ (w - outer)^2 / w` where `w > 0` and
 /// exactly 0 where `w = 0`.
 pub const INTERLEVEL_EPS: f32 = f32::EPSILON;
-
-/// Interval starts and ends of `[rays, n + 1]` posts, `[rays, n]` each.
-fn lo_hi(t: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
-    let [_, posts] = t.dims();
-    (
-        t.clone().slice_dim(1, 0..posts - 1),
-        t.slice_dim(1, 1..posts),
-    )
-}
 
 /// The outer measure of the step function `(t_env, w_env)` on the intervals
 /// of `t`: for each interval `[t_k, t_{k+1}]`, the total weight of the
@@ -103,7 +95,7 @@ pub fn interlevel_loss(
 /// `U_i = sum_{j<i} w_j u_j`.
 ///
 /// # Shapes
-/// - `s`: `[rays, n + 1]` sorted interval ends (normalised, e.g. [`super::t_to_s`]).
+/// - `s`: `[rays, n + 1]` sorted interval ends (normalised, e.g. [`crate::unbounded::t_to_s`]).
 /// - `w`: `[rays, n]`; output: `[1]`.
 pub fn distortion_loss(s: Tensor<2>, w: Tensor<2>) -> Tensor<1> {
     let (lo, hi) = lo_hi(s);
@@ -118,95 +110,4 @@ pub fn distortion_loss(s: Tensor<2>, w: Tensor<2>) -> Tensor<1> {
         .mul_scalar(2.0);
     let intra = w.square().mul(hi.sub(lo)).div_scalar(3.0);
     inter.add(intra).sum_dim(1).mean()
-}
-
-/// Max-dilation of a step function's density (multinerf's
-/// `max_dilate_weights`): each interval's density is spread `dilation` to
-/// both sides and overlapping spreads keep their maximum, so the dilated
-/// histogram bounds the original one near every interval. The new ends are
-/// the old ends and the dilated ones, sorted and clamped to `domain`; the
-/// weights are the dilated density times the new widths, renormalised to
-/// sum to 1 when `renormalize`.
-///
-/// Meant for the proposal weights that drive resampling (stop-gradient
-/// values); the sort is not a useful gradient path.
-///
-/// # Shapes
-/// - `t`: `[rays, n + 1]` sorted; `w`: `[rays, n]` non-negative.
-/// - outputs: `([rays, 3 n + 1], [rays, 3 n])`.
-pub fn max_dilate_weights(
-    t: Tensor<2>,
-    w: Tensor<2>,
-    dilation: f32,
-    domain: (f32, f32),
-    renormalize: bool,
-) -> (Tensor<2>, Tensor<2>) {
-    let eps = f32::EPSILON * f32::EPSILON;
-    let [rays, posts] = t.dims();
-    let n = posts - 1;
-    let (lo, hi) = lo_hi(t.clone());
-    let density = w.div(hi.clone().sub(lo.clone()).clamp_min(eps));
-    let lo = lo.sub_scalar(dilation);
-    let hi = hi.add_scalar(dilation);
-    let ends = Tensor::cat(vec![t, lo.clone(), hi.clone()], 1)
-        .sort(1)
-        .clamp(domain.0, domain.1);
-    // The density on each new interval is the largest dilated density
-    // covering its left end.
-    let shape = [rays, 3 * n + 1, n];
-    let at = ends.clone().unsqueeze_dim::<3>(2).expand(shape);
-    let covers = lo
-        .unsqueeze_dim::<3>(1)
-        .expand(shape)
-        .lower_equal(at.clone())
-        .bool_and(hi.unsqueeze_dim::<3>(1).expand(shape).greater(at));
-    let dilated = density
-        .unsqueeze_dim::<3>(1)
-        .expand(shape)
-        .mask_fill(covers.bool_not(), 0.0)
-        .max_dim(2)
-        .squeeze_dim::<2>(2)
-        .slice_dim(1, 0..3 * n);
-    let (new_lo, new_hi) = lo_hi(ends.clone());
-    let weights = dilated.mul(new_hi.sub(new_lo));
-    let weights = if renormalize {
-        let total = weights.clone().sum_dim(1).clamp_min(eps);
-        weights.div(total)
-    } else {
-        weights
-    };
-    (ends, weights)
-}
-
-/// The exponent of the proposal-weight annealing at a fraction of training
-/// (Schlick's bias curve with slope `slope`, as in multinerf):
-/// `slope x / ((slope - 1) x + 1)` for `x = train_frac` clamped to `[0, 1]`,
-/// rising from 0 at the start to 1 at the end; 1 throughout when
-/// `slope <= 0` (annealing off).
-pub fn anneal_exponent(train_frac: f32, slope: f32) -> f32 {
-    if slope <= 0.0 {
-        return 1.0;
-    }
-    let x = train_frac.clamp(0.0, 1.0);
-    slope * x / ((slope - 1.0) * x + 1.0)
-}
-
-/// Annealed proposal weights for resampling: `(w + padding)^exponent` on
-/// intervals of positive width, 0 on empty ones (their samples would be
-/// wasted). Exponent 0 gives uniform weights over the non-empty intervals
-/// (multinerf's logits `exponent log(w + padding)`, exponentiated; the
-/// resampler normalises). The base is floored at the smallest normal f32 so
-/// that `w + padding = 0` gives 0 (or 1 at exponent 0), never NaN.
-///
-/// # Shapes
-/// - `t`: `[rays, n + 1]`; `w`: `[rays, n]`; output: `[rays, n]`.
-pub fn anneal_weights(t: Tensor<2>, w: Tensor<2>, exponent: f32, padding: f32) -> Tensor<2> {
-    let (lo, hi) = lo_hi(t);
-    let empty = hi.lower_equal(lo);
-    w.add_scalar(padding)
-        .clamp_min(f32::MIN_POSITIVE)
-        .log()
-        .mul_scalar(exponent)
-        .exp()
-        .mask_fill(empty, 0.0)
 }
