@@ -126,9 +126,7 @@ fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
 
 /// Loads a Nice-SLAM Replica scene from `dir`.
 pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    options.selection.check(dir)?;
     let cam = read_cam_params(&dir.join("cam_params.json"))?;
     let traj_path = dir.join("traj.txt");
     let poses = read_trajectory(&traj_path)?;
@@ -153,12 +151,9 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         cy: cam.cy,
         distortion: model::geometry::Distortion::NONE,
     };
-    let (tw, th) = options.resolution.unwrap_or((cam.w, cam.h));
+    let (tw, th) = options.selection.size((cam.w, cam.h));
     let intrinsics = base.scaled(tw, th);
-    let keep: Vec<usize> = (0..images.len())
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX))
-        .collect();
+    let keep = options.selection.select(0..images.len());
     let mut frames = Vec::with_capacity(keep.len());
     let mut box_points = Vec::new();
     for &i in &keep {

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use datasets::blender::BlenderOptions;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
+use datasets::options::FrameSelection;
 use datasets::replica::ReplicaOptions;
 use datasets::{LoaderOptions, SceneMeta, SceneSource};
 
@@ -23,8 +24,11 @@ fn old_disk_sources_still_read() {
         replica,
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                stride: 10,
-                resolution: Some((640, 360)),
+                selection: FrameSelection {
+                    stride: 10,
+                    resolution: Some((640, 360)),
+                    ..FrameSelection::default()
+                },
                 features: Some(PathBuf::from("/data/room0/feats")),
                 pca: PcaSetting::ExplainedVariance(0.99),
                 ..ReplicaOptions::default()
@@ -43,7 +47,10 @@ fn old_disk_sources_still_read() {
     else {
         panic!("{partial:?}");
     };
-    assert_eq!((o.stride, o.pca, o.box_pixel_step), (5, PcaSetting::Off, 8));
+    assert_eq!(
+        (o.selection.stride, o.pca, o.box_pixel_step),
+        (5, PcaSetting::Off, 8)
+    );
     let k = read(
         r#"{"kind":"disk","format":"replica","path":"/r","options":{"pca":{"components":16}}}"#,
     );
@@ -121,8 +128,11 @@ fn sources_round_trip_byte_for_byte() {
     let sources = [
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                stride: 10,
-                resolution: Some((640, 360)),
+                selection: FrameSelection {
+                    stride: 10,
+                    resolution: Some((640, 360)),
+                    ..FrameSelection::default()
+                },
                 features: Some(PathBuf::from("/data/feats")),
                 pca: PcaSetting::Auto,
                 ..ReplicaOptions::default()

@@ -8,6 +8,7 @@ use datasets::colmap::ColmapOptions;
 use datasets::detect::Format;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
+use datasets::options::FrameSelection;
 use datasets::replica::ReplicaOptions;
 use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
@@ -111,8 +112,11 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             }
             let defaults = ReplicaOptions::default();
             LoaderOptions::Replica(ReplicaOptions {
-                stride: cli.stride.unwrap_or(defaults.stride),
-                resolution: cli.resolution.map(|r| (r.width, r.height)),
+                selection: FrameSelection {
+                    stride: cli.stride.unwrap_or(defaults.selection.stride),
+                    resolution: cli.resolution.map(|r| (r.width, r.height)),
+                    ..defaults.selection
+                },
                 features: cli.features.clone(),
                 // Feature maps on disk are compressed unless asked otherwise.
                 pca: match &cli.features {
@@ -155,8 +159,11 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             }
             let defaults = ScannetOptions::default();
             LoaderOptions::Scannet(ScannetOptions {
-                stride: cli.stride.unwrap_or(defaults.stride),
-                resolution: cli.resolution.map(|r| (r.width, r.height)),
+                selection: FrameSelection {
+                    stride: cli.stride.unwrap_or(defaults.selection.stride),
+                    resolution: cli.resolution.map(|r| (r.width, r.height)),
+                    ..defaults.selection
+                },
                 ..defaults
             })
         }
@@ -191,7 +198,10 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
         },
         depth: cli.colmap_depth,
         sparse_depth: depth_choice::loader_flag(cli.sparse_depth, cli.colmap_depth)?,
-        stride: cli.stride.unwrap_or(defaults.stride),
+        selection: FrameSelection {
+            stride: cli.stride.unwrap_or(defaults.selection.stride),
+            ..defaults.selection
+        },
         ..defaults
     }))
 }
@@ -211,8 +221,11 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
     }
     let defaults = PhoneOptions::default();
     let o = PhoneOptions {
-        stride: cli.stride.unwrap_or(defaults.stride),
-        resolution: cli.resolution.map(|r| (r.width, r.height)),
+        selection: FrameSelection {
+            stride: cli.stride.unwrap_or(defaults.selection.stride),
+            resolution: cli.resolution.map(|r| (r.width, r.height)),
+            ..defaults.selection
+        },
         min_depth_confidence: cli
             .min_depth_confidence
             .map_or(defaults.min_depth_confidence, Into::into),

@@ -50,6 +50,7 @@ use ::model::geometry::{Camera, Intrinsics, Pose, Vec3};
 pub use self::model::{
     Camera as ColmapCamera, CameraModel, Image, Model, ModelFormat, Point2D, Point3D,
 };
+use crate::detect::Format;
 use crate::error::DatasetError;
 use crate::features::load_frame_features;
 use crate::imageio;
@@ -229,9 +230,11 @@ fn load_frame(
 
 /// Loads a COLMAP reconstruction directory (see the module documentation).
 pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    options.selection.check_without_resampling(
+        dir,
+        Format::Colmap,
+        "pick a downscaled copy of the images with images (e.g. images_2)",
+    )?;
     let model = read_model(&sparse_dir(dir)?)?;
     if model.images.is_empty() {
         return Err(DatasetError::invalid(
@@ -260,10 +263,10 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
     } else {
         HashMap::new()
     };
-    let frames = views
-        .iter()
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX))
+    let frames = options
+        .selection
+        .select(&views)
+        .into_iter()
         .map(|v| load_frame(dir, &model, v, options, &to_scene, &by_id))
         .collect::<Result<Vec<_>, _>>()?;
     let mapped_cameras: Vec<Camera> = cameras

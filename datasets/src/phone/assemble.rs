@@ -132,27 +132,17 @@ pub fn assemble(
     capture: Capture,
     loader: &LoaderOptions,
 ) -> Result<Assembled, DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    options.selection.check(dir)?;
     if !(options.max_depth.is_finite() && options.max_depth > 0.0) {
         return Err(DatasetError::invalid(dir, "max depth must be positive"));
     }
     let mut notes = capture.notes;
-    let kept: Vec<CaptureFrame> = capture
-        .frames
-        .into_iter()
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX))
-        .collect();
+    let kept = options.selection.select(capture.frames);
     let Some(first) = kept.first() else {
         return Err(DatasetError::invalid(dir, "the export holds no frame"));
     };
     let first_size = first.image.dimensions()?;
-    let (tw, th) = options.resolution.unwrap_or(first_size);
-    if tw == 0 || th == 0 {
-        return Err(DatasetError::invalid(dir, "resolution is zero"));
-    }
+    let (tw, th) = options.selection.size(first_size);
     let up = up();
     let mesh = match &capture.mesh {
         Some(path) => {
