@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 use model::geometry::{Camera, Intrinsics, Pose};
 
 use crate::error::DatasetError;
-use crate::features::load_frame_features;
 use crate::options::LoaderOptions;
 pub use crate::options::ReplicaOptions;
 use crate::poses::{backproject, box_of, checked_pose};
@@ -124,8 +123,18 @@ fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     Ok(found.into_iter().map(|(_, p)| p).collect())
 }
 
-/// Loads a Nice-SLAM Replica scene from `dir`.
+/// Loads a Nice-SLAM Replica scene from `dir`, with its feature maps
+/// ([`crate::load_disk`]).
 pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, DatasetError> {
+    crate::load_disk(dir, &LoaderOptions::Replica(options.clone()))
+}
+
+/// [`load_replica`] without the feature maps, which
+/// [`crate::load_disk`] attaches.
+pub(crate) fn load_without_features(
+    dir: &Path,
+    options: &ReplicaOptions,
+) -> Result<Scene, DatasetError> {
     options.selection.check(dir)?;
     let cam = read_cam_params(&dir.join("cam_params.json"))?;
     let traj_path = dir.join("traj.txt");
@@ -189,34 +198,18 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         });
     }
     let scene_box = box_of(dir, box_points, options.box_margin)?;
-    let features = options
-        .features
-        .as_ref()
-        .map(|path| {
-            load_frame_features(
-                path,
-                &frames,
-                options.pca,
-                options.basis.as_ref(),
-                options.seed,
-            )
-        })
-        .transpose()?;
     Ok(Scene {
         name: dir
             .file_name()
             .map_or("replica".into(), |n| n.to_string_lossy().into_owned()),
         frames,
-        features,
+        features: None,
         scene_box,
         background: None,
         points: None,
         classes: None,
         source: SceneSource::Disk {
-            loader: LoaderOptions::Replica(ReplicaOptions {
-                basis: None,
-                ..options.clone()
-            }),
+            loader: LoaderOptions::Replica(options.clone()),
             path: dir.to_path_buf(),
         },
         world: None,

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use datasets::blender::BlenderOptions;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
-use datasets::options::FrameSelection;
+use datasets::options::{FeatureInput, FrameSelection};
 use datasets::replica::ReplicaOptions;
 use datasets::{LoaderOptions, SceneMeta, SceneSource};
 
@@ -29,8 +29,11 @@ fn old_disk_sources_still_read() {
                     resolution: Some((640, 360)),
                     ..FrameSelection::default()
                 },
-                features: Some(PathBuf::from("/data/room0/feats")),
-                pca: PcaSetting::ExplainedVariance(0.99),
+                feature_input: FeatureInput {
+                    features: Some(PathBuf::from("/data/room0/feats")),
+                    pca: PcaSetting::ExplainedVariance(0.99),
+                    ..FeatureInput::default()
+                },
                 ..ReplicaOptions::default()
             }),
             path: PathBuf::from("/data/room0"),
@@ -48,7 +51,7 @@ fn old_disk_sources_still_read() {
         panic!("{partial:?}");
     };
     assert_eq!(
-        (o.selection.stride, o.pca, o.box_pixel_step),
+        (o.selection.stride, o.feature_input.pca, o.box_pixel_step),
         (5, PcaSetting::Off, 8)
     );
     let k = read(
@@ -58,7 +61,10 @@ fn old_disk_sources_still_read() {
         k,
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                pca: PcaSetting::Components(16),
+                feature_input: FeatureInput {
+                    pca: PcaSetting::Components(16),
+                    ..
+                },
                 ..
             }),
             ..
@@ -133,15 +139,21 @@ fn sources_round_trip_byte_for_byte() {
                     resolution: Some((640, 360)),
                     ..FrameSelection::default()
                 },
-                features: Some(PathBuf::from("/data/feats")),
-                pca: PcaSetting::Auto,
+                feature_input: FeatureInput {
+                    features: Some(PathBuf::from("/data/feats")),
+                    pca: PcaSetting::Auto,
+                    ..FeatureInput::default()
+                },
                 ..ReplicaOptions::default()
             }),
             path: PathBuf::from("/data/room0"),
         },
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                pca: PcaSetting::ExplainedVariance(0.9),
+                feature_input: FeatureInput {
+                    pca: PcaSetting::ExplainedVariance(0.9),
+                    ..FeatureInput::default()
+                },
                 ..ReplicaOptions::default()
             }),
             path: PathBuf::from("/r"),

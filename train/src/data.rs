@@ -8,7 +8,7 @@ use datasets::colmap::ColmapOptions;
 use datasets::detect::Format;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
-use datasets::options::FrameSelection;
+use datasets::options::{FeatureInput, FrameSelection};
 use datasets::replica::ReplicaOptions;
 use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
@@ -117,12 +117,7 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
                     resolution: cli.resolution.map(|r| (r.width, r.height)),
                     ..defaults.selection
                 },
-                features: cli.features.clone(),
-                // Feature maps on disk are compressed unless asked otherwise.
-                pca: match &cli.features {
-                    Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-                    None => defaults.pca,
-                },
+                feature_input: feature_input(cli),
                 ..defaults
             })
         }
@@ -186,11 +181,7 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
     }
     let defaults = ColmapOptions::default();
     Ok(LoaderOptions::Colmap(ColmapOptions {
-        features: cli.features.clone(),
-        pca: match &cli.features {
-            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-            None => defaults.pca,
-        },
+        feature_input: feature_input(cli),
         // COLMAP workspaces keep downscaled copies in `images_N`.
         images: match cli.downscale {
             Some(d) if d > 1 => format!("images_{d}"),
@@ -230,11 +221,7 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
             .min_depth_confidence
             .map_or(defaults.min_depth_confidence, Into::into),
         max_depth: cli.max_depth.unwrap_or(defaults.max_depth),
-        features: cli.features.clone(),
-        pca: match &cli.features {
-            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-            None => defaults.pca,
-        },
+        feature_input: feature_input(cli),
         ..defaults
     };
     Ok(match format {
@@ -242,6 +229,19 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
         Format::Record3d => LoaderOptions::Record3d(o),
         _ => LoaderOptions::Polycam(o),
     })
+}
+
+/// The feature maps of the command line: those of `--features`,
+/// compressed as `--pca` says (by default, maps on disk are compressed).
+fn feature_input(cli: &Cli) -> FeatureInput {
+    FeatureInput {
+        features: cli.features.clone(),
+        pca: match &cli.features {
+            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
+            None => FeatureInput::default().pca,
+        },
+        ..FeatureInput::default()
+    }
 }
 
 /// The first flag of `flags` that was given.
@@ -304,7 +304,7 @@ mod pca_flag_tests {
                 SceneSource::Disk {
                     loader: LoaderOptions::Replica(o),
                     ..
-                } => o.pca,
+                } => o.feature_input.pca,
                 other => panic!("{other:?}"),
             }
         };

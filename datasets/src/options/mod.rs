@@ -1,17 +1,17 @@
 //! Loader options of the scene formats on disk, one type per format, and
 //! [`LoaderOptions`]: a format with its options, as the
 //! [`SceneSource`](crate::SceneSource) of a scene on disk records them.
-//! Which frames every format keeps is one type, [`FrameSelection`],
-//! flattened into each format's options.
+//! What the formats share is one type each, flattened into their options:
+//! [`FrameSelection`] (every format) and [`FeatureInput`] (the formats with
+//! feature maps).
 
+mod feature_input;
 mod selection;
-
-use std::path::PathBuf;
 
 use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::detect::Format;
-use crate::features::{PcaBasis, PcaSetting};
+pub use feature_input::FeatureInput;
 pub use selection::{FrameSelection, Resolution, parse_count};
 
 /// A scene format with its loader options. Serialised adjacently tagged,
@@ -77,6 +77,39 @@ impl LoaderOptions {
         }
     }
 
+    /// The feature maps the loader attaches, `None` for a format that
+    /// reads none (Blender, LLFF, ScanNet).
+    pub fn feature_input(&self) -> Option<&FeatureInput> {
+        match self {
+            Self::Replica(o) => Some(&o.feature_input),
+            Self::Colmap(o) => Some(&o.feature_input),
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => Some(&o.feature_input),
+            Self::Blender(_) | Self::Llff(_) | Self::Scannet(_) => None,
+        }
+    }
+
+    /// [`Self::feature_input`], to change.
+    pub fn feature_input_mut(&mut self) -> Option<&mut FeatureInput> {
+        match self {
+            Self::Replica(o) => Some(&mut o.feature_input),
+            Self::Colmap(o) => Some(&mut o.feature_input),
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => {
+                Some(&mut o.feature_input)
+            }
+            Self::Blender(_) | Self::Llff(_) | Self::Scannet(_) => None,
+        }
+    }
+
+    /// These options without a compression basis (not part of the saved
+    /// options: a scene records its basis apart).
+    pub fn without_basis(&self) -> Self {
+        let mut o = self.clone();
+        if let Some(input) = o.feature_input_mut() {
+            input.basis = None;
+        }
+        o
+    }
+
     /// The format these options load (its name, [`Format::name`], is the
     /// one the command line takes and messages use).
     pub fn format(&self) -> Format {
@@ -110,18 +143,9 @@ pub struct ReplicaOptions {
     /// 10) and their size (the paper uses 640x360).
     #[serde(flatten)]
     pub selection: FrameSelection,
-    /// Feature maps: a stacked `.npy` or a directory of per-frame `.npy`
-    /// (indexed over the frames kept).
-    pub features: Option<PathBuf>,
-    /// Compression of the feature maps.
-    #[serde(deserialize_with = "null_as_default")]
-    pub pca: PcaSetting,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<PcaBasis>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
+    /// Feature maps, `frameNNNNNN.npy` (a stacked `.npy` or a directory).
+    #[serde(flatten)]
+    pub feature_input: FeatureInput,
     /// Scene-box margin, as a fraction of the largest extent.
     pub box_margin: f64,
     /// Depth pixels used for the box: every `box_pixel_step`-th in each axis.
@@ -132,10 +156,7 @@ impl Default for ReplicaOptions {
     fn default() -> Self {
         Self {
             selection: FrameSelection::default(),
-            features: None,
-            pca: PcaSetting::Off,
-            basis: None,
-            seed: 0,
+            feature_input: FeatureInput::default(),
             box_margin: 0.05,
             box_pixel_step: 8,
         }
@@ -219,18 +240,9 @@ pub struct ColmapOptions {
     pub selection: FrameSelection,
     /// Scene-box margin, as a fraction of the largest extent.
     pub box_margin: f64,
-    /// Feature maps: a stacked `.npy` or a directory of per-frame `.npy`
-    /// (indexed over the frames kept).
-    pub features: Option<PathBuf>,
-    /// Compression of the feature maps.
-    #[serde(deserialize_with = "null_as_default")]
-    pub pca: PcaSetting,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<PcaBasis>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
+    /// Feature maps, `<image stem>.npy` (a stacked `.npy` or a directory).
+    #[serde(flatten)]
+    pub feature_input: FeatureInput,
 }
 
 impl Default for ColmapOptions {
@@ -241,10 +253,7 @@ impl Default for ColmapOptions {
             sparse_depth: false,
             selection: FrameSelection::default(),
             box_margin: 0.05,
-            features: None,
-            pca: PcaSetting::Off,
-            basis: None,
-            seed: 0,
+            feature_input: FeatureInput::default(),
         }
     }
 }
@@ -321,18 +330,9 @@ pub struct PhoneOptions {
     /// Depth pixels used for the box and the point cloud of a capture
     /// without a mesh: every `box_pixel_step`-th in each axis.
     pub box_pixel_step: u32,
-    /// Feature maps: a stacked `.npy` or a directory of per-frame `.npy`
-    /// (indexed over the frames kept).
-    pub features: Option<PathBuf>,
-    /// Compression of the feature maps.
-    #[serde(deserialize_with = "null_as_default")]
-    pub pca: PcaSetting,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<PcaBasis>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
+    /// Feature maps, `<frame name>.npy` (a stacked `.npy` or a directory).
+    #[serde(flatten)]
+    pub feature_input: FeatureInput,
 }
 
 /// The LiDAR's range on current iPhones and iPads, metres.
@@ -346,10 +346,7 @@ impl Default for PhoneOptions {
             max_depth: PHONE_MAX_DEPTH,
             box_margin: 0.05,
             box_pixel_step: 8,
-            features: None,
-            pca: PcaSetting::Off,
-            basis: None,
-            seed: 0,
+            feature_input: FeatureInput::default(),
         }
     }
 }

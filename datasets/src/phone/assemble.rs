@@ -7,7 +7,6 @@ use model::geometry::{Camera, Intrinsics, SceneBox, Similarity, Vec3, aligning_y
 
 use super::{ARKIT_FRAME, ARKIT_TO_Z_UP, Assembled, Capture, CaptureFrame, DepthSource};
 use crate::error::DatasetError;
-use crate::features::load_frame_features;
 use crate::mesh::{Raycaster, TriangleMesh, read_obj};
 use crate::options::{LoaderOptions, PhoneOptions};
 use crate::points::PointCloud;
@@ -125,7 +124,8 @@ fn colour_intrinsics(frame: &CaptureFrame, size: (u32, u32)) -> Result<Intrinsic
     Ok(k.scaled(size.0, size.1))
 }
 
-/// Turns a phone capture into a scene (module docs).
+/// Turns a phone capture into a scene (module docs), without its feature
+/// maps ([`crate::load_disk`] attaches them).
 pub fn assemble(
     dir: &Path,
     options: &PhoneOptions,
@@ -193,19 +193,6 @@ pub fn assemble(
     };
     let (frames, points, scene_box, shift) =
         centred(dir, frames, points, &also, options.box_margin)?;
-    let features = options
-        .features
-        .as_ref()
-        .map(|path| {
-            load_frame_features(
-                path,
-                &frames,
-                options.pca,
-                options.basis.as_ref(),
-                options.seed,
-            )
-        })
-        .transpose()?;
     let world = WorldFrame {
         name: ARKIT_FRAME.into(),
         to_scene: shift.compose(&up),
@@ -220,13 +207,13 @@ pub fn assemble(
             n.to_string_lossy().into_owned()
         }),
         frames,
-        features,
+        features: None,
         scene_box,
         background: None,
         points: (!points.positions.is_empty()).then_some(points),
         classes: None,
         source: SceneSource::Disk {
-            loader: without_basis(loader),
+            loader: loader.without_basis(),
             path: dir.to_path_buf(),
         },
         world: Some(world),
@@ -340,20 +327,6 @@ fn centred(
         margin,
     )?;
     Ok((frames, points, scene_box, map))
-}
-
-/// `loader` without a compression basis (not part of the saved options).
-fn without_basis(loader: &LoaderOptions) -> LoaderOptions {
-    let strip = |o: &PhoneOptions| PhoneOptions {
-        basis: None,
-        ..o.clone()
-    };
-    match loader {
-        LoaderOptions::ScannerApp(o) => LoaderOptions::ScannerApp(strip(o)),
-        LoaderOptions::Record3d(o) => LoaderOptions::Record3d(strip(o)),
-        LoaderOptions::Polycam(o) => LoaderOptions::Polycam(strip(o)),
-        other => other.clone(),
-    }
 }
 
 /// `mesh` with its vertices mapped by `s`.

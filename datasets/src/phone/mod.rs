@@ -123,23 +123,31 @@ pub struct Assembled {
     pub notes: Vec<String>,
 }
 
-/// Loads any phone format `loader` names from `dir`, printing its notes to
-/// stderr.
+/// Loads any phone format `loader` names from `dir`, with its feature maps,
+/// printing its notes to stderr ([`crate::load_disk`]).
 pub fn load_phone(dir: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetError> {
+    if !loader.format().is_phone() {
+        return Err(not_phone(dir, loader));
+    }
+    crate::load_disk(dir, loader)
+}
+
+/// Reads the export of any phone format `loader` names from `dir` and
+/// assembles it, without its feature maps.
+pub(crate) fn assemble_export(
+    dir: &Path,
+    loader: &LoaderOptions,
+) -> Result<Assembled, DatasetError> {
     let (capture, options) = match loader {
         LoaderOptions::ScannerApp(o) => (scanner::read_capture(dir)?, o),
         LoaderOptions::Record3d(o) => (record3d::read_capture(dir)?, o),
         LoaderOptions::Polycam(o) => (polycam::read_capture(dir)?, o),
-        other => {
-            return Err(DatasetError::invalid(
-                dir,
-                format!("{} is not a phone format", other.format()),
-            ));
-        }
+        other => return Err(not_phone(dir, other)),
     };
-    let assembled = assemble(dir, options, capture, loader)?;
-    for note in &assembled.notes {
-        eprintln!("{}: {note}", loader.format());
-    }
-    Ok(assembled.scene)
+    assemble(dir, options, capture, loader)
+}
+
+/// The error for a `loader` of another format than a phone's.
+fn not_phone(dir: &Path, loader: &LoaderOptions) -> DatasetError {
+    DatasetError::invalid(dir, format!("{} is not a phone format", loader.format()))
 }
