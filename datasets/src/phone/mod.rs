@@ -138,14 +138,19 @@ pub(crate) fn assemble_export(
     dir: &Path,
     loader: &LoaderOptions,
 ) -> Result<Assembled, DatasetError> {
-    let (capture, options) = match loader {
-        LoaderOptions::ScannerApp(o) => (scanner::read_capture(dir)?, o),
-        LoaderOptions::Record3d(o) => (record3d::read_capture(dir)?, o),
-        LoaderOptions::Polycam(o) => (polycam::read_capture(dir)?, o),
+    let (read, options): (ReadCapture, _) = match loader {
+        LoaderOptions::ScannerApp(o) => (scanner::read_capture, o),
+        LoaderOptions::Record3d(o) => (record3d::read_capture, o),
+        LoaderOptions::Polycam(o) => (polycam::read_capture, o),
         other => return Err(not_phone(dir, other)),
     };
-    assemble(dir, options, capture, loader)
+    // Bad options are refused before the export is read.
+    options.selection.check(dir)?;
+    assemble(dir, options, read(dir)?, loader)
 }
+
+/// A phone format's reader of its export.
+type ReadCapture = fn(&Path) -> Result<Capture, DatasetError>;
 
 /// The error for a `loader` of another format than a phone's.
 fn not_phone(dir: &Path, loader: &LoaderOptions) -> DatasetError {
