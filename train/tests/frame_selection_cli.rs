@@ -189,8 +189,11 @@ fn scanner_app(root: &Path) -> PathBuf {
     dir
 }
 
+/// Writes a capture under a directory, returning its path.
+type Writer = fn(&Path) -> PathBuf;
+
 /// Every format with its capture writer.
-const CAPTURES: [(&str, fn(&Path) -> PathBuf); 6] = [
+const CAPTURES: [(&str, Writer); 6] = [
     ("replica", replica),
     ("blender", blender),
     ("llff", llff),
