@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use bench::phone_export::{self, ReplicaFrames, confidence_level, scanner};
-use datasets::options::DepthConfidence;
+use datasets::options::{DepthConfidence, FrameSelection};
 use datasets::replica::{ReplicaOptions, load_replica};
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneSource, shared_dataset};
 use model::geometry::{Camera, Similarity};
@@ -21,7 +21,10 @@ fn replica(dir: &Path) -> Scene {
     load_replica(
         dir,
         &ReplicaOptions {
-            resolution: Some(SIZE),
+            selection: FrameSelection {
+                resolution: Some(SIZE),
+                ..FrameSelection::default()
+            },
             ..Default::default()
         },
     )
@@ -34,7 +37,10 @@ type Loader = fn(PhoneOptions) -> LoaderOptions;
 fn phone(dir: &Path, loader: Loader, o: PhoneOptions) -> Scene {
     let source = SceneSource::Disk {
         loader: loader(PhoneOptions {
-            resolution: Some(SIZE),
+            selection: FrameSelection {
+                resolution: Some(SIZE),
+                ..FrameSelection::default()
+            },
             ..o
         }),
         path: dir.to_path_buf(),

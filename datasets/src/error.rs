@@ -13,6 +13,19 @@ pub enum DatasetError {
         /// What is wrong with it.
         message: String,
     },
+    /// An option the format's loader cannot honour (a resolution for a
+    /// format that reads pre-sized images), named with what to use instead.
+    #[error("{path}: the {format} loader does not take the {option} option: {instead}")]
+    Unsupported {
+        /// The scene directory.
+        path: PathBuf,
+        /// The format's name ([`crate::detect::Format::name`]).
+        format: &'static str,
+        /// The option's name, as the saved options spell it.
+        option: &'static str,
+        /// What to use instead.
+        instead: String,
+    },
     /// The file could not be read or written.
     #[error("{path}: {source}")]
     Io {

@@ -41,7 +41,7 @@ pub use scene::{
     DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource, VlmSource, WorldFrame,
 };
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Loads (or generates) the scene `source` describes.
 pub fn load_scene(source: &SceneSource) -> Result<Scene, DatasetError> {
@@ -74,47 +74,51 @@ pub fn load_scene_with_basis(
             scene.source = source.clone();
             Ok(scene)
         }
-        SceneSource::Disk { loader, path } => match loader {
-            LoaderOptions::Replica(o) => replica::load_replica(
-                path,
-                &replica::ReplicaOptions {
-                    basis: basis.cloned(),
-                    ..o.clone()
-                },
-            ),
-            LoaderOptions::Blender(o) => blender::load_blender(path, o),
-            LoaderOptions::Llff(o) => llff::load_llff(path, o),
-            LoaderOptions::Colmap(o) => colmap::load_colmap(
-                path,
-                &colmap::ColmapOptions {
-                    basis: basis.cloned(),
-                    ..o.clone()
-                },
-            ),
-            LoaderOptions::Scannet(o) => scannet::load_scannet(path, o),
-            LoaderOptions::ScannerApp(o) => phone::load_phone(
-                path,
-                &LoaderOptions::ScannerApp(PhoneOptions {
-                    basis: basis.cloned(),
-                    ..o.clone()
-                }),
-            ),
-            LoaderOptions::Record3d(o) => phone::load_phone(
-                path,
-                &LoaderOptions::Record3d(PhoneOptions {
-                    basis: basis.cloned(),
-                    ..o.clone()
-                }),
-            ),
-            LoaderOptions::Polycam(o) => phone::load_phone(
-                path,
-                &LoaderOptions::Polycam(PhoneOptions {
-                    basis: basis.cloned(),
-                    ..o.clone()
-                }),
-            ),
-        },
+        SceneSource::Disk { loader, path } => {
+            // The basis given replaces any in the options (none is saved).
+            let mut loader = loader.clone();
+            if let Some(input) = loader.feature_input_mut() {
+                input.basis = basis.cloned();
+            }
+            load_disk(path, &loader)
+        }
     }
+}
+
+/// Loads the scene at `path` that `loader` describes: its format's loader
+/// reads the frames, then the feature maps are attached
+/// ([`FeatureInput::attach`](options::FeatureInput::attach)) for the
+/// formats that have them. What the loader left out or assumed is printed
+/// to stderr (one line each, naming the format) once the scene is whole.
+/// The scene's source records `loader` without its basis.
+pub fn load_disk(path: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetError> {
+    let (mut scene, notes) = match loader {
+        LoaderOptions::Replica(o) => (replica::load_without_features(path, o)?, Vec::new()),
+        LoaderOptions::Blender(o) => (blender::load_blender(path, o)?, Vec::new()),
+        LoaderOptions::Llff(o) => (llff::load_llff(path, o)?, Vec::new()),
+        LoaderOptions::Colmap(o) => (colmap::load_without_features(path, o)?, Vec::new()),
+        LoaderOptions::Scannet(o) => {
+            let (scene, report) = scannet::load_scannet_with_report(path, o)?;
+            (scene, report.note(path).into_iter().collect())
+        }
+        LoaderOptions::ScannerApp(_) | LoaderOptions::Record3d(_) | LoaderOptions::Polycam(_) => {
+            let assembled = phone::assemble_export(path, loader)?;
+            let notes = assembled.notes.iter();
+            let notes = notes.map(|n| format!("{}: {n}", loader.format()));
+            (assembled.scene, notes.collect())
+        }
+    };
+    if let Some(input) = loader.feature_input() {
+        input.attach(&mut scene)?;
+    }
+    scene.source = SceneSource::Disk {
+        loader: loader.without_basis(),
+        path: path.to_path_buf(),
+    };
+    for note in notes {
+        eprintln!("{note}");
+    }
+    Ok(scene)
 }
 
 /// Replaces `scene`'s feature maps by those in `dir` (`<frame name>.npy`
@@ -123,7 +127,7 @@ pub fn load_scene_with_basis(
 /// `dir/classes.txt` (the same names, in the maps' space).
 pub fn overlay_features(
     scene: &mut Scene,
-    dir: &std::path::Path,
+    dir: &Path,
     pca: features::PcaSetting,
     basis: Option<&features::PcaBasis>,
 ) -> Result<(), DatasetError> {

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 use model::geometry::{Camera, Intrinsics, Vec3};
 
+use crate::detect::Format;
 use crate::error::DatasetError;
 use crate::imageio;
 use crate::npy::NpyInfo;
@@ -159,6 +160,11 @@ fn list_images(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
 
 /// Loads an LLFF scene from `dir`.
 pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetError> {
+    options.selection.check_without_resampling(
+        dir,
+        Format::Llff,
+        "pick the downsampled folder with images",
+    )?;
     let pb = dir.join("poses_bounds.npy");
     let views = read_poses_bounds(&pb)?;
     let (img_dir, factor) = image_dir(dir, options)?;
@@ -176,11 +182,7 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
     }
     let mut frames = Vec::new();
     let mut pts: Vec<Vec3> = Vec::new();
-    for (view, path) in views
-        .iter()
-        .zip(&images)
-        .take(options.max_frames.unwrap_or(usize::MAX))
-    {
+    for (view, path) in options.selection.select(views.iter().zip(&images)) {
         let (w, h) = imageio::dimensions(path)?;
         let k = &view.intrinsics;
         let (ew, eh) = (

@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 use model::geometry::{Camera, Intrinsics, Pose};
 
 use crate::error::DatasetError;
-use crate::features::load_frame_features;
 use crate::options::LoaderOptions;
 pub use crate::options::ReplicaOptions;
 use crate::poses::{backproject, box_of, checked_pose};
@@ -124,11 +123,19 @@ fn frame_files(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     Ok(found.into_iter().map(|(_, p)| p).collect())
 }
 
-/// Loads a Nice-SLAM Replica scene from `dir`.
+/// Loads a Nice-SLAM Replica scene from `dir`, with its feature maps
+/// ([`crate::load_disk`]).
 pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    crate::load_disk(dir, &LoaderOptions::Replica(options.clone()))
+}
+
+/// [`load_replica`] without the feature maps, which
+/// [`crate::load_disk`] attaches.
+pub(crate) fn load_without_features(
+    dir: &Path,
+    options: &ReplicaOptions,
+) -> Result<Scene, DatasetError> {
+    options.selection.check(dir)?;
     let cam = read_cam_params(&dir.join("cam_params.json"))?;
     let traj_path = dir.join("traj.txt");
     let poses = read_trajectory(&traj_path)?;
@@ -153,12 +160,9 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         cy: cam.cy,
         distortion: model::geometry::Distortion::NONE,
     };
-    let (tw, th) = options.resolution.unwrap_or((cam.w, cam.h));
+    let (tw, th) = options.selection.size((cam.w, cam.h));
     let intrinsics = base.scaled(tw, th);
-    let keep: Vec<usize> = (0..images.len())
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX))
-        .collect();
+    let keep = options.selection.select(0..images.len());
     let mut frames = Vec::with_capacity(keep.len());
     let mut box_points = Vec::new();
     for &i in &keep {
@@ -194,34 +198,18 @@ pub fn load_replica(dir: &Path, options: &ReplicaOptions) -> Result<Scene, Datas
         });
     }
     let scene_box = box_of(dir, box_points, options.box_margin)?;
-    let features = options
-        .features
-        .as_ref()
-        .map(|path| {
-            load_frame_features(
-                path,
-                &frames,
-                options.pca,
-                options.basis.as_ref(),
-                options.seed,
-            )
-        })
-        .transpose()?;
     Ok(Scene {
         name: dir
             .file_name()
             .map_or("replica".into(), |n| n.to_string_lossy().into_owned()),
         frames,
-        features,
+        features: None,
         scene_box,
         background: None,
         points: None,
         classes: None,
         source: SceneSource::Disk {
-            loader: LoaderOptions::Replica(ReplicaOptions {
-                basis: None,
-                ..options.clone()
-            }),
+            loader: LoaderOptions::Replica(options.clone()),
             path: dir.to_path_buf(),
         },
         world: None,

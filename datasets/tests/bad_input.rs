@@ -7,6 +7,7 @@ use datasets::blender::{BlenderOptions, load_blender};
 use datasets::features::{FeatureSource, PcaSetting, load_features};
 use datasets::llff::{LlffOptions, load_llff};
 use datasets::npy::{NpyInfo, write_npy_f16, write_npy_f32};
+use datasets::options::{FeatureInput, FrameSelection};
 use datasets::points::{read_labels_txt, read_ply};
 use datasets::replica::{ReplicaOptions, load_replica};
 use datasets::text::TextEmbeddings;
@@ -65,8 +66,14 @@ fn replica_sane_scene_loads() {
     write_npy_f16(&feats, &[2, 3, 4, 2], &[f16::ONE; 48]).expect("npy");
     let dir3 = replica_dir(3, &identity_poses(3));
     let opts = ReplicaOptions {
-        stride: 2,
-        features: Some(feats),
+        selection: FrameSelection {
+            stride: 2,
+            ..FrameSelection::default()
+        },
+        feature_input: FeatureInput {
+            features: Some(feats),
+            ..FeatureInput::default()
+        },
         ..Default::default()
     };
     let s = load_replica(dir3.path(), &opts).expect("strided scene");
@@ -137,7 +144,10 @@ fn replica_feature_count_disagrees_with_frames() {
     let feats = dir.path().join("feats.npy");
     write_npy_f16(&feats, &[3, 3, 4, 2], &[f16::ZERO; 72]).expect("npy");
     let opts = ReplicaOptions {
-        features: Some(feats),
+        feature_input: FeatureInput {
+            features: Some(feats),
+            ..FeatureInput::default()
+        },
         ..Default::default()
     };
     assert_err(

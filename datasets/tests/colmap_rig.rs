@@ -6,6 +6,7 @@ use std::path::Path;
 
 use datasets::DatasetError;
 use datasets::colmap::{ColmapOptions, load_colmap};
+use datasets::options::FrameSelection;
 use model::geometry::{
     Camera, Distortion, Intrinsics, Pose, Vec3, add_scaled, cross, dot, look_at, norm, sub,
 };
@@ -410,8 +411,11 @@ fn stride_and_max_frames_apply_in_name_order() {
     let cams = rig();
     let dir = rig_dir(&cams);
     let opts = ColmapOptions {
-        stride: 2,
-        max_frames: Some(2),
+        selection: FrameSelection {
+            stride: 2,
+            max_frames: Some(2),
+            ..FrameSelection::default()
+        },
         ..Default::default()
     };
     let scene = load_colmap(dir.path(), &opts).expect("loads");

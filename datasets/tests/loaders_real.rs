@@ -3,6 +3,7 @@
 
 use datasets::blender::{BlenderOptions, load_blender};
 use datasets::llff::{LlffOptions, load_llff};
+use datasets::options::FrameSelection;
 use datasets::points::{ClassMap, IGNORE_LABEL};
 use datasets::replica::{ReplicaOptions, load_replica};
 use datasets::text::TextEmbeddings;
@@ -34,7 +35,10 @@ fn replica_room0_at_640x360() {
         return;
     };
     let opts = ReplicaOptions {
-        resolution: Some((640, 360)),
+        selection: FrameSelection {
+            resolution: Some((640, 360)),
+            ..FrameSelection::default()
+        },
         ..Default::default()
     };
     let s = load_replica(&dir, &opts).expect("replica loads");
@@ -68,8 +72,11 @@ fn replica_poses_are_opencv_camera_to_world() {
         return;
     };
     let opts = ReplicaOptions {
-        resolution: Some((300, 170)),
-        max_frames: Some(4),
+        selection: FrameSelection {
+            resolution: Some((300, 170)),
+            max_frames: Some(4),
+            ..FrameSelection::default()
+        },
         ..Default::default()
     };
     let s = load_replica(&dir, &opts).expect("replica loads");
@@ -211,7 +218,10 @@ fn load_scene_dispatches_on_the_source() {
     let s = datasets::load_scene(&source).expect("loads");
     let opts = BlenderOptions {
         downscale: 16,
-        max_frames: Some(3),
+        selection: FrameSelection {
+            max_frames: Some(3),
+            ..FrameSelection::default()
+        },
         ..Default::default()
     };
     let direct = load_blender(&dir, &opts).expect("loads");

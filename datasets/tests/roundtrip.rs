@@ -1,6 +1,7 @@
 //! Writes the synthetic scene in the Nice-SLAM layout and reads it back with
 //! the on-disk loaders.
 
+use datasets::options::FeatureInput;
 use datasets::points::read_ply;
 use datasets::replica::{ReplicaOptions, load_replica};
 use datasets::synthetic::{self, SceneSize};
@@ -19,7 +20,10 @@ fn check_roundtrip(format: ImageFormat, colour_tolerance: f32, mean_tolerance: f
     let loaded = load_replica(
         &dir,
         &ReplicaOptions {
-            features: Some(dir.join("features")),
+            feature_input: FeatureInput {
+                features: Some(dir.join("features")),
+                ..FeatureInput::default()
+            },
             ..ReplicaOptions::default()
         },
     )

@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use datasets::options::FrameSelection;
 use datasets::replica::{ReplicaOptions, load_replica};
 use datasets::scannet::{ScannetOptions, load_scannet_with_report};
 use datasets::{DepthImage, Scene};
@@ -96,7 +97,10 @@ fn replica_frames_in_scannet_layout_load_back() {
     let replica = load_replica(
         &src,
         &ReplicaOptions {
-            max_frames: Some(6),
+            selection: FrameSelection {
+                max_frames: Some(6),
+                ..FrameSelection::default()
+            },
             ..ReplicaOptions::default()
         },
     )
@@ -179,8 +183,11 @@ fn check_resolution(dir: &Path, src: &Path) {
     let scene: Scene = datasets::scannet::load_scannet(
         dir,
         &ScannetOptions {
-            resolution: Some(res),
-            max_frames: Some(2),
+            selection: FrameSelection {
+                resolution: Some(res),
+                max_frames: Some(2),
+                ..FrameSelection::default()
+            },
             ..ScannetOptions::default()
         },
     )
@@ -188,8 +195,11 @@ fn check_resolution(dir: &Path, src: &Path) {
     let replica = load_replica(
         src,
         &ReplicaOptions {
-            max_frames: Some(2),
-            resolution: Some(res),
+            selection: FrameSelection {
+                max_frames: Some(2),
+                resolution: Some(res),
+                ..FrameSelection::default()
+            },
             ..ReplicaOptions::default()
         },
     )

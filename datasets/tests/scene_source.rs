@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use datasets::blender::BlenderOptions;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
+use datasets::options::{FeatureInput, FrameSelection};
 use datasets::replica::ReplicaOptions;
 use datasets::{LoaderOptions, SceneMeta, SceneSource};
 
@@ -23,10 +24,16 @@ fn old_disk_sources_still_read() {
         replica,
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                stride: 10,
-                resolution: Some((640, 360)),
-                features: Some(PathBuf::from("/data/room0/feats")),
-                pca: PcaSetting::ExplainedVariance(0.99),
+                selection: FrameSelection {
+                    stride: 10,
+                    resolution: Some((640, 360)),
+                    ..FrameSelection::default()
+                },
+                feature_input: FeatureInput {
+                    features: Some(PathBuf::from("/data/room0/feats")),
+                    pca: PcaSetting::ExplainedVariance(0.99),
+                    ..FeatureInput::default()
+                },
                 ..ReplicaOptions::default()
             }),
             path: PathBuf::from("/data/room0"),
@@ -43,7 +50,10 @@ fn old_disk_sources_still_read() {
     else {
         panic!("{partial:?}");
     };
-    assert_eq!((o.stride, o.pca, o.box_pixel_step), (5, PcaSetting::Off, 8));
+    assert_eq!(
+        (o.selection.stride, o.feature_input.pca, o.box_pixel_step),
+        (5, PcaSetting::Off, 8)
+    );
     let k = read(
         r#"{"kind":"disk","format":"replica","path":"/r","options":{"pca":{"components":16}}}"#,
     );
@@ -51,7 +61,10 @@ fn old_disk_sources_still_read() {
         k,
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                pca: PcaSetting::Components(16),
+                feature_input: FeatureInput {
+                    pca: PcaSetting::Components(16),
+                    ..
+                },
                 ..
             }),
             ..
@@ -121,17 +134,26 @@ fn sources_round_trip_byte_for_byte() {
     let sources = [
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                stride: 10,
-                resolution: Some((640, 360)),
-                features: Some(PathBuf::from("/data/feats")),
-                pca: PcaSetting::Auto,
+                selection: FrameSelection {
+                    stride: 10,
+                    resolution: Some((640, 360)),
+                    ..FrameSelection::default()
+                },
+                feature_input: FeatureInput {
+                    features: Some(PathBuf::from("/data/feats")),
+                    pca: PcaSetting::Auto,
+                    ..FeatureInput::default()
+                },
                 ..ReplicaOptions::default()
             }),
             path: PathBuf::from("/data/room0"),
         },
         SceneSource::Disk {
             loader: LoaderOptions::Replica(ReplicaOptions {
-                pca: PcaSetting::ExplainedVariance(0.9),
+                feature_input: FeatureInput {
+                    pca: PcaSetting::ExplainedVariance(0.9),
+                    ..FeatureInput::default()
+                },
                 ..ReplicaOptions::default()
             }),
             path: PathBuf::from("/r"),

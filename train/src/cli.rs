@@ -134,14 +134,27 @@ pub struct Cli {
     /// off for ci, auto for bench].
     #[arg(long, value_name = "auto|off|K")]
     pub pca: Option<datasets::features::PcaSetting>,
-    /// Keep every Nth frame of the capture [default: the loader's].
-    #[arg(long)]
+    /// Scenes on disk: keep every Nth frame (N >= 1), in the format's
+    /// order (capture order; image name order for COLMAP and LLFF; the
+    /// transforms file's order for Blender), before --max-frames
+    /// [default: 1, every frame].
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          value_parser = datasets::options::parse_count)]
     pub stride: Option<usize>,
-    /// Resize images to WxH (intrinsics scaled) [default: the loader's].
+    /// Scenes on disk: keep at most N frames (N >= 1), the first N after
+    /// --stride [default: all].
+    #[arg(long, value_name = "N", allow_negative_numbers = true,
+          value_parser = datasets::options::parse_count)]
+    pub max_frames: Option<usize>,
+    /// Scenes on disk: resample the images to WxH, intrinsics scaled
+    /// (Replica, ScanNet, phone captures; Blender, LLFF and COLMAP read
+    /// pre-sized images: use --downscale) [default: the images' own size].
     #[arg(long, conflicts_with = "downscale")]
     pub resolution: Option<Resolution>,
-    /// Divide the image size by N [default: the loader's]. For LLFF and
-    /// COLMAP this picks the downscaled copies `images_N/`.
+    /// Blender, LLFF and COLMAP: divide the image size by N (Blender
+    /// resamples its images, LLFF and COLMAP read the downscaled copies
+    /// `images_N/`); the other formats take --resolution [default: the
+    /// loader's: full size; LLFF `images_8/` or its most downscaled copy].
     #[arg(long)]
     pub downscale: Option<u32>,
     /// Phone captures: LiDAR depth pixels less sure than this are no depth

@@ -8,6 +8,7 @@ use datasets::colmap::ColmapOptions;
 use datasets::detect::Format;
 use datasets::features::PcaSetting;
 use datasets::llff::LlffOptions;
+use datasets::options::{FeatureInput, FrameSelection};
 use datasets::replica::ReplicaOptions;
 use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
@@ -58,6 +59,12 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
         }
     };
     let mut loader = loader_options(cli, format)?;
+    // What every format shares is made once here; loader_options refused
+    // what the format does not take.
+    *loader.selection_mut() = frame_selection(cli);
+    if let Some(input) = loader.feature_input_mut() {
+        *input = feature_input(cli);
+    }
     if let Some(margin) = cli.box_margin {
         *loader.box_margin_mut() = margin;
     }
@@ -109,25 +116,11 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
                     "--pca needs --features (there are no feature maps to compress)".into(),
                 ));
             }
-            let defaults = ReplicaOptions::default();
-            LoaderOptions::Replica(ReplicaOptions {
-                stride: cli.stride.unwrap_or(defaults.stride),
-                resolution: cli.resolution.map(|r| (r.width, r.height)),
-                features: cli.features.clone(),
-                // Feature maps on disk are compressed unless asked otherwise.
-                pca: match &cli.features {
-                    Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-                    None => defaults.pca,
-                },
-                ..defaults
-            })
+            LoaderOptions::Replica(ReplicaOptions::default())
         }
         Format::Blender => {
-            if let Some(flag) = first_given(&[
-                ("stride", cli.stride.is_some()),
-                ("resolution (use --downscale N)", cli.resolution.is_some()),
-            ]) {
-                return unsupported(flag);
+            if cli.resolution.is_some() {
+                return unsupported("resolution (use --downscale N)");
             }
             let defaults = BlenderOptions::default();
             LoaderOptions::Blender(BlenderOptions {
@@ -136,11 +129,8 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             })
         }
         Format::Llff => {
-            if let Some(flag) = first_given(&[
-                ("stride", cli.stride.is_some()),
-                ("resolution", cli.resolution.is_some()),
-            ]) {
-                return unsupported(flag);
+            if cli.resolution.is_some() {
+                return unsupported("resolution");
             }
             LoaderOptions::Llff(LlffOptions {
                 // LLFF ships pre-downsampled folders `images_N`.
@@ -153,12 +143,7 @@ fn loader_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError
             if cli.downscale.is_some() {
                 return unsupported("downscale (use --resolution WxH)");
             }
-            let defaults = ScannetOptions::default();
-            LoaderOptions::Scannet(ScannetOptions {
-                stride: cli.stride.unwrap_or(defaults.stride),
-                resolution: cli.resolution.map(|r| (r.width, r.height)),
-                ..defaults
-            })
+            LoaderOptions::Scannet(ScannetOptions::default())
         }
         Format::ScannerApp | Format::Record3d | Format::Polycam => phone_options(cli, format)?,
     })
@@ -179,11 +164,6 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
     }
     let defaults = ColmapOptions::default();
     Ok(LoaderOptions::Colmap(ColmapOptions {
-        features: cli.features.clone(),
-        pca: match &cli.features {
-            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-            None => defaults.pca,
-        },
         // COLMAP workspaces keep downscaled copies in `images_N`.
         images: match cli.downscale {
             Some(d) if d > 1 => format!("images_{d}"),
@@ -191,7 +171,6 @@ fn colmap_options(cli: &Cli) -> Result<LoaderOptions, TrainError> {
         },
         depth: cli.colmap_depth,
         sparse_depth: crate::settings::depth::loader_flag(cli.sparse_depth, cli.colmap_depth)?,
-        stride: cli.stride.unwrap_or(defaults.stride),
         ..defaults
     }))
 }
@@ -211,17 +190,10 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
     }
     let defaults = PhoneOptions::default();
     let o = PhoneOptions {
-        stride: cli.stride.unwrap_or(defaults.stride),
-        resolution: cli.resolution.map(|r| (r.width, r.height)),
         min_depth_confidence: cli
             .min_depth_confidence
             .map_or(defaults.min_depth_confidence, Into::into),
         max_depth: cli.max_depth.unwrap_or(defaults.max_depth),
-        features: cli.features.clone(),
-        pca: match &cli.features {
-            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
-            None => defaults.pca,
-        },
         ..defaults
     };
     Ok(match format {
@@ -229,6 +201,33 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
         Format::Record3d => LoaderOptions::Record3d(o),
         _ => LoaderOptions::Polycam(o),
     })
+}
+
+/// The frames every loader keeps, from `--stride`, `--max-frames` and
+/// `--resolution` (each, when not given, the default of every format).
+fn frame_selection(cli: &Cli) -> FrameSelection {
+    let defaults = FrameSelection::default();
+    FrameSelection {
+        stride: cli.stride.unwrap_or(defaults.stride),
+        max_frames: cli.max_frames.or(defaults.max_frames),
+        resolution: cli
+            .resolution
+            .map(|r| (r.width, r.height))
+            .or(defaults.resolution),
+    }
+}
+
+/// The feature maps of the command line: those of `--features`,
+/// compressed as `--pca` says (by default, maps on disk are compressed).
+fn feature_input(cli: &Cli) -> FeatureInput {
+    FeatureInput {
+        features: cli.features.clone(),
+        pca: match &cli.features {
+            Some(_) => cli.pca.unwrap_or(PcaSetting::Auto),
+            None => FeatureInput::default().pca,
+        },
+        ..FeatureInput::default()
+    }
 }
 
 /// The first flag of `flags` that was given.
@@ -291,7 +290,7 @@ mod pca_flag_tests {
                 SceneSource::Disk {
                     loader: LoaderOptions::Replica(o),
                     ..
-                } => o.pca,
+                } => o.feature_input.pca,
                 other => panic!("{other:?}"),
             }
         };

@@ -236,6 +236,7 @@ fn new_run_flags(cli: &Cli) -> Result<(), TrainError> {
         for (flag, given) in [
             ("features", cli.features.is_some()),
             ("stride", cli.stride.is_some()),
+            ("max-frames", cli.max_frames.is_some()),
             ("resolution", cli.resolution.is_some()),
             ("downscale", cli.downscale.is_some()),
             ("colmap-depth", cli.colmap_depth),
@@ -269,6 +270,7 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("features", cli.features.is_some()),
         ("vlm", cli.vlm.is_some()),
         ("stride", cli.stride.is_some()),
+        ("max-frames", cli.max_frames.is_some()),
         ("resolution", cli.resolution.is_some()),
         ("downscale", cli.downscale.is_some()),
         ("rays", cli.rays.is_some()),

@@ -57,6 +57,7 @@ use std::path::{Path, PathBuf};
 
 use model::geometry::Camera;
 
+use crate::detect::Format;
 use crate::error::DatasetError;
 use crate::imageio;
 pub use crate::options::BlenderOptions;
@@ -107,19 +108,22 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
     if options.downscale == 0 {
         return Err(DatasetError::invalid(dir, "downscale must be at least 1"));
     }
+    // The size is the downscale's: images of one capture may differ in size.
+    options
+        .selection
+        .check_without_resampling(dir, Format::Blender, "use downscale")?;
     let tpath = transforms_path(dir, options)?;
     let root = tpath.parent().unwrap_or(Path::new("."));
     let t = read_transforms(&tpath)?;
     let unit_scale = depth_unit_scale(&tpath, &t)?;
-    let mut frames = Vec::new();
-    for (i, f) in t
-        .frames
-        .iter()
-        .take(options.max_frames.unwrap_or(usize::MAX))
-        .enumerate()
-    {
-        frames.push(load_frame(root, &tpath, &t, (i, f), options, unit_scale)?);
-    }
+    // Numbered before the selection: errors and unnamed frames keep the
+    // file's index.
+    let frames = options
+        .selection
+        .select(t.frames.iter().enumerate())
+        .into_iter()
+        .map(|entry| load_frame(root, &tpath, &t, entry, options, unit_scale))
+        .collect::<Result<Vec<_>, _>>()?;
     let world = match &t.applied_transform {
         Some(m) => Some(WorldFrame {
             name: "colmap".into(),

@@ -28,7 +28,7 @@
 //! by [`ColmapOptions::box_margin`] of its largest extent; cameras may lie
 //! outside it (their rays start where they enter it). The frame is computed
 //! from every registered image and point, whatever the stride. With
-//! [`ColmapOptions::features`], the feature maps `<image stem>.npy` are
+//! [`ColmapOptions::feature_input`], the feature maps `<image stem>.npy` are
 //! loaded for the frames kept.
 //!
 //! Frames are sorted by image name, then `stride` and `max_frames` apply;
@@ -50,8 +50,8 @@ use ::model::geometry::{Camera, Intrinsics, Pose, Vec3};
 pub use self::model::{
     Camera as ColmapCamera, CameraModel, Image, Model, ModelFormat, Point2D, Point3D,
 };
+use crate::detect::Format;
 use crate::error::DatasetError;
-use crate::features::load_frame_features;
 use crate::imageio;
 pub use crate::options::ColmapOptions;
 use crate::options::LoaderOptions;
@@ -227,11 +227,23 @@ fn load_frame(
     })
 }
 
-/// Loads a COLMAP reconstruction directory (see the module documentation).
+/// Loads a COLMAP reconstruction directory (see the module documentation),
+/// with its feature maps ([`crate::load_disk`]).
 pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    crate::load_disk(dir, &LoaderOptions::Colmap(options.clone()))
+}
+
+/// [`load_colmap`] without the feature maps, which
+/// [`crate::load_disk`] attaches.
+pub(crate) fn load_without_features(
+    dir: &Path,
+    options: &ColmapOptions,
+) -> Result<Scene, DatasetError> {
+    options.selection.check_without_resampling(
+        dir,
+        Format::Colmap,
+        "pick a downscaled copy of the images with images (e.g. images_2)",
+    )?;
     let model = read_model(&sparse_dir(dir)?)?;
     if model.images.is_empty() {
         return Err(DatasetError::invalid(
@@ -260,10 +272,10 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
     } else {
         HashMap::new()
     };
-    let frames = views
-        .iter()
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX))
+    let frames = options
+        .selection
+        .select(&views)
+        .into_iter()
         .map(|v| load_frame(dir, &model, v, options, &to_scene, &by_id))
         .collect::<Result<Vec<_>, _>>()?;
     let mapped_cameras: Vec<Camera> = cameras
@@ -277,25 +289,12 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         frame::scene_box(&mapped, &mapped_cameras, options.box_margin).ok_or_else(|| {
             DatasetError::invalid(model.file("points3D"), "no point to bound the scene")
         })?;
-    let features = options
-        .features
-        .as_ref()
-        .map(|path| {
-            load_frame_features(
-                path,
-                &frames,
-                options.pca,
-                options.basis.as_ref(),
-                options.seed,
-            )
-        })
-        .transpose()?;
     Ok(Scene {
         name: dir
             .file_name()
             .map_or("colmap".into(), |n| n.to_string_lossy().into_owned()),
         frames,
-        features,
+        features: None,
         scene_box,
         background: None,
         points: Some(PointCloud {
@@ -305,10 +304,7 @@ pub fn load_colmap(dir: &Path, options: &ColmapOptions) -> Result<Scene, Dataset
         }),
         classes: None,
         source: SceneSource::Disk {
-            loader: LoaderOptions::Colmap(ColmapOptions {
-                basis: None,
-                ..options.clone()
-            }),
+            loader: LoaderOptions::Colmap(options.clone()),
             path: dir.to_path_buf(),
         },
         world: Some(WorldFrame {

@@ -7,7 +7,6 @@ use model::geometry::{Camera, Intrinsics, SceneBox, Similarity, Vec3, aligning_y
 
 use super::{ARKIT_FRAME, ARKIT_TO_Z_UP, Assembled, Capture, CaptureFrame, DepthSource};
 use crate::error::DatasetError;
-use crate::features::load_frame_features;
 use crate::mesh::{Raycaster, TriangleMesh, read_obj};
 use crate::options::{LoaderOptions, PhoneOptions};
 use crate::points::PointCloud;
@@ -125,34 +124,25 @@ fn colour_intrinsics(frame: &CaptureFrame, size: (u32, u32)) -> Result<Intrinsic
     Ok(k.scaled(size.0, size.1))
 }
 
-/// Turns a phone capture into a scene (module docs).
+/// Turns a phone capture into a scene (module docs), without its feature
+/// maps ([`crate::load_disk`] attaches them).
 pub fn assemble(
     dir: &Path,
     options: &PhoneOptions,
     capture: Capture,
     loader: &LoaderOptions,
 ) -> Result<Assembled, DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    options.selection.check(dir)?;
     if !(options.max_depth.is_finite() && options.max_depth > 0.0) {
         return Err(DatasetError::invalid(dir, "max depth must be positive"));
     }
     let mut notes = capture.notes;
-    let kept: Vec<CaptureFrame> = capture
-        .frames
-        .into_iter()
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX))
-        .collect();
+    let kept = options.selection.select(capture.frames);
     let Some(first) = kept.first() else {
         return Err(DatasetError::invalid(dir, "the export holds no frame"));
     };
     let first_size = first.image.dimensions()?;
-    let (tw, th) = options.resolution.unwrap_or(first_size);
-    if tw == 0 || th == 0 {
-        return Err(DatasetError::invalid(dir, "resolution is zero"));
-    }
+    let (tw, th) = options.selection.size(first_size);
     let up = up();
     let mesh = match &capture.mesh {
         Some(path) => {
@@ -203,19 +193,6 @@ pub fn assemble(
     };
     let (frames, points, scene_box, shift) =
         centred(dir, frames, points, &also, options.box_margin)?;
-    let features = options
-        .features
-        .as_ref()
-        .map(|path| {
-            load_frame_features(
-                path,
-                &frames,
-                options.pca,
-                options.basis.as_ref(),
-                options.seed,
-            )
-        })
-        .transpose()?;
     let world = WorldFrame {
         name: ARKIT_FRAME.into(),
         to_scene: shift.compose(&up),
@@ -230,13 +207,13 @@ pub fn assemble(
             n.to_string_lossy().into_owned()
         }),
         frames,
-        features,
+        features: None,
         scene_box,
         background: None,
         points: (!points.positions.is_empty()).then_some(points),
         classes: None,
         source: SceneSource::Disk {
-            loader: without_basis(loader),
+            loader: loader.without_basis(),
             path: dir.to_path_buf(),
         },
         world: Some(world),
@@ -350,20 +327,6 @@ fn centred(
         margin,
     )?;
     Ok((frames, points, scene_box, map))
-}
-
-/// `loader` without a compression basis (not part of the saved options).
-fn without_basis(loader: &LoaderOptions) -> LoaderOptions {
-    let strip = |o: &PhoneOptions| PhoneOptions {
-        basis: None,
-        ..o.clone()
-    };
-    match loader {
-        LoaderOptions::ScannerApp(o) => LoaderOptions::ScannerApp(strip(o)),
-        LoaderOptions::Record3d(o) => LoaderOptions::Record3d(strip(o)),
-        LoaderOptions::Polycam(o) => LoaderOptions::Polycam(strip(o)),
-        other => other.clone(),
-    }
 }
 
 /// `mesh` with its vertices mapped by `s`.

@@ -123,23 +123,36 @@ pub struct Assembled {
     pub notes: Vec<String>,
 }
 
-/// Loads any phone format `loader` names from `dir`, printing its notes to
-/// stderr.
+/// Loads any phone format `loader` names from `dir`, with its feature maps,
+/// printing its notes to stderr ([`crate::load_disk`]).
 pub fn load_phone(dir: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetError> {
-    let (capture, options) = match loader {
-        LoaderOptions::ScannerApp(o) => (scanner::read_capture(dir)?, o),
-        LoaderOptions::Record3d(o) => (record3d::read_capture(dir)?, o),
-        LoaderOptions::Polycam(o) => (polycam::read_capture(dir)?, o),
-        other => {
-            return Err(DatasetError::invalid(
-                dir,
-                format!("{} is not a phone format", other.format()),
-            ));
-        }
-    };
-    let assembled = assemble(dir, options, capture, loader)?;
-    for note in &assembled.notes {
-        eprintln!("{}: {note}", loader.format());
+    if !loader.format().is_phone() {
+        return Err(not_phone(dir, loader));
     }
-    Ok(assembled.scene)
+    crate::load_disk(dir, loader)
+}
+
+/// Reads the export of any phone format `loader` names from `dir` and
+/// assembles it, without its feature maps.
+pub(crate) fn assemble_export(
+    dir: &Path,
+    loader: &LoaderOptions,
+) -> Result<Assembled, DatasetError> {
+    let (read, options): (ReadCapture, _) = match loader {
+        LoaderOptions::ScannerApp(o) => (scanner::read_capture, o),
+        LoaderOptions::Record3d(o) => (record3d::read_capture, o),
+        LoaderOptions::Polycam(o) => (polycam::read_capture, o),
+        other => return Err(not_phone(dir, other)),
+    };
+    // Bad options are refused before the export is read.
+    options.selection.check(dir)?;
+    assemble(dir, options, read(dir)?, loader)
+}
+
+/// A phone format's reader of its export.
+type ReadCapture = fn(&Path) -> Result<Capture, DatasetError>;
+
+/// The error for a `loader` of another format than a phone's.
+fn not_phone(dir: &Path, loader: &LoaderOptions) -> DatasetError {
+    DatasetError::invalid(dir, format!("{} is not a phone format", loader.format()))
 }

@@ -205,19 +205,14 @@ pub fn load_scannet_with_report(
     dir: &Path,
     options: &ScannetOptions,
 ) -> Result<(Scene, ScannetReport), DatasetError> {
-    if options.stride == 0 {
-        return Err(DatasetError::invalid(dir, "stride must be at least 1"));
-    }
+    options.selection.check(dir)?;
     let colour = colour_files(dir)?;
     let colour_size = imageio::dimensions(&colour[0].1)?;
     let kc_path = dir.join("intrinsic").join("intrinsic_color.txt");
     let kd_path = dir.join("intrinsic").join("intrinsic_depth.txt");
     let colour_k = read_intrinsics(&kc_path, colour_size)?;
     check_principal_point(&kc_path, &colour[0].1, &colour_k)?;
-    let (tw, th) = options.resolution.unwrap_or(colour_size);
-    if tw == 0 || th == 0 {
-        return Err(DatasetError::invalid(dir, "resolution is zero"));
-    }
+    let (tw, th) = options.selection.size(colour_size);
     let target_k = colour_k.scaled(tw, th);
     let mut report = ScannetReport::default();
     let mut valid = Vec::new();
@@ -228,10 +223,7 @@ pub fn load_scannet_with_report(
             None => report.skipped.push(pose_path),
         }
     }
-    let keep = valid
-        .into_iter()
-        .step_by(options.stride)
-        .take(options.max_frames.unwrap_or(usize::MAX));
+    let keep = options.selection.select(valid);
     let mut frames = Vec::new();
     let mut box_points = Vec::new();
     let mut depth_k: Option<Intrinsics> = None;

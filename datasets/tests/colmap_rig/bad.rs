@@ -117,7 +117,10 @@ fn a_directory_without_a_model_is_named() {
     let msg = load_err(dir.path(), &ColmapOptions::default());
     assert_mentions(&msg, &["sparse", "no COLMAP model"]);
     let zero = ColmapOptions {
-        stride: 0,
+        selection: FrameSelection {
+            stride: 0,
+            ..FrameSelection::default()
+        },
         ..Default::default()
     };
     let cams = rig();

@@ -1,13 +1,18 @@
 //! Loader options of the scene formats on disk, one type per format, and
 //! [`LoaderOptions`]: a format with its options, as the
 //! [`SceneSource`](crate::SceneSource) of a scene on disk records them.
+//! What the formats share is one type each, flattened into their options:
+//! [`FrameSelection`] (every format) and [`FeatureInput`] (the formats with
+//! feature maps).
 
-use std::path::PathBuf;
+mod feature_input;
+mod selection;
 
 use serde::{Deserialize, Deserializer, Serialize};
 
 use crate::detect::Format;
-use crate::features::{PcaBasis, PcaSetting};
+pub use feature_input::FeatureInput;
+pub use selection::{FrameSelection, Resolution, parse_count};
 
 /// A scene format with its loader options. Serialised adjacently tagged,
 /// as the `format` and `options` keys of a disk scene's source
@@ -48,6 +53,63 @@ impl LoaderOptions {
         }
     }
 
+    /// Which frames the loader keeps and at what size: every format has one.
+    pub fn selection(&self) -> &FrameSelection {
+        match self {
+            Self::Replica(o) => &o.selection,
+            Self::Blender(o) => &o.selection,
+            Self::Llff(o) => &o.selection,
+            Self::Colmap(o) => &o.selection,
+            Self::Scannet(o) => &o.selection,
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => &o.selection,
+        }
+    }
+
+    /// [`Self::selection`], to change.
+    pub fn selection_mut(&mut self) -> &mut FrameSelection {
+        match self {
+            Self::Replica(o) => &mut o.selection,
+            Self::Blender(o) => &mut o.selection,
+            Self::Llff(o) => &mut o.selection,
+            Self::Colmap(o) => &mut o.selection,
+            Self::Scannet(o) => &mut o.selection,
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => &mut o.selection,
+        }
+    }
+
+    /// The feature maps the loader attaches, `None` for a format that
+    /// reads none (Blender, LLFF, ScanNet).
+    pub fn feature_input(&self) -> Option<&FeatureInput> {
+        match self {
+            Self::Replica(o) => Some(&o.feature_input),
+            Self::Colmap(o) => Some(&o.feature_input),
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => Some(&o.feature_input),
+            Self::Blender(_) | Self::Llff(_) | Self::Scannet(_) => None,
+        }
+    }
+
+    /// [`Self::feature_input`], to change.
+    pub fn feature_input_mut(&mut self) -> Option<&mut FeatureInput> {
+        match self {
+            Self::Replica(o) => Some(&mut o.feature_input),
+            Self::Colmap(o) => Some(&mut o.feature_input),
+            Self::ScannerApp(o) | Self::Record3d(o) | Self::Polycam(o) => {
+                Some(&mut o.feature_input)
+            }
+            Self::Blender(_) | Self::Llff(_) | Self::Scannet(_) => None,
+        }
+    }
+
+    /// These options without a compression basis (not part of the saved
+    /// options: a scene records its basis apart).
+    pub fn without_basis(&self) -> Self {
+        let mut o = self.clone();
+        if let Some(input) = o.feature_input_mut() {
+            input.basis = None;
+        }
+        o
+    }
+
     /// The format these options load (its name, [`Format::name`], is the
     /// one the command line takes and messages use).
     pub fn format(&self) -> Format {
@@ -77,25 +139,13 @@ where
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ReplicaOptions {
-    /// Keep every `stride`-th frame (the paper uses 10).
-    pub stride: usize,
-    /// Keep at most this many frames (after the stride).
-    pub max_frames: Option<usize>,
-    /// Resample images to `(width, height)` (the paper uses 640x360).
-    pub resolution: Option<(u32, u32)>,
-    /// Feature maps: a stacked `.npy` or a directory of per-frame `.npy`
-    /// (indexed over the frames kept).
-    pub features: Option<PathBuf>,
-    /// Compression of the feature maps (`null`, as older scene files
-    /// write "none", reads as off).
-    #[serde(deserialize_with = "null_as_default")]
-    pub pca: PcaSetting,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<PcaBasis>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
+    /// Frames kept (every `stride`-th of the trajectory; the paper uses
+    /// 10) and their size (the paper uses 640x360).
+    #[serde(flatten)]
+    pub selection: FrameSelection,
+    /// Feature maps, `frameNNNNNN.npy` (a stacked `.npy` or a directory).
+    #[serde(flatten)]
+    pub feature_input: FeatureInput,
     /// Scene-box margin, as a fraction of the largest extent.
     pub box_margin: f64,
     /// Depth pixels used for the box: every `box_pixel_step`-th in each axis.
@@ -105,13 +155,8 @@ pub struct ReplicaOptions {
 impl Default for ReplicaOptions {
     fn default() -> Self {
         Self {
-            stride: 1,
-            max_frames: None,
-            resolution: None,
-            features: None,
-            pca: PcaSetting::Off,
-            basis: None,
-            seed: 0,
+            selection: FrameSelection::default(),
+            feature_input: FeatureInput::default(),
             box_margin: 0.05,
             box_pixel_step: 8,
         }
@@ -130,8 +175,10 @@ pub struct BlenderOptions {
     /// Colour transparent pixels are composited over; also the scene's
     /// background.
     pub background: [f32; 3],
-    /// Keep at most this many frames (in file order).
-    pub max_frames: Option<usize>,
+    /// Frames kept, in the transforms file's order (the size is
+    /// [`Self::downscale`]'s: a resolution is refused).
+    #[serde(flatten)]
+    pub selection: FrameSelection,
     /// Box margin, as a fraction of its extent.
     pub box_margin: f64,
 }
@@ -142,7 +189,7 @@ impl Default for BlenderOptions {
             transforms: None,
             downscale: 1,
             background: [1.0; 3],
-            max_frames: None,
+            selection: FrameSelection::default(),
             box_margin: 0.05,
         }
     }
@@ -155,8 +202,10 @@ pub struct LlffOptions {
     /// Image folder (`images_8`, `images_16`, `images`); `None` picks
     /// `images_8` if present, else the most downsampled `images_F`.
     pub images: Option<String>,
-    /// Keep at most this many views.
-    pub max_frames: Option<usize>,
+    /// Views kept, in image name order (the size is the image folder's: a
+    /// resolution is refused).
+    #[serde(flatten)]
+    pub selection: FrameSelection,
     /// Box margin, as a fraction of its extent.
     pub box_margin: f64,
 }
@@ -165,7 +214,7 @@ impl Default for LlffOptions {
     fn default() -> Self {
         Self {
             images: None,
-            max_frames: None,
+            selection: FrameSelection::default(),
             box_margin: 0.05,
         }
     }
@@ -185,24 +234,15 @@ pub struct ColmapOptions {
     /// pixels of the features that observe it, no target elsewhere
     /// ([`crate::colmap::sparse_depth`]). Ignored with [`Self::depth`].
     pub sparse_depth: bool,
-    /// Keep every `stride`-th image (in name order).
-    pub stride: usize,
-    /// Keep at most this many images (after the stride).
-    pub max_frames: Option<usize>,
+    /// Images kept, in name order (the size is [`Self::images`]' folder's:
+    /// a resolution is refused).
+    #[serde(flatten)]
+    pub selection: FrameSelection,
     /// Scene-box margin, as a fraction of the largest extent.
     pub box_margin: f64,
-    /// Feature maps: a stacked `.npy` or a directory of `<image stem>.npy`
-    /// (indexed over the images kept).
-    pub features: Option<PathBuf>,
-    /// Compression of the feature maps.
-    #[serde(deserialize_with = "null_as_default")]
-    pub pca: PcaSetting,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<PcaBasis>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
+    /// Feature maps, `<image stem>.npy` (a stacked `.npy` or a directory).
+    #[serde(flatten)]
+    pub feature_input: FeatureInput,
 }
 
 impl Default for ColmapOptions {
@@ -211,13 +251,9 @@ impl Default for ColmapOptions {
             images: "images".into(),
             depth: false,
             sparse_depth: false,
-            stride: 1,
-            max_frames: None,
+            selection: FrameSelection::default(),
             box_margin: 0.05,
-            features: None,
-            pca: PcaSetting::Off,
-            basis: None,
-            seed: 0,
+            feature_input: FeatureInput::default(),
         }
     }
 }
@@ -226,14 +262,11 @@ impl Default for ColmapOptions {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ScannetOptions {
-    /// Keep every `stride`-th frame (frames with invalid poses are skipped
-    /// before the stride is applied).
-    pub stride: usize,
-    /// Keep at most this many frames (after the stride).
-    pub max_frames: Option<usize>,
-    /// Resample the colour images to `(width, height)` [default: their own
-    /// size, 1296x968 for ScanNet].
-    pub resolution: Option<(u32, u32)>,
+    /// Frames kept (frames with invalid poses are skipped before the
+    /// stride is applied) and the colour images' size [default: their own,
+    /// 1296x968 for ScanNet].
+    #[serde(flatten)]
+    pub selection: FrameSelection,
     /// Scene-box margin, as a fraction of the largest extent.
     pub box_margin: f64,
     /// Depth pixels used for the box: every `box_pixel_step`-th in each axis.
@@ -243,9 +276,7 @@ pub struct ScannetOptions {
 impl Default for ScannetOptions {
     fn default() -> Self {
         Self {
-            stride: 1,
-            max_frames: None,
-            resolution: None,
+            selection: FrameSelection::default(),
             box_margin: 0.05,
             box_pixel_step: 8,
         }
@@ -286,13 +317,10 @@ impl DepthConfidence {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct PhoneOptions {
-    /// Keep every `stride`-th frame (in capture order).
-    pub stride: usize,
-    /// Keep at most this many frames (after the stride).
-    pub max_frames: Option<usize>,
-    /// Resample the colour images to `(width, height)` [default: their own
-    /// size].
-    pub resolution: Option<(u32, u32)>,
+    /// Frames kept, in capture order, and the colour images' size
+    /// [default: their own].
+    #[serde(flatten)]
+    pub selection: FrameSelection,
     /// Depth pixels less sure than this are no depth target.
     pub min_depth_confidence: DepthConfidence,
     /// Depth beyond this many metres (the LiDAR's range) is no target.
@@ -302,18 +330,9 @@ pub struct PhoneOptions {
     /// Depth pixels used for the box and the point cloud of a capture
     /// without a mesh: every `box_pixel_step`-th in each axis.
     pub box_pixel_step: u32,
-    /// Feature maps: a stacked `.npy` or a directory of `<frame name>.npy`
-    /// (indexed over the frames kept).
-    pub features: Option<PathBuf>,
-    /// Compression of the feature maps.
-    #[serde(deserialize_with = "null_as_default")]
-    pub pca: PcaSetting,
-    /// A basis to compress with instead of fitting one (a run's stored
-    /// basis when its scene is rebuilt); not part of the saved options.
-    #[serde(skip)]
-    pub basis: Option<PcaBasis>,
-    /// Seed of the PCA pixel sample.
-    pub seed: u64,
+    /// Feature maps, `<frame name>.npy` (a stacked `.npy` or a directory).
+    #[serde(flatten)]
+    pub feature_input: FeatureInput,
 }
 
 /// The LiDAR's range on current iPhones and iPads, metres.
@@ -322,46 +341,12 @@ pub const PHONE_MAX_DEPTH: f64 = 5.0;
 impl Default for PhoneOptions {
     fn default() -> Self {
         Self {
-            stride: 1,
-            max_frames: None,
-            resolution: None,
+            selection: FrameSelection::default(),
             min_depth_confidence: DepthConfidence::High,
             max_depth: PHONE_MAX_DEPTH,
             box_margin: 0.05,
             box_pixel_step: 8,
-            features: None,
-            pca: PcaSetting::Off,
-            basis: None,
-            seed: 0,
+            feature_input: FeatureInput::default(),
         }
-    }
-}
-
-/// An image size `WxH`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Resolution {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-}
-
-impl std::str::FromStr for Resolution {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let (w, h) = s
-            .split_once(['x', 'X'])
-            .ok_or_else(|| format!("expected WxH (e.g. 320x180), got {s:?}"))?;
-        let parse = |v: &str| {
-            v.trim()
-                .parse::<u32>()
-                .ok()
-                .filter(|&n| n > 0)
-                .ok_or_else(|| format!("expected a positive integer in {s:?}, got {v:?}"))
-        };
-        Ok(Self {
-            width: parse(w)?,
-            height: parse(h)?,
-        })
     }
 }
