@@ -21,47 +21,8 @@ impl Cli {
     }
 }
 
-/// ARKit's depth confidence levels (`--min-depth-confidence`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ConfidenceArg {
-    /// Every measured pixel.
-    Low,
-    /// Medium and high.
-    Medium,
-    /// Only what ARKit is sure of.
-    High,
-}
-
-impl From<ConfidenceArg> for datasets::options::DepthConfidence {
-    fn from(c: ConfidenceArg) -> Self {
-        match c {
-            ConfidenceArg::Low => Self::Low,
-            ConfidenceArg::Medium => Self::Medium,
-            ConfidenceArg::High => Self::High,
-        }
-    }
-}
-
-/// Size preset of the synthetic scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum SceneSizeArg {
-    /// Small: what the tests and the default run use.
-    #[default]
-    Ci,
-    /// Larger, for benchmarks.
-    Bench,
-    /// The paper's Replica scale: 200 views at 640x360, 768-D feature maps
-    /// at 160x90.
-    Paper,
-    /// As `paper`, with the feature maps at the full 640x360.
-    PaperFull,
-    /// Not a room: a table, a chair and a plant seen from a ring of 24
-    /// cameras at 80x60, pillars 4.5 to 7 m around them and a backdrop 12 m
-    /// away (an unbounded capture; `--field auto` contracts it).
-    Outdoor,
-}
-
-pub use datasets::options::Resolution;
+pub use datasets::options::{DepthConfidence, Resolution};
+pub use datasets::synthetic::SceneSize;
 
 /// Train an OpenNeRF field (colour, depth and an open-set feature head) on a
 /// posed capture or on the built-in synthetic room.
@@ -87,8 +48,8 @@ pub struct Cli {
     #[arg(long, default_value_t = 0)]
     pub scene_seed: u64,
     /// Synthetic scene: size preset.
-    #[arg(long, value_enum, default_value_t = SceneSizeArg::Ci)]
-    pub scene_size: SceneSizeArg,
+    #[arg(long, value_enum, default_value_t = SceneSize::Ci)]
+    pub scene_size: SceneSize,
     /// Feature maps (`.npy` directory or stacked file) for a Replica, COLMAP
     /// or phone scene: one `H x W x D` map per frame kept, named after the
     /// frame (Replica `frameNNNNNN.npy`, COLMAP the image stem, phone
@@ -160,7 +121,7 @@ pub struct Cli {
     /// Phone captures: LiDAR depth pixels less sure than this are no depth
     /// target (ARKit's confidence levels) [default: high].
     #[arg(long, value_enum)]
-    pub min_depth_confidence: Option<ConfidenceArg>,
+    pub min_depth_confidence: Option<DepthConfidence>,
     /// Phone captures: depth beyond this many metres is no target (the
     /// LiDAR's range) [default: 5].
     #[arg(long, value_name = "METRES")]

@@ -13,7 +13,7 @@ use datasets::replica::ReplicaOptions;
 use datasets::scannet::ScannetOptions;
 use datasets::{LoaderOptions, PhoneOptions, Scene, SceneMeta, SceneSource};
 
-use crate::cli::{Cli, DatasetKind, SceneSizeArg};
+use crate::cli::{Cli, DatasetKind};
 use crate::error::TrainError;
 use crate::settings::args::SparseDepthArg;
 
@@ -23,13 +23,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
     if kind == DatasetKind::Synthetic {
         return Ok(SceneSource::Synthetic {
             seed: cli.scene_seed,
-            size: match cli.scene_size {
-                SceneSizeArg::Ci => "ci".into(),
-                SceneSizeArg::Bench => "bench".into(),
-                SceneSizeArg::Paper => "paper".into(),
-                SceneSizeArg::PaperFull => "paper-full".into(),
-                SceneSizeArg::Outdoor => "outdoor".into(),
-            },
+            size: cli.scene_size.to_string(),
             pca: cli.pca,
         });
     }
@@ -192,7 +186,7 @@ fn phone_options(cli: &Cli, format: Format) -> Result<LoaderOptions, TrainError>
     let o = PhoneOptions {
         min_depth_confidence: cli
             .min_depth_confidence
-            .map_or(defaults.min_depth_confidence, Into::into),
+            .unwrap_or(defaults.min_depth_confidence),
         max_depth: cli.max_depth.unwrap_or(defaults.max_depth),
         ..defaults
     };

@@ -285,13 +285,17 @@ impl Default for ScannetOptions {
 
 /// How sure ARKit is of a LiDAR depth pixel (its confidence map's levels).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum DepthConfidence {
     /// Level 0.
+    #[cfg_attr(feature = "cli", value(help = "Every measured pixel"))]
     Low,
     /// Level 1.
+    #[cfg_attr(feature = "cli", value(help = "Medium and high"))]
     Medium,
     /// Level 2, the default threshold: only what ARKit is sure of.
+    #[cfg_attr(feature = "cli", value(help = "Only what ARKit is sure of"))]
     #[default]
     High,
 }

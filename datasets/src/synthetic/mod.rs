@@ -32,22 +32,47 @@ use crate::points::PointCloud;
 use crate::scene::{Frame, Scene, SceneSource};
 
 /// Size presets of the synthetic scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SceneSize {
     /// About 20 views at 96x54: builds in well under a second, for tests.
+    #[cfg_attr(
+        feature = "cli",
+        value(help = "Small: what the tests and the default run use")
+    )]
+    #[default]
     Ci,
     /// 200 views at 320x180, for benchmark runs.
+    #[cfg_attr(feature = "cli", value(help = "Larger, for benchmarks"))]
     Bench,
     /// The paper's Replica setting: 200 views at 640x360 (the camera path of
     /// [`SceneSize::Bench`]) with 768-D feature maps at a quarter of the
     /// image resolution (160x90, what OpenNeRF's own code caches).
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "The paper's Replica scale: 200 views at 640x360, 768-D feature maps at 160x90"
+        )
+    )]
     Paper,
     /// [`SceneSize::Paper`] with the feature maps at the full 640x360.
+    #[cfg_attr(
+        feature = "cli",
+        value(help = "As `paper`, with the feature maps at the full 640x360")
+    )]
     PaperFull,
     /// Not a room: objects on a ground plane seen by a ring of 24 cameras
     /// at 80x60, with pillars around them and a backdrop 12 m away
     /// ([`outdoor::build_outdoor`]), an unbounded capture at the size of
     /// [`SceneSize::Ci`].
+    #[cfg_attr(
+        feature = "cli",
+        value(
+            help = "Not a room: a table, a chair and a plant seen from a ring of 24 cameras \
+                      at 80x60, pillars 4.5 to 7 m around them and a backdrop 12 m away (an \
+                      unbounded capture; `--field auto` contracts it)"
+        )
+    )]
     Outdoor,
 }
 
