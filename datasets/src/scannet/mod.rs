@@ -31,18 +31,19 @@
 //! (every `box_pixel_step`-th pixel), plus the margin. ScanNet is metric
 //! with z up: the scene stays in its frame (`world` is `None`).
 
+mod frames;
 mod reproject;
 
 use std::path::{Path, PathBuf};
 
-use model::geometry::{Camera, Intrinsics, Pose};
+use model::geometry::{Intrinsics, Pose, Vec3};
 
 use crate::error::DatasetError;
-use crate::imageio;
 use crate::options::LoaderOptions;
 pub use crate::options::ScannetOptions;
 use crate::poses::{backproject, box_of, checked_pose};
 use crate::scene::{Frame, Scene, SceneSource};
+use frames::{ColourCamera, DepthCamera, load_frame, posed_images};
 pub use reproject::reproject_depth;
 
 /// Depth units per metre of ScanNet's depth PNGs.
@@ -207,90 +208,49 @@ pub fn load_scannet_with_report(
 ) -> Result<(Scene, ScannetReport), DatasetError> {
     options.selection.check(dir)?;
     let colour = colour_files(dir)?;
-    let colour_size = imageio::dimensions(&colour[0].1)?;
-    let kc_path = dir.join("intrinsic").join("intrinsic_color.txt");
-    let kd_path = dir.join("intrinsic").join("intrinsic_depth.txt");
-    let colour_k = read_intrinsics(&kc_path, colour_size)?;
-    check_principal_point(&kc_path, &colour[0].1, &colour_k)?;
-    let (tw, th) = options.selection.size(colour_size);
-    let target_k = colour_k.scaled(tw, th);
-    let mut report = ScannetReport::default();
-    let mut valid = Vec::new();
-    for (i, path) in colour {
-        let pose_path = dir.join("pose").join(format!("{i}.txt"));
-        match read_pose(&pose_path)? {
-            Some(pose) => valid.push((i, path, pose)),
-            None => report.skipped.push(pose_path),
+    let camera = ColourCamera::read(dir, &colour[0].1, options)?;
+    let (posed, report) = posed_images(dir, colour)?;
+    let keep = options.selection.select(posed);
+    let mut depth_camera = DepthCamera::new(dir);
+    let frames = keep
+        .into_iter()
+        .map(|image| load_frame(dir, image, &camera, &mut depth_camera))
+        .collect::<Result<Vec<_>, _>>()?;
+    let scene = assemble_scene(dir, frames, options)?;
+    Ok((scene, report))
+}
+
+/// The points the scene box bounds: each frame's camera centre and its
+/// depth back-projected at every `step`-th pixel.
+fn box_points(frames: &[Frame], step: u32) -> Vec<Vec3> {
+    let mut points = Vec::new();
+    for frame in frames {
+        points.push(frame.camera.pose.center());
+        if let Some(depth) = &frame.depth {
+            points.extend(backproject(&frame.camera, depth, step));
         }
     }
-    let keep = options.selection.select(valid);
-    let mut frames = Vec::new();
-    let mut box_points = Vec::new();
-    let mut depth_k: Option<Intrinsics> = None;
-    for (i, img_path, pose) in keep {
-        let size = imageio::dimensions(&img_path)?;
-        if size != colour_size {
-            return Err(DatasetError::invalid(
-                &img_path,
-                format!(
-                    "image is {}x{}, the first colour image {}x{}",
-                    size.0, size.1, colour_size.0, colour_size.1
-                ),
-            ));
-        }
-        let rgb = imageio::load_rgb(&img_path, None, Some((tw, th)))?;
-        let depth_path = dir.join("depth").join(format!("{i}.png"));
-        if !depth_path.is_file() {
-            return Err(DatasetError::invalid(
-                &depth_path,
-                format!("missing depth for colour image {}", img_path.display()),
-            ));
-        }
-        let raw = imageio::load_depth16(&depth_path, DEPTH_UNITS_PER_METRE, None)?;
-        let dk = match depth_k {
-            Some(k) if (k.width, k.height) == (raw.width, raw.height) => k,
-            Some(k) => {
-                return Err(DatasetError::invalid(
-                    &depth_path,
-                    format!(
-                        "depth is {}x{}, the first depth image {}x{}",
-                        raw.width, raw.height, k.width, k.height
-                    ),
-                ));
-            }
-            None => {
-                let k = read_intrinsics(&kd_path, (raw.width, raw.height))?;
-                check_principal_point(&kd_path, &depth_path, &k)?;
-                depth_k = Some(k);
-                k
-            }
-        };
-        let depth = reproject_depth(&raw, &dk, &target_k);
-        let camera = Camera {
-            intrinsics: target_k,
-            pose,
-        };
-        box_points.push(camera.pose.center());
-        box_points.extend(backproject(&camera, &depth, options.box_pixel_step));
-        frames.push(Frame {
-            name: format!("frame{i:06}"),
-            camera,
-            rgb,
-            depth: Some(depth),
-            depth_weight: 1.0,
-            color_weight: 1.0,
-            labels: None,
-            mask: None,
-        });
-    }
+    points
+}
+
+/// The scene of the loaded frames, in a box around their cameras and depth.
+fn assemble_scene(
+    dir: &Path,
+    frames: Vec<Frame>,
+    options: &ScannetOptions,
+) -> Result<Scene, DatasetError> {
     if frames.is_empty() {
         return Err(DatasetError::invalid(
             dir.join("pose"),
             "no frame with a valid pose",
         ));
     }
-    let scene_box = box_of(dir, box_points, options.box_margin)?;
-    let scene = Scene {
+    let scene_box = box_of(
+        dir,
+        box_points(&frames, options.box_pixel_step),
+        options.box_margin,
+    )?;
+    Ok(Scene {
         name: dir
             .file_name()
             .map_or("scannet".into(), |n| n.to_string_lossy().into_owned()),
@@ -305,6 +265,5 @@ pub fn load_scannet_with_report(
             path: dir.to_path_buf(),
         },
         world: None,
-    };
-    Ok((scene, report))
+    })
 }

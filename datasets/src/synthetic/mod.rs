@@ -8,6 +8,7 @@
 //! `(seed, size)`.
 
 pub mod classes;
+pub mod furnishing;
 pub mod lift;
 pub mod outdoor;
 pub mod raytrace;
@@ -22,8 +23,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 pub use classes::{CLASSES, SizeGroup, class_embeddings, try_class_embeddings};
+pub use furnishing::build_room;
 pub use outdoor::build_outdoor;
-pub use room::{Room, build_room};
+pub use room::Room;
 
 use crate::error::DatasetError;
 use crate::extractor::{FeatureExtractor, SimulatedExtractor};

@@ -1,29 +1,28 @@
 //! `eval segment`: zero-shot 3D semantic segmentation of a point cloud
-//! with its scores and prediction PLYs.
+//! with its scores and prediction PLYs (and, with `--compare`, the table of
+//! `compare`).
 
-use std::path::{Path, PathBuf};
+mod compare;
+mod outputs;
 
-use datasets::features::FeatureSet;
-
-use super::common::{Context, PointArgs, evenly, load_points_with, select_cameras};
-use crate::checks::{at_least_one, invalid, max_views, radius};
+use std::path::PathBuf;
 
 use burn::tensor::Device;
 use datasets::Scene;
 use datasets::text::TextEmbeddings;
-
-use crate::cameras::NamedCamera;
-use crate::metrics::{ClassSplit, format_per_class, format_table};
-use crate::segment::{
-    EvalPoints, SegmentMode, SegmentOptions, View, segment_oracle, segment_with_2d_features,
-    segment_with_field_modes, write_prediction_plys,
-};
 use field_ops::OpsError;
 use field_ops::backend::BackendArgs;
 use field_ops::frame::{FrameArgs, OutputFrame};
-use field_ops::json::{read_json, write_json};
+use field_ops::json::read_json;
 use field_ops::project::ProjectOptions;
+use field_ops::run_dir::LoadedRun;
 use field_ops::scores::SegmentationScores;
+
+use super::common::{Context, PointArgs, evenly, load_points_with, select_cameras};
+use crate::cameras::NamedCamera;
+use crate::checks::{at_least_one, invalid, max_views, radius};
+use crate::metrics::{ClassSplit, format_per_class, format_table};
+use crate::segment::{EvalPoints, SegmentMode, SegmentOptions, View, segment_with_field_modes};
 
 /// Arguments of `segment`.
 #[derive(Debug, Clone, clap::Args)]
@@ -108,9 +107,68 @@ pub fn segment_command(args: &SegmentArgs) -> Result<Option<SegmentationScores>,
     let ctx = Context::load(&args.run, &device)?;
     let frame = args.frame.resolve(&ctx.run.meta)?;
     let scene = ctx.scene.as_ref();
-    let given = asked_classes(args, &ctx, &device)?;
+    let points = points_to_segment(args, &ctx, &frame, &device)?;
+    let views = SegmentViews::select(args, &ctx.run, scene)?;
+    let opts = SegmentOptions {
+        mode,
+        sample_radius: args.radius,
+        chunk: args.chunk,
+        render_scale: args.render_scale,
+        project: ProjectOptions::default(),
+    };
+    let segmented = segment_points(args, &ctx.run, &points, &views.views, &opts, &device)?;
+    let (pred, seen) = (&segmented.pred, segmented.seen);
+    let dir = args.out.clone().unwrap_or_else(|| ctx.run.dir.dir.clone());
+    if !points.labelled {
+        outputs::write_unscored(&dir, mode, &points, pred, seen, views.views.len(), &frame)?;
+        return Ok(None);
+    }
+    let split = match &args.split {
+        Some(p) => Some(read_json::<ClassSplit>(p)?),
+        None => points.split(),
+    };
+    let score_of = |name: &str, pred: &[u32]| {
+        let mut cm = crate::metrics::ConfusionMatrix::new(points.names.len());
+        cm.add_all(&points.labels, pred);
+        crate::metrics::score(name, &cm, &points.names, split.as_ref())
+    };
+    let scores = score_of(&mode.to_string(), pred);
+    println!(
+        "{} points, {} classes, {} views; {} points seen by a view",
+        points.positions.len(),
+        points.names.len(),
+        views.views.len(),
+        seen
+    );
+    print!("{}", format_table(&[(&mode.to_string(), &scores)]));
+    print!("{}", format_per_class(&scores, split.as_ref()));
+    outputs::write_scores(&dir, mode, &scores, &points, pred, &frame)?;
+    if args.compare {
+        let features = scene.and_then(|s| s.features.as_ref());
+        let compared = compare::Compared {
+            field_modes: &segmented.computed,
+            features,
+            views: &views,
+            points: &points,
+            opts: &opts,
+        };
+        compare::write_comparison(&dir, &compared, &score_of)?;
+    }
+    Ok(Some(scores))
+}
+
+/// The points to segment, with the classes of `--classes` when given (the
+/// asked classes the points lack are noted); refuses `--compare` on points
+/// without labels.
+fn points_to_segment(
+    args: &SegmentArgs,
+    ctx: &Context,
+    frame: &OutputFrame,
+    device: &Device,
+) -> Result<EvalPoints, OpsError> {
+    let given = asked_classes(args, ctx, device)?;
     let asked = given.as_ref().map(|t| t.names.clone()).unwrap_or_default();
-    let points = load_points_with(&args.data, scene, given, &frame)?;
+    let points = load_points_with(&args.data, ctx.scene.as_ref(), given, frame)?;
     if !points.labelled && args.compare {
         return Err(invalid(
             "--compare scores every mode against ground truth, and these points have no labels"
@@ -120,18 +178,52 @@ pub fn segment_command(args: &SegmentArgs) -> Result<Option<SegmentationScores>,
     if points.labelled {
         crate::text_query::note_unscored(&asked, &points.names);
     }
-    let (cams, idx) = select_cameras(&args.cameras, &ctx.run, scene, args.cam_params.as_deref())?;
-    let views = scene_views_of(&cams, idx.as_deref(), scene, !args.rendered_depth);
-    let views = evenly(&views, args.max_views);
-    let view_frames = idx.as_ref().map(|i| evenly(i, args.max_views));
-    let opts = SegmentOptions {
-        mode,
-        sample_radius: args.radius,
-        chunk: args.chunk,
-        render_scale: args.render_scale,
-        project: ProjectOptions::default(),
-    };
-    let run = &ctx.run;
+    Ok(points)
+}
+
+/// The views to segment from (`--cameras`, at most `--max-views` of them)
+/// and, when they are scene frames, which.
+struct SegmentViews<'a> {
+    views: Vec<View<'a>>,
+    /// The scene frames of the views, in order.
+    frames: Option<Vec<usize>>,
+}
+
+impl<'a> SegmentViews<'a> {
+    fn select(
+        args: &SegmentArgs,
+        run: &LoadedRun,
+        scene: Option<&'a Scene>,
+    ) -> Result<SegmentViews<'a>, OpsError> {
+        let (cams, idx) = select_cameras(&args.cameras, run, scene, args.cam_params.as_deref())?;
+        let views = scene_views_of(&cams, idx.as_deref(), scene, !args.rendered_depth);
+        Ok(SegmentViews {
+            views: evenly(&views, args.max_views),
+            frames: idx.as_ref().map(|i| evenly(i, args.max_views)),
+        })
+    }
+}
+
+/// The field's segmentation of the points: every field mode computed and
+/// the prediction of `--mode` with the number of points a view saw.
+struct Segmented {
+    /// `(mode, prediction, points seen)` of each mode computed.
+    computed: Vec<(SegmentMode, Vec<u32>, usize)>,
+    pred: Vec<u32>,
+    seen: usize,
+}
+
+/// Segments the points with the field in `--mode` (with `--compare`, in
+/// every field mode), behind a spinner.
+fn segment_points(
+    args: &SegmentArgs,
+    run: &LoadedRun,
+    points: &EvalPoints,
+    views: &[View<'_>],
+    opts: &SegmentOptions,
+    device: &Device,
+) -> Result<Segmented, OpsError> {
+    let mode = args.mode;
     let busy = field_ops::progress::spinner(format!(
         "segmenting {} points ({mode}, {} views)",
         points.positions.len(),
@@ -147,17 +239,17 @@ pub fn segment_command(args: &SegmentArgs) -> Result<Option<SegmentationScores>,
     let computed = segment_with_field_modes(
         &run.model,
         run.meta.pca.as_ref(),
-        &points,
-        &views,
+        points,
+        views,
         &run.meta.scene_box,
         run.meta.background,
-        &opts,
+        opts,
         if args.compare {
             &all_modes
         } else {
             std::slice::from_ref(&mode)
         },
-        &device,
+        device,
     )?;
     let (pred, seen) = computed
         .iter()
@@ -165,80 +257,11 @@ pub fn segment_command(args: &SegmentArgs) -> Result<Option<SegmentationScores>,
         .map(|(_, p, s)| (p.clone(), *s))
         .ok_or_else(|| OpsError::Invalid(format!("mode {mode} was not computed")))?;
     busy.finish_and_clear();
-    let dir = args.out.clone().unwrap_or_else(|| run.dir.dir.clone());
-    if !points.labelled {
-        write_unscored(&dir, mode, &points, &pred, seen, views.len(), &frame)?;
-        return Ok(None);
-    }
-    let split = match &args.split {
-        Some(p) => Some(read_json::<ClassSplit>(p)?),
-        None => points.split(),
-    };
-    let score_of = |name: &str, pred: &[u32]| {
-        let mut cm = crate::metrics::ConfusionMatrix::new(points.names.len());
-        cm.add_all(&points.labels, pred);
-        crate::metrics::score(name, &cm, &points.names, split.as_ref())
-    };
-    let scores = score_of(&mode.to_string(), &pred);
-    println!(
-        "{} points, {} classes, {} views; {} points seen by a view",
-        points.positions.len(),
-        points.names.len(),
-        views.len(),
-        seen
-    );
-    print!("{}", format_table(&[(&mode.to_string(), &scores)]));
-    print!("{}", format_per_class(&scores, split.as_ref()));
-    write_scores(&dir, mode, &scores, &points, &pred, &frame)?;
-    if args.compare {
-        let features = scene.and_then(|s| s.features.as_ref());
-        let mut rows: Vec<SegmentationScores> = computed
-            .iter()
-            .map(|(m, p, _)| score_of(&m.to_string(), p))
-            .collect();
-        rows.extend(bounds(
-            features,
-            view_frames.as_deref(),
-            &points,
-            &views,
-            &opts,
-            &score_of,
-        )?);
-        let table: Vec<(&str, &SegmentationScores)> =
-            rows.iter().map(|r| (r.mode.as_str(), r)).collect();
-        print!("{}", format_table(&table));
-        let compare = dir.join("segmentation_compare.json");
-        write_json(&compare, &rows)?;
-        println!("wrote {}", compare.display());
-    }
-    Ok(Some(scores))
-}
-
-/// Points without ground truth: the class counts printed and the
-/// prediction PLY written, no scores.
-fn write_unscored(
-    dir: &Path,
-    mode: SegmentMode,
-    points: &EvalPoints,
-    pred: &[u32],
-    seen: usize,
-    views: usize,
-    frame: &OutputFrame,
-) -> Result<(), OpsError> {
-    println!(
-        "{} points, {} classes, {views} views; {seen} points seen by a view",
-        points.positions.len(),
-        points.names.len(),
-    );
-    println!("the points have no ground-truth labels: predicted classes only, no scores");
-    for (c, name) in points.names.iter().enumerate() {
-        let n = pred.iter().filter(|&&p| p == c as u32).count();
-        println!("  {name:<24} {n:>8} points");
-    }
-    for path in write_prediction_plys(dir, &format!("segmentation_{mode}"), points, pred, frame)? {
-        println!("wrote {}", path.display());
-    }
-    Ok(())
+    Ok(Segmented {
+        computed,
+        pred,
+        seen,
+    })
 }
 
 /// The class names of `--classes` embedded by `--text-model` (`None`
@@ -296,61 +319,6 @@ fn scene_views_of<'a>(
             })
             .collect(),
     }
-}
-
-/// Writes `segmentation.json` and the prediction / error PLYs into `dir`.
-fn write_scores(
-    dir: &Path,
-    mode: SegmentMode,
-    scores: &SegmentationScores,
-    points: &EvalPoints,
-    pred: &[u32],
-    frame: &OutputFrame,
-) -> Result<(), OpsError> {
-    std::fs::create_dir_all(dir).map_err(|e| OpsError::io(dir, e))?;
-    let out = dir.join("segmentation.json");
-    write_json(&out, scores)?;
-    let stem = format!("segmentation_{mode}");
-    write_prediction_plys(dir, &stem, points, pred, frame)?;
-    for path in [
-        out,
-        dir.join(format!("{stem}_pred.ply")),
-        dir.join(format!("{stem}_error.ply")),
-    ] {
-        println!("wrote {}", path.display());
-    }
-    Ok(())
-}
-
-/// The comparison's bounds: the 2D feature maps projected without the
-/// field (when the views are scene frames with maps) and the oracle.
-fn bounds(
-    features: Option<&FeatureSet>,
-    view_frames: Option<&[usize]>,
-    points: &EvalPoints,
-    views: &[View<'_>],
-    opts: &SegmentOptions,
-    score_of: &dyn Fn(&str, &[u32]) -> SegmentationScores,
-) -> Result<Vec<SegmentationScores>, OpsError> {
-    let mut rows = Vec::new();
-    let maps = match (view_frames, features) {
-        (Some(frames), Some(set)) => frames
-            .iter()
-            .map(|&i| set.maps.get(i))
-            .collect::<Option<Vec<_>>>(),
-        _ => None,
-    };
-    match (maps, features) {
-        (Some(maps), Some(set)) => {
-            let pred = segment_with_2d_features(set, &maps, points, views, &opts.project)?;
-            rows.push(score_of("2D-feature projection", &pred));
-        }
-        _ => {
-            eprintln!("note: no 2D feature maps for these cameras; the 2D-feature bound is skipped")
-        }
-    }
-    rows.push(score_of("oracle (GT features)", &segment_oracle(points)?));
-    Ok(rows)
 }
 
 /// Checks `segment`.

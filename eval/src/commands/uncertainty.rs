@@ -1,28 +1,26 @@
 //! `eval uncertainty`: the uncertainty map of a run's training feature maps,
 //! its correlation with the error of the fused features, a scatter plot and
-//! a point cloud coloured by uncertainty.
+//! a point cloud coloured by uncertainty. The flags and the run are checked
+//! here, the map is measured in `measure` and written in `outputs`.
 
-use std::io::Write;
+mod measure;
+mod outputs;
+
 use std::path::{Path, PathBuf};
 
 use datasets::Scene;
-use datasets::points::{PointCloud, write_ply};
+use datasets::points::IGNORE_LABEL;
+use field_ops::OpsError;
+use field_ops::json::read_json;
+use field_ops::run_dir::{RunDir, Split};
+use field_ops::uncertainty::UncertaintyMap;
+use field_ops::uncertainty::coarse::coarse_points;
 use model::geometry::Vec3;
 use serde::Serialize;
-
-use field_ops::colormap::{to_u8, turbo};
-use field_ops::uncertainty::coarse::coarse_points;
 
 use super::proposals::ProposalRequest;
 use crate::segment::EvalPoints;
 use crate::similarity::ClassScorer;
-use datasets::points::IGNORE_LABEL;
-use field_ops::OpsError;
-use field_ops::json::{read_json, write_json};
-use field_ops::project::ProjectOptions;
-use field_ops::run_dir::{RunDir, Split};
-use field_ops::uncertainty::scatter::scatter;
-use field_ops::uncertainty::{UncertaintyMap, UncertaintyOptions, pearson, uncertainty_map};
 
 /// Arguments of `uncertainty`.
 #[derive(Debug, Clone, clap::Args)]
@@ -169,71 +167,82 @@ fn check_flags(args: &UncertaintyArgs) -> Result<(), OpsError> {
 /// Runs `eval uncertainty` and returns the files written.
 pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsError> {
     check_flags(args)?;
-    let dir = RunDir::new(&args.run);
-    let meta: datasets::SceneMeta = read_json(&dir.scene())?;
-    let mut split: Split = read_json(&dir.split())?;
-    let scene = field_ops::run_dir::load_run_scene(&dir, &meta, &mut split)?;
-    // Without training views every point is unseen: nothing to measure, and
-    // no camera to take novel cameras' intrinsics from.
-    if split.train.is_empty() {
-        return Err(OpsError::Invalid(format!(
-            "{}: the run has no training frames; the uncertainty map is made of the training \
-             views' feature maps",
-            dir.split().display()
-        )));
-    }
-    let frame = args.frame.resolve(&meta)?;
-    let (points, labelled) = labelled_coarse_points(&scene, &split.train, args.voxel)?;
-    check_memory(args, &scene, points.len())?;
-    let opts = UncertaintyOptions {
-        k: args.k,
-        eps: args.eps,
-        prior_weight: args.prior_weight,
-        of_mean: args.of_mean,
-        normalisation: args.normalisation,
-        project: ProjectOptions::default(),
-    };
-    let bar = field_ops::progress::progress(split.train.len(), "projecting feature maps");
-    let map = uncertainty_map(&scene, &split.train, &points, &opts, |d, _| {
-        bar.set_position(d as u64)
-    })?;
-    bar.finish_and_clear();
-    let errors = match (&labelled, scene.features.as_ref()) {
-        (Some(l), Some(set)) => Some(feature_errors(&map, l, set.pca.as_ref())?),
-        _ => None,
-    };
-    let mut summary = summarise(&map, errors.as_deref(), &opts);
-    summary.target_draws = super::targets::draws_by_normalisation(
-        &map,
-        &points,
-        labelled.as_ref(),
-        args.normalisation,
-        args.seed,
-    );
+    let run = TrainedScene::open(&args.run)?;
+    let frame = args.frame.resolve(&run.meta)?;
+    let (points, labelled) = labelled_coarse_points(&run.scene, &run.split.train, args.voxel)?;
+    check_memory(args, &run.scene, points.len())?;
+    let measured = measure::measure(args, &run, &points, labelled.as_ref())?;
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| dir.dir.join("uncertainty"));
-    std::fs::create_dir_all(&out).map_err(|e| OpsError::io(&out, e))?;
-    let mut written = Vec::new();
-    let json = out.join("uncertainty.json");
-    write_json(&json, &summary)?;
-    written.push(json);
-    let csv = out.join("uncertainty.csv");
-    let written_points = frame.points(&points);
-    write_csv(&csv, &written_points, &map, errors.as_deref())?;
-    written.push(csv);
-    let ply = out.join("uncertainty.ply");
-    write_uncertainty_ply(&ply, &written_points, &map)?;
-    written.push(ply);
-    if let Some(e) = &errors {
-        let png = out.join("uncertainty_scatter.png");
-        // The numbers are in the CSV: a missing font costs the picture only.
-        match scatter(&png, &map, e, summary.pearson_r) {
-            Ok(()) => written.push(png),
-            Err(e) => eprintln!("warning: {e}"),
-        }
+        .unwrap_or_else(|| run.dir.dir.join("uncertainty"));
+    let mut written = outputs::write_outputs(&out, &measured, &frame.points(&points))?;
+    print_summary(&measured.summary, args.eps);
+    if args.views > 0 {
+        written.extend(super::proposals::write_proposals(
+            ProposalRequest {
+                views: args.views,
+                seed: args.seed,
+                compute: args.compute,
+            },
+            &run.dir,
+            &run.scene,
+            &run.split,
+            &points,
+            &measured.map,
+            &out,
+        )?);
     }
+    print_correlation(&measured.summary);
+    Ok(written)
+}
+
+/// A run's scene with its split, which has training views.
+struct TrainedScene {
+    dir: RunDir,
+    meta: datasets::SceneMeta,
+    split: Split,
+    scene: Scene,
+}
+
+impl TrainedScene {
+    /// Loads the scene of the run in `run`, refusing one without training
+    /// frames.
+    fn open(run: &Path) -> Result<TrainedScene, OpsError> {
+        let dir = RunDir::new(run);
+        let meta: datasets::SceneMeta = read_json(&dir.scene())?;
+        let mut split: Split = read_json(&dir.split())?;
+        let scene = field_ops::run_dir::load_run_scene(&dir, &meta, &mut split)?;
+        // Without training views every point is unseen: nothing to measure,
+        // and no camera to take novel cameras' intrinsics from.
+        if split.train.is_empty() {
+            return Err(OpsError::Invalid(format!(
+                "{}: the run has no training frames; the uncertainty map is made of the \
+                 training views' feature maps",
+                dir.split().display()
+            )));
+        }
+        Ok(TrainedScene {
+            dir,
+            meta,
+            split,
+            scene,
+        })
+    }
+}
+
+/// The uncertainty map of `points` and what is measured on it.
+struct Measured {
+    map: UncertaintyMap,
+    /// The feature error of each point, with labels and class embeddings.
+    errors: Option<Vec<f64>>,
+    summary: UncertaintySummary,
+}
+
+/// Prints the map's figures, where targets land under each normalisation,
+/// and a warning when covariances could not be factorised (which names
+/// `eps`, the `--eps` in use).
+fn print_summary(summary: &UncertaintySummary, eps: f64) {
     println!(
         "{} points, {} seen by a training view, {} seen twice; log det (k = {}) from {:.1} to {:.1}, median {:.1}",
         summary.points,
@@ -256,24 +265,14 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
             "warning: the covariance of {} of the {} points seen twice could not be factorised \
              (Cholesky failed); they are given the largest uncertainty. A larger --eps (now {}) \
              avoids this",
-            summary.failed_factorisations, summary.seen_twice, args.eps
+            summary.failed_factorisations, summary.seen_twice, eps
         );
     }
-    if args.views > 0 {
-        written.extend(super::proposals::write_proposals(
-            ProposalRequest {
-                views: args.views,
-                seed: args.seed,
-                compute: args.compute,
-            },
-            &dir,
-            &scene,
-            &split,
-            &points,
-            &map,
-            &out,
-        )?);
-    }
+}
+
+/// Prints the correlation of uncertainty and feature error, or why there
+/// is none.
+fn print_correlation(summary: &UncertaintySummary) {
     match summary.pearson_r {
         Some(r) => println!(
             "Pearson r between uncertainty and feature error: {r:.3} over {} labelled points seen twice",
@@ -283,7 +282,6 @@ pub fn uncertainty_command(args: &UncertaintyArgs) -> Result<Vec<PathBuf>, OpsEr
             println!("no labelled points with class embeddings: the error correlation is skipped")
         }
     }
-    Ok(written)
 }
 
 /// Refuses a map whose per-point statistics would take more than
@@ -327,97 +325,4 @@ pub fn feature_errors(
             _ => f64::NAN,
         })
         .collect())
-}
-
-fn summarise(
-    map: &UncertaintyMap,
-    errors: Option<&[f64]>,
-    opts: &UncertaintyOptions,
-) -> UncertaintySummary {
-    let twice: Vec<usize> = (0..map.counts.len())
-        .filter(|&i| map.counts[i] >= 2)
-        .collect();
-    let mut lds: Vec<f64> = twice.iter().map(|&i| map.log_det[i]).collect();
-    lds.sort_by(f64::total_cmp);
-    let pick = |q: f64| {
-        if lds.is_empty() {
-            f64::NAN
-        } else {
-            lds[((lds.len() - 1) as f64 * q).round() as usize]
-        }
-    };
-    let (xs, ys): (Vec<f64>, Vec<f64>) = match errors {
-        Some(e) => twice
-            .iter()
-            .filter(|&&i| e[i].is_finite())
-            .map(|&i| (map.log_det[i], e[i]))
-            .unzip(),
-        None => (Vec::new(), Vec::new()),
-    };
-    UncertaintySummary {
-        points: map.counts.len(),
-        seen: map.counts.iter().filter(|&&c| c > 0).count(),
-        seen_twice: twice.len(),
-        k: map.k,
-        eps: opts.eps,
-        log_det_min: pick(0.0),
-        log_det_median: pick(0.5),
-        log_det_max: pick(1.0),
-        pearson_r: errors.and_then(|_| pearson(&xs, &ys)),
-        correlated_points: xs.len(),
-        failed_factorisations: map.failed_factorisations,
-        normalisation: opts.normalisation.to_string(),
-        target_draws: Vec::new(),
-    }
-}
-
-fn write_csv(
-    path: &Path,
-    points: &[Vec3],
-    map: &UncertaintyMap,
-    errors: Option<&[f64]>,
-) -> Result<(), OpsError> {
-    let io = |e| OpsError::io(path, e);
-    let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    writeln!(w, "x,y,z,views,log_det,uncertainty,feature_error").map_err(io)?;
-    for (i, p) in points.iter().enumerate() {
-        let e = errors.map_or(f64::NAN, |e| e[i]);
-        writeln!(
-            w,
-            "{:.4},{:.4},{:.4},{},{:.5},{:.5},{}",
-            p[0],
-            p[1],
-            p[2],
-            map.counts[i],
-            map.log_det[i],
-            map.normalised[i],
-            if e.is_finite() {
-                format!("{e:.5}")
-            } else {
-                String::new()
-            }
-        )
-        .map_err(io)?;
-    }
-    w.flush().map_err(io)
-}
-
-fn write_uncertainty_ply(
-    path: &Path,
-    points: &[Vec3],
-    map: &UncertaintyMap,
-) -> Result<(), OpsError> {
-    let colors = map
-        .normalised
-        .iter()
-        .map(|&u| turbo(u as f32).map(to_u8))
-        .collect();
-    let cloud = PointCloud {
-        positions: points.to_vec(),
-        colors: Some(colors),
-        labels: None,
-    };
-    let u: Vec<f32> = map.normalised.iter().map(|&u| u as f32).collect();
-    let views: Vec<f32> = map.counts.iter().map(|&c| c as f32).collect();
-    write_ply(path, &cloud, &[("uncertainty", &u), ("views", &views)]).map_err(OpsError::from)
 }
