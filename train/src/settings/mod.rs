@@ -52,6 +52,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         evidence.describe()
     )];
     let patch = cli.config.as_deref().map(read_patch).transpose()?;
+    let key_flags = overrides(cli);
     let mut choices = Choices::of_row(&row);
     if let Some(p) = cli.preset {
         choices = choices.overlaid(Layer::of_preset(p));
@@ -102,8 +103,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         }
         _ => base,
     };
-    let flags = overrides(cli);
-    config.apply(&flags);
+    config.apply(&key_flags);
     flags::apply_novel_and_grid(cli, &mut config);
     let set_by_file = |section: &str, key: &str| {
         patch
