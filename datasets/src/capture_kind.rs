@@ -198,26 +198,23 @@ fn measure(scene: &Scene) -> CaptureEvidence {
     let direction_agreement = norm(mean) / n;
     let inside_box = cameras_inside(&scene.scene_box, centres.iter().copied());
     let sampled = sample_frames(&scene.frames);
-    let (dense, sparse): (Vec<&Frame>, Vec<&Frame>) = scene
-        .frames
-        .iter()
-        .filter(|f| f.depth.is_some())
-        .partition(|f| depth_coverage(f) >= DENSE_DEPTH);
-    let dense_sampled: Vec<&Frame> = sampled
-        .iter()
-        .copied()
-        .filter(|f| f.depth.is_some() && depth_coverage(f) >= DENSE_DEPTH)
-        .collect();
+    let dense = |f: &Frame| f.depth.is_some() && depth_coverage(f) >= DENSE_DEPTH;
+    let dense_frames = scene.frames.iter().filter(|f| dense(f)).count();
+    let depth_frames = scene.frames.iter().filter(|f| f.depth.is_some()).count();
+    let dense_sampled: Vec<&Frame> = sampled.iter().copied().filter(|f| dense(f)).collect();
+    // Each sampled frame's plain background, measured once.
+    let plain: Vec<(f64, [f32; 3])> = sampled.iter().filter_map(|f| plain_share(f)).collect();
+    let mostly_plain = most(plain.len(), sampled.len());
     CaptureEvidence {
         cameras: centres.len(),
         focus,
         at_focus,
         direction_agreement,
         inside_box,
-        rendered: rendered(scene, &sampled),
-        plain_background: plain_background(&sampled),
-        dense_depth_frames: dense.len(),
-        sparse_depth_frames: sparse.len(),
+        rendered: rendered(scene, &plain, mostly_plain),
+        plain_background: mostly_plain.then(|| plain[0].1),
+        dense_depth_frames: dense_frames,
+        sparse_depth_frames: depth_frames - dense_frames,
         depth_past_box: (!dense_sampled.is_empty()).then(|| past_box(scene, &dense_sampled)),
     }
 }
@@ -242,33 +239,20 @@ fn depth_coverage(f: &Frame) -> f64 {
 }
 
 /// Why the views are renders, if they are: the built-in scene, or most
-/// sampled frames on a plain background.
-fn rendered(scene: &Scene, sampled: &[&Frame]) -> Option<String> {
+/// sampled frames on a plain background (`plain`: the share and colour of
+/// each sampled frame that has one).
+fn rendered(scene: &Scene, plain: &[(f64, [f32; 3])], mostly_plain: bool) -> Option<String> {
     if matches!(scene.source.base(), SceneSource::Synthetic { .. }) {
         return Some("the built-in synthetic scene".into());
     }
-    let plain: Vec<f64> = sampled
-        .iter()
-        .filter_map(|f| plain_share(f).map(|(share, _)| share))
-        .collect();
-    if sampled.is_empty() || 2 * plain.len() <= sampled.len() {
+    if !mostly_plain {
         return None;
     }
-    let mean = plain.iter().sum::<f64>() / plain.len() as f64;
+    let mean = plain.iter().map(|(share, _)| share).sum::<f64>() / plain.len() as f64;
     Some(format!(
         "{:.0}% of the pixels are one plain background colour",
         100.0 * mean
     ))
-}
-
-/// The corner colour of the first of `sampled` with a plain background,
-/// when most of them have one.
-fn plain_background(sampled: &[&Frame]) -> Option<[f32; 3]> {
-    let plain: Vec<[f32; 3]> = sampled
-        .iter()
-        .filter_map(|f| plain_share(f).map(|(_, colour)| colour))
-        .collect();
-    (!sampled.is_empty() && 2 * plain.len() > sampled.len()).then(|| plain[0])
 }
 
 /// The share of `f`'s pixels exactly its corners' colour (to 1/255), and
