@@ -83,7 +83,7 @@ pub struct CaptureEvidence {
     /// The point closest to every camera's optical axis (least squares,
     /// [`focus_point`]), `None` when the axes are (nearly) parallel.
     pub focus: Option<Vec3>,
-    /// Cameras whose axis points within [`AT_FOCUS_DEGREES`] of the focus
+    /// Cameras whose axis points within 15° of the focus
     /// point, in front of them.
     pub at_focus: usize,
     /// The length of the mean viewing direction (1: all face one way).

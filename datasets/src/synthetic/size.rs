@@ -38,7 +38,7 @@ pub enum SceneSize {
     PaperFull,
     /// Not a room: objects on a ground plane seen by a ring of 24 cameras
     /// at 80x60, with pillars around them and a backdrop 12 m away
-    /// ([`outdoor::build_outdoor`]), an unbounded capture at the size of
+    /// ([`super::outdoor::build_outdoor`]), an unbounded capture at the size of
     /// [`SceneSize::Ci`].
     #[cfg_attr(
         feature = "cli",
@@ -83,7 +83,7 @@ impl SceneSize {
 
     /// Dimension of the simulated feature maps: that of the class text
     /// embeddings, or 768 at the paper's scale (the embeddings lifted by
-    /// [`lift::lift_embeddings`]).
+    /// [`super::lift::lift_embeddings`]).
     pub fn feature_dim(self) -> Option<usize> {
         match self {
             SceneSize::Ci | SceneSize::Bench | SceneSize::Outdoor => None,
