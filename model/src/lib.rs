@@ -81,6 +81,7 @@ pub mod composite;
 pub mod dense_variant;
 pub mod exposure;
 pub mod extent;
+pub mod fast_field;
 pub mod field;
 pub mod geometry;
 pub mod hashgrid;
@@ -94,6 +95,7 @@ pub mod proposal;
 pub mod rays;
 pub mod render;
 pub mod sampling;
+pub mod sh;
 pub mod stepfun;
 pub mod unbounded;
 
@@ -101,13 +103,14 @@ pub use appearance::{AppearanceCodes, AppearanceCodesConfig};
 pub use composite::Composite;
 pub use exposure::{Exposure, ExposureConfig};
 pub use extent::{Extent, Spacing};
+pub use fast_field::{FastField, FastFieldConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 pub use hashgrid::{HashGrid, HashGridConfig};
 pub use loss::{
     FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse,
     weighted_rgb_mse,
 };
-pub use nerf::{OpenNerf, OpenNerfConfig, Rays};
+pub use nerf::{OpenNerf, OpenNerfConfig, Radiance, Rays};
 pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};
 pub use pose::{PoseCorrection, PoseCorrectionConfig};
 pub use proposal::{ProposalConfig, ProposalMlp};

@@ -1,5 +1,6 @@
 //! The OpenNeRF field: the Mip-NeRF MLP (shared by the coarse and the fine
-//! level, or fed by the proposal sampler), the open-set feature head, the
+//! level, or fed by the proposal sampler) or the fast field in its place
+//! (see [`Radiance`]), the open-set feature head, the
 //! scene's extent (a box, or unbounded with Mip-NeRF 360's contraction, see
 //! [`Extent`]) and the occupancy grid it carries, with point queries. Rendering is
 //! [`OpenNerf::render`] (see [`crate::render`]).
@@ -13,13 +14,15 @@ use burn::tensor::{Device, Tensor};
 use crate::appearance::{AppearanceCodes, AppearanceCodesConfig};
 use crate::exposure::{Exposure, ExposureConfig};
 use crate::extent::Extent;
-use crate::field::{FeatureHead, FeatureHeadConfig, MipMlp, MipMlpConfig};
+use crate::fast_field::{FastField, FastFieldConfig};
+use crate::field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
 use crate::hashgrid::{HashGrid, HashGridConfig};
-use crate::mip::integrated_pos_enc;
+use crate::mip::{integrated_pos_enc, pos_enc};
 use crate::occupancy::OccupancyGrid;
 use crate::pose::{PoseCorrection, PoseCorrectionConfig};
 use crate::proposal::{ProposalConfig, ProposalMlp};
 pub use crate::rays::Rays;
+use crate::sh::sh_encoding;
 use crate::unbounded::UnboundedConfig;
 
 /// Configuration of [`OpenNerf`].
@@ -27,9 +30,13 @@ use crate::unbounded::UnboundedConfig;
 pub struct OpenNerfConfig {
     /// The open-set head (its `out_dim` is `D` or the number of PCA coefficients).
     pub head: FeatureHeadConfig,
-    /// The shared Mip-NeRF MLP.
+    /// The shared Mip-NeRF MLP (unused when `fast` is set).
     #[config(default = "MipMlpConfig::new()")]
     pub mlp: MipMlpConfig,
+    /// The fast field (a hash encoding and small MLPs, see
+    /// [`crate::fast_field`]) in place of the Mip-NeRF MLP; `None`: the
+    /// Mip-NeRF MLP.
+    pub fast: Option<FastFieldConfig>,
     /// Samples per ray at each level (values below 1 are treated as 1).
     #[config(default = 64)]
     pub num_samples: usize,
@@ -62,8 +69,9 @@ pub struct OpenNerfConfig {
     /// A learned appearance code per training photograph, given to the
     /// colour branch (see [`crate::appearance`]); `None`: none.
     pub appearance: Option<AppearanceCodesConfig>,
-    /// A multiresolution hash encoding whose features the MLP takes beside
-    /// the IPE (see [`crate::hashgrid`]); `None`: the IPE alone.
+    /// A multiresolution hash encoding whose features the Mip-NeRF MLP
+    /// takes beside the IPE (see [`crate::hashgrid`]); `None`: the IPE
+    /// alone. The fast field has its own (`fast.grid`).
     pub hash: Option<HashGridConfig>,
 }
 
@@ -71,12 +79,26 @@ impl OpenNerfConfig {
     /// Builds the model on `device`.
     pub fn init(&self, device: &Device) -> OpenNerf {
         let appearance_dim = self.appearance.as_ref().map_or(0, |a| a.dim.max(1));
-        let extra = self.hash.as_ref().map_or(0, HashGridConfig::output_dim);
-        let mlp = self.mlp.init_with_inputs(appearance_dim, extra, device);
-        let head = self.head.init(self.mlp.width.max(1), device);
+        let (mlp, fast, trunk_width) = match &self.fast {
+            Some(fast) => {
+                let field = fast.init(appearance_dim, device);
+                let width = field.geo_features();
+                (None, Some(field), width)
+            }
+            None => {
+                let extra = self.hash.as_ref().map_or(0, HashGridConfig::output_dim);
+                let mlp = self.mlp.init_with_inputs(appearance_dim, extra, device);
+                (Some(mlp), None, self.mlp.width.max(1))
+            }
+        };
+        let hash = match self.fast {
+            Some(_) => None,
+            None => self.hash.as_ref().map(|h| h.init(device)),
+        };
         OpenNerf {
             mlp,
-            head,
+            fast,
+            head: self.head.init(trunk_width, device),
             num_samples: self.num_samples.max(1),
             resample_padding: self.resample_padding as f64,
             head_top_k: self.head_top_k.unwrap_or(0),
@@ -87,17 +109,21 @@ impl OpenNerfConfig {
             exposure: self.exposure.as_ref().map(|e| e.init(device)),
             pose: self.pose.as_ref().map(|p| p.init(device)),
             appearance: self.appearance.as_ref().map(|a| a.init(device)),
-            hash: self.hash.as_ref().map(|h| h.init(device)),
+            hash,
             occupancy: None,
         }
     }
 }
 
-/// The OpenNeRF field: the shared MLP and the open-set head.
+/// The OpenNeRF field: the shared MLP (or the fast field) and the
+/// open-set head.
 #[derive(Module, Debug)]
 pub struct OpenNerf {
-    /// Shared coarse/fine MLP.
-    pub mlp: MipMlp,
+    /// Shared coarse/fine Mip-NeRF MLP; `None` when the fast field is the
+    /// field (exactly one of `mlp` and `fast` is set).
+    pub mlp: Option<MipMlp>,
+    /// The fast field, in place of the Mip-NeRF MLP.
+    pub fast: Option<FastField>,
     /// Open-set feature head.
     pub head: FeatureHead,
     /// Samples per ray at each level.
@@ -175,17 +201,33 @@ impl OpenNerf {
 
     fn query_trunk(&self, points: Tensor<2>, radius: f32) -> (Tensor<2>, Tensor<2>) {
         let g = self.extent.points(points, radius);
-        let ipe = self.encode_gaussians(g.mean, g.cov_diag);
-        self.mlp.trunk_density(ipe)
+        let input = self.encode_gaussians(g.mean, g.cov_diag);
+        self.radiance().trunk_density(input)
     }
 
-    /// What the MLP takes for each Gaussian: its IPE, then its mean's hash
-    /// encoding when the field has one.
+    /// The field that gives density and colour.
+    pub fn radiance(&self) -> Radiance<'_> {
+        match (&self.fast, &self.mlp) {
+            (Some(fast), _) => Radiance::Fast(fast),
+            (None, Some(mlp)) => Radiance::Mip(mlp),
+            // `OpenNerfConfig::init` sets exactly one, and loading weights
+            // keeps the structure the configuration built.
+            (None, None) => unreachable!("a field has the Mip-NeRF MLP or the fast field"),
+        }
+    }
+
+    /// What the field takes for each Gaussian: for the Mip-NeRF MLP its
+    /// IPE, then its mean's hash encoding when the field has one; for the
+    /// fast field its mean's hash encoding.
     ///
     /// # Shapes
     /// - `mean`, `cov_diag`: `[m, 3]`; output: `[m, input]`.
     pub fn encode_gaussians(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
-        let ipe = integrated_pos_enc(mean.clone(), cov_diag, self.mlp.min_deg, self.mlp.max_deg);
+        let mlp = match self.radiance() {
+            Radiance::Fast(fast) => return fast.encode(mean),
+            Radiance::Mip(mlp) => mlp,
+        };
+        let ipe = integrated_pos_enc(mean.clone(), cov_diag, mlp.min_deg, mlp.max_deg);
         match &self.hash {
             Some(h) => Tensor::cat(vec![ipe, h.forward(mean.detach())], 1),
             None => ipe,
@@ -202,5 +244,82 @@ impl OpenNerf {
     /// rounds' and the MLP's.
     pub fn samples_per_ray(&self) -> usize {
         self.levels().iter().map(|level| level.samples).sum()
+    }
+}
+
+/// The part of the field that gives density and colour: the Mip-NeRF MLP
+/// or the fast field. The renderer and the point queries go through it.
+#[derive(Debug, Clone, Copy)]
+pub enum Radiance<'m> {
+    /// The Mip-NeRF MLP (its input: the IPE, with a hash encoding beside).
+    Mip(&'m MipMlp),
+    /// The fast field (its input: the hash encoding).
+    Fast(&'m FastField),
+}
+
+impl Radiance<'_> {
+    /// Trunk feature (the open-set head's input) and density from the
+    /// encoded samples ([`OpenNerf::encode_gaussians`]).
+    ///
+    /// # Shapes
+    /// - `input`: `[n, input]`; output: (`[n, trunk_width]`, `[n, 1]`).
+    pub fn trunk_density(self, input: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+        match self {
+            Radiance::Mip(mlp) => mlp.trunk_density(input),
+            Radiance::Fast(fast) => fast.trunk_density(input),
+        }
+    }
+
+    /// View-dependent colour of `samples` samples a ray.
+    ///
+    /// # Shapes
+    /// - `trunk`: `[rays * samples, trunk_width]`, ray-major;
+    ///   `view_enc`: `[rays, view_dim + appearance_dim]`; output:
+    ///   `[rays * samples, 3]`.
+    pub fn color(self, trunk: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> Tensor<2> {
+        match self {
+            Radiance::Mip(mlp) => mlp.color(trunk, view_enc, samples),
+            Radiance::Fast(fast) => fast.color(trunk, view_enc, samples),
+        }
+    }
+
+    /// Density, colour and trunk feature of `samples` samples a ray.
+    ///
+    /// # Shapes
+    /// - `input`: `[rays * samples, input]`; `view_enc`: `[rays, ..]`.
+    pub fn forward(self, input: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> FieldOutputs {
+        match self {
+            Radiance::Mip(mlp) => mlp.forward(input, view_enc, samples),
+            Radiance::Fast(fast) => fast.forward(input, view_enc, samples),
+        }
+    }
+
+    /// The encoding of unit view directions (without the appearance code):
+    /// the Mip-NeRF MLP's positional encoding, or the fast field's
+    /// spherical harmonics.
+    ///
+    /// # Shapes
+    /// - `viewdirs`: `[n, 3]`; output: `[n, view_dim]`.
+    pub fn view_encoding(self, viewdirs: Tensor<2>) -> Tensor<2> {
+        match self {
+            Radiance::Mip(mlp) => pos_enc(viewdirs, 0, mlp.viewdir_deg, true),
+            Radiance::Fast(fast) => sh_encoding(viewdirs, fast.sh_degree),
+        }
+    }
+
+    /// Length of the appearance code the colour branch takes (0: none).
+    pub fn appearance_dim(self) -> usize {
+        match self {
+            Radiance::Mip(mlp) => mlp.appearance_dim,
+            Radiance::Fast(fast) => fast.appearance_dim,
+        }
+    }
+
+    /// Width of the trunk feature.
+    pub fn trunk_width(self) -> usize {
+        match self {
+            Radiance::Mip(mlp) => mlp.bottleneck.weight.dims()[0],
+            Radiance::Fast(fast) => fast.geo_features(),
+        }
     }
 }

@@ -17,7 +17,7 @@ fn codes_change_the_colour_only_and_every_other_render_uses_the_zero_code() {
         .with_num_samples(8)
         .with_appearance(Some(AppearanceCodesConfig::new(3).with_dim(5)))
         .init(&device);
-    assert_eq!(m.mlp.appearance_dim, 5);
+    assert_eq!(m.radiance().appearance_dim(), 5);
     let rays = camera_rays(6, 3);
     let request = RenderRequest::train(&rays).with_randomized(false);
     let with = |code: Tensor<2>| {

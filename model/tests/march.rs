@@ -200,7 +200,8 @@ fn an_opaque_field_ends_rays_early_and_renders_the_same() {
         ] {
             let mut m = model(16, top_k, &device);
             let bias = Tensor::<1>::from_data([12.0f32], &device);
-            m.mlp.density.bias = Some(Param::from_tensor(bias));
+            m.mlp.as_mut().expect("the Mip-NeRF field").density.bias =
+                Some(Param::from_tensor(bias));
             let want = dense(&m, &rays, None, mode);
             let term = Termination {
                 segment: 4,

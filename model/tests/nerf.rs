@@ -204,7 +204,7 @@ fn top_k_one_uses_the_heaviest_sample() {
     );
     let ipe = model::mip::integrated_pos_enc(g.mean, g.cov_diag, 0, 8);
     let [n, s, c] = ipe.dims();
-    let (trunk, _) = model.mlp.trunk_density(ipe.reshape([n * s, c]));
+    let (trunk, _) = model.radiance().trunk_density(ipe.reshape([n * s, c]));
     let per_sample = vec(model.head.forward(trunk));
     for r in 0..n {
         let row = &w[r * s..(r + 1) * s];

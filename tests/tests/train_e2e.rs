@@ -167,6 +167,58 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     assert_eq!(ckpts, vec![150, 300]);
 }
 
+/// The fast field (with its hash-grid proposal sampler) resumed halfway
+/// ends with the weights of the uninterrupted run: its tables, MLPs and
+/// their Adam state are all in the checkpoint.
+#[test]
+fn a_resumed_fast_field_run_matches_the_uninterrupted_one() {
+    let _guard = serial();
+    let scene = ci_scene();
+    let n = 10;
+    let mut config = tiny_config(scene, 2 * n);
+    config.logging.eval_every = 0;
+    config.logging.checkpoint_every = n;
+    let grid = model::HashGridConfig::new()
+        .with_levels(4)
+        .with_log2_table(10)
+        .with_max_resolution(64);
+    config.model.fast = Some(model::FastFieldConfig::new().with_grid(grid.clone()));
+    config.model.proposal = Some(
+        model::ProposalConfig::new()
+            .with_samples(vec![8])
+            .with_depth(1)
+            .with_width(8)
+            .with_hash(Some(grid.with_levels(2))),
+    );
+    let whole = scratch_dir();
+    train::train_new(
+        scene,
+        config.clone(),
+        4,
+        whole.path(),
+        &session(BackendKind::Flex),
+    )
+    .unwrap();
+    let parts = scratch_dir();
+    let first = SessionOptions {
+        stop_at: Some(n),
+        ..session(BackendKind::Flex)
+    };
+    train::train_new(scene, config, 4, parts.path(), &first).unwrap();
+    let b = train::resume(parts.path(), None, &session(BackendKind::Flex)).unwrap();
+    assert_eq!(b.summary.iterations, 2 * n);
+    let (wa, wb) = (weights(whole.path()), weights(parts.path()));
+    assert_eq!(wa.len(), wb.len());
+    let max_diff = max_abs_diff(&wa, &wb);
+    assert!(max_diff < 1e-4, "weights differ by up to {max_diff}");
+    // The run's weights are the fast field's: its tables are among them.
+    let device = Device::flex();
+    let loaded = field_ops::run_dir::load_run(parts.path(), &device).unwrap();
+    let fast = loaded.model.fast.as_ref().expect("the fast field");
+    assert_eq!(fast.grid.table.val().dims(), [4 << 10, 2]);
+    assert!(loaded.model.mlp.is_none());
+}
+
 #[test]
 fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
     let _guard = serial();

@@ -296,6 +296,17 @@ pub struct Cli {
     /// the checkpoints and as `occupancy.bin`, and `eval` renders with it.
     #[arg(long)]
     pub occupancy_grid: bool,
+    /// What gives density and colour: `mip` (the paper's Mip-NeRF MLP, 8 x
+    /// 256 at its size, on the IPE of each sample's frustum), `fast`
+    /// (nerfacto's: a multiresolution hash grid, a density MLP of 64 and a
+    /// colour MLP of 2 x 64 on a spherical-harmonics view encoding; about a
+    /// hundredth of the work a sample; `model.fast` in a `--config` file
+    /// sizes it) or `auto` (`mip` on every kind of capture until the fast
+    /// field is measured better there: docs/measurements/fast-field.md).
+    /// `--width` and `--depth` size the Mip-NeRF MLP only. `train` prints its
+    /// choice and why.
+    #[arg(long, value_enum, default_value_t = crate::settings::args::FieldModelArg::Auto)]
+    pub field_model: crate::settings::args::FieldModelArg,
     /// The field's extent: `box` (the scene box mapped to [-pi, pi]^3),
     /// `unbounded` (Mip-NeRF 360's contraction: the ball around the scene
     /// box kept, everything beyond contracted, rays from where they enter

@@ -384,7 +384,8 @@ impl TrainConfig {
 }
 
 /// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
-/// `model.proposal`, `model.exposure`) that `base` leaves out, `base` first
+/// `model.proposal` and its `hash`, `model.exposure`, `model.fast`, ...)
+/// that `base` leaves out, `base` first
 /// gets their defaults, so that a file may give only the keys it changes
 /// (an unbounded field's `radius` defaults to 0: the ball around the scene
 /// box).
@@ -415,11 +416,17 @@ fn optional_defaults(
             serde_json::to_value(model::AppearanceCodesConfig::new(0))?,
         ),
         ("hash", serde_json::to_value(model::HashGridConfig::new())?),
+        ("fast", serde_json::to_value(model::FastFieldConfig::new())?),
     ];
     for (key, defaults) in parts {
         if patch["model"][key].is_object() && base["model"][key].is_null() {
             base["model"][key] = defaults;
         }
+    }
+    // The proposal sampler's hash grid, within the proposal's keys.
+    let proposal = &patch["model"]["proposal"];
+    if proposal["hash"].is_object() && base["model"]["proposal"]["hash"].is_null() {
+        base["model"]["proposal"]["hash"] = serde_json::to_value(model::HashGridConfig::new())?;
     }
     Ok(())
 }

@@ -1,8 +1,8 @@
 //! Range checks of the field's optional parts in a configuration
-//! (`model.unbounded`, `model.proposal`, `model.hash`); each message names
-//! the offending key.
+//! (`model.unbounded`, `model.proposal`, `model.hash`, `model.fast`); each
+//! message names the offending key.
 
-use model::OpenNerfConfig;
+use model::{HashGridConfig, OpenNerfConfig};
 
 /// Checks the unbounded field's and the proposal sampler's settings; the
 /// message names the offending key.
@@ -64,11 +64,49 @@ pub fn field(model: &OpenNerfConfig) -> Result<(), String> {
     Ok(())
 }
 
-/// Checks `model.hash`'s ranges; the message names the offending key.
+/// Checks the ranges of the hash grids (`model.hash`, `model.fast.grid`,
+/// `model.proposal.hash`) and of the fast field's sizes; the message names
+/// the offending key.
 pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
-    let Some(h) = &model.hash else {
+    if let Some(h) = &model.hash {
+        grid(h, "model.hash")?;
+    }
+    if let Some(p) = model.proposal.as_ref().and_then(|p| p.hash.as_ref()) {
+        grid(p, "model.proposal.hash")?;
+    }
+    let Some(fast) = &model.fast else {
         return Ok(());
     };
+    grid(&fast.grid, "model.fast.grid")?;
+    if model.hash.is_some() {
+        return Err(
+            "model.hash is a hash grid beside the Mip-NeRF MLP's IPE; the fast field \
+             (model.fast) has its own, model.fast.grid: leave model.hash out (or --hash-grid off)"
+                .into(),
+        );
+    }
+    let sizes = [
+        ("density_width", fast.density_width, 1..=4096),
+        ("density_layers", fast.density_layers, 0..=16),
+        ("geo_features", fast.geo_features, 1..=4096),
+        ("color_width", fast.color_width, 1..=4096),
+        ("color_layers", fast.color_layers, 1..=16),
+        ("sh_degree", fast.sh_degree, 1..=model::sh::MAX_SH_DEGREE),
+    ];
+    for (key, value, range) in sizes {
+        if !range.contains(&value) {
+            return Err(format!(
+                "model.fast.{key} must be in {}..={}, got {value}",
+                range.start(),
+                range.end()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks one hash grid's ranges, its keys under `prefix`.
+fn grid(h: &HashGridConfig, prefix: &str) -> Result<(), String> {
     let checks = [
         ("levels", h.levels >= 1 && h.levels <= 32, "in 1..=32"),
         ("features", h.features >= 1 && h.features <= 16, "in 1..=16"),
@@ -89,12 +127,12 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
             let value = serde_json::to_value(h)
                 .map(|v| v[key].to_string())
                 .unwrap_or_default();
-            return Err(format!("model.hash.{key} must be {range}, got {value}"));
+            return Err(format!("{prefix}.{key} must be {range}, got {value}"));
         }
     }
     if !(h.half_extent.is_finite() && h.half_extent > 0.0) {
         return Err(format!(
-            "model.hash.half_extent must be positive and finite, got {}",
+            "{prefix}.half_extent must be positive and finite, got {}",
             h.half_extent
         ));
     }
@@ -104,7 +142,7 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use model::{FeatureHeadConfig, HashGridConfig};
+    use model::{FastFieldConfig, FeatureHeadConfig, HashGridConfig, ProposalConfig};
 
     #[test]
     fn bad_settings_are_refused_naming_the_key() {
@@ -140,10 +178,58 @@ mod tests {
                 "model.hash.half_extent",
             ),
         ];
-        for (h, key) in bad {
+        for (h, key) in bad.clone() {
             model.hash = Some(h);
             let err = hash(&model).expect_err(key);
             assert!(err.contains(key), "{err}");
         }
+        // The same checks name the fast field's grid and the proposal's.
+        model.hash = None;
+        for (h, key) in bad.clone() {
+            model.fast = Some(FastFieldConfig::new().with_grid(h));
+            let key = key.replace("model.hash", "model.fast.grid");
+            let err = hash(&model).expect_err(&key);
+            assert!(err.contains(&key), "{err}");
+        }
+        model.fast = None;
+        for (h, key) in bad {
+            model.proposal = Some(ProposalConfig::new().with_hash(Some(h)));
+            let key = key.replace("model.hash", "model.proposal.hash");
+            let err = hash(&model).expect_err(&key);
+            assert!(err.contains(&key), "{err}");
+        }
+    }
+
+    #[test]
+    fn the_fast_fields_sizes_are_checked_and_it_takes_no_second_grid() {
+        let mut model = OpenNerfConfig::new(FeatureHeadConfig::new(4));
+        model.fast = Some(FastFieldConfig::new());
+        assert_eq!(hash(&model), Ok(()));
+        for (fast, key) in [
+            (
+                FastFieldConfig::new().with_density_width(0),
+                "model.fast.density_width",
+            ),
+            (
+                FastFieldConfig::new().with_geo_features(0),
+                "model.fast.geo_features",
+            ),
+            (
+                FastFieldConfig::new().with_color_layers(0),
+                "model.fast.color_layers",
+            ),
+            (
+                FastFieldConfig::new().with_sh_degree(5),
+                "model.fast.sh_degree",
+            ),
+        ] {
+            model.fast = Some(fast);
+            let err = hash(&model).expect_err(key);
+            assert!(err.contains(key), "{err}");
+        }
+        model.fast = Some(FastFieldConfig::new());
+        model.hash = Some(HashGridConfig::new());
+        let err = hash(&model).expect_err("two grids");
+        assert!(err.contains("model.fast.grid"), "{err}");
     }
 }

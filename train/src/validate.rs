@@ -12,6 +12,7 @@ use crate::checkpoint::list_checkpoints;
 use crate::cli::{Cli, DatasetKind};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
+use crate::settings::args::{AppearanceArg, FieldArg, FieldModelArg, SamplerArg};
 
 /// The largest `--box-margin`: a box 21 times the region the capture sees
 /// leaves the field too coarse to resolve it.
@@ -283,6 +284,10 @@ fn resume_flags(cli: &Cli) -> Result<(), TrainError> {
         ("unseen-depth", cli.unseen_depth.is_some()),
         ("pose-refine", cli.pose_refine.is_some()),
         ("hash-grid", cli.hash_grid.is_some()),
+        ("field-model", cli.field_model != FieldModelArg::Auto),
+        ("field", cli.field != FieldArg::Auto),
+        ("sampler", cli.sampler != SamplerArg::Auto),
+        ("appearance", cli.appearance != AppearanceArg::Auto),
         ("seed", cli.seed.is_some()),
         ("log-every", cli.log_every.is_some()),
         ("novel-views", cli.novel_views.is_some()),

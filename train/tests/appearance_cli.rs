@@ -113,7 +113,7 @@ fn the_choice_is_printed_and_the_exposure_saved_and_loaded_with_the_run() {
     assert_eq!(saved["model"]["appearance"]["images"], frames);
     assert_eq!(saved["model"]["appearance"]["dim"], 16);
     let loaded = field_ops::run_dir::load_run(&coded, &device).expect("the run loads");
-    assert_eq!(loaded.model.mlp.appearance_dim, 16);
+    assert_eq!(loaded.model.radiance().appearance_dim(), 16);
     let codes: Vec<f32> = loaded
         .model
         .appearance

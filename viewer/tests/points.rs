@@ -17,8 +17,9 @@ fn points_from_rendered_depth_project_back_onto_their_pixels_at_that_depth() {
     let dim = scene.features.as_ref().expect("features").dim();
     let mut model = common::tiny_model(dim, &device);
     // A dense field: every ray stops in its first samples (opacity ~1).
-    let [width, out] = model.mlp.density.weight.dims();
-    model.mlp.density = LinearConfig::new(width, out)
+    let mlp = model.mlp.as_mut().expect("the Mip-NeRF field");
+    let [width, out] = mlp.density.weight.dims();
+    mlp.density = LinearConfig::new(width, out)
         .with_initializer(Initializer::Constant { value: 5.0 })
         .init(&device);
     let camera = scene.frames[3].camera;

@@ -102,8 +102,9 @@ pub fn make_field_empty(dir: &Path) {
     let dim = scene.features.as_ref().expect("features").dim();
     let device = Device::flex();
     let mut model = tiny_config(dim).init(&device);
-    let [width, out] = model.mlp.density.weight.dims();
-    model.mlp.density = LinearConfig::new(width, out)
+    let mlp = model.mlp.as_mut().expect("the Mip-NeRF field");
+    let [width, out] = mlp.density.weight.dims();
+    mlp.density = LinearConfig::new(width, out)
         .with_initializer(Initializer::Constant { value: -50.0 })
         .init(&device);
     let bytes = model.into_record().into_bytes().expect("serialise");

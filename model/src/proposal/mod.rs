@@ -1,5 +1,6 @@
 //! The proposal sampler of Mip-NeRF 360 (section 3): a small density-only
-//! MLP, queried in rounds along each ray, whose weights decide where the
+//! MLP (on the IPE, or on a small hash encoding as nerfacto's proposal
+//! networks are), queried in rounds along each ray, whose weights decide where the
 //! NeRF MLP samples. It is trained only by the interlevel loss
 //! ([`crate::stepfun::interlevel_loss`]), which makes each round's
 //! histogram an upper envelope of the NeRF weights; the NeRF MLP is then
@@ -15,7 +16,9 @@ use burn::nn::{Linear, LinearConfig};
 use burn::tensor::activation::{relu, softplus};
 use burn::tensor::{Device, Tensor};
 
-use crate::mip::ipe_dim;
+use crate::fast_field::exp_density;
+use crate::hashgrid::{HashGrid, HashGridConfig};
+use crate::mip::{integrated_pos_enc, ipe_dim};
 
 pub mod rounds;
 
@@ -54,13 +57,21 @@ pub struct ProposalConfig {
     /// Added to the weights before resampling.
     #[config(default = 0.0)]
     pub resample_padding: f32,
+    /// A hash encoding of the sample's position as the MLP's input in place
+    /// of the IPE (nerfacto's proposal networks: 5 levels of 2^17 rows, up
+    /// to 128-256 cells across), with an exponential density; `None`: the
+    /// IPE and a softplus density.
+    pub hash: Option<HashGridConfig>,
 }
 
 impl ProposalConfig {
     /// Builds the proposal MLP (a `depth` of 0 is taken as 1, `width` 0 as 1).
     pub fn init(&self, device: &Device) -> ProposalMlp {
         let width = self.width.max(1);
-        let input = ipe_dim(self.min_deg, self.max_deg);
+        let input = match &self.hash {
+            Some(h) => h.output_dim(),
+            None => ipe_dim(self.min_deg, self.max_deg),
+        };
         let layers = (0..self.depth.max(1))
             .map(|i| LinearConfig::new(if i == 0 { input } else { width }, width).init(device))
             .collect();
@@ -69,6 +80,7 @@ impl ProposalConfig {
             density: LinearConfig::new(width, 1).init(device),
             min_deg: self.min_deg,
             max_deg: self.max_deg,
+            hash: self.hash.as_ref().map(|h| h.init(device)),
         }
     }
 
@@ -85,8 +97,9 @@ impl ProposalConfig {
     }
 }
 
-/// The proposal MLP: ReLU layers and a density output
-/// `softplus(raw - 1)` (as the NeRF MLP's).
+/// The proposal MLP: ReLU layers and a density output, `softplus(raw - 1)`
+/// on the IPE (as the NeRF MLP's), `exp(raw)` on a hash encoding (as the
+/// fast field's).
 #[derive(Module, Debug)]
 pub struct ProposalMlp {
     /// Hidden layers.
@@ -97,9 +110,34 @@ pub struct ProposalMlp {
     pub min_deg: usize,
     /// One past the highest IPE degree.
     pub max_deg: usize,
+    /// The hash encoding it takes in place of the IPE.
+    pub hash: Option<HashGrid>,
 }
 
 impl ProposalMlp {
+    /// Density of the Gaussians of samples, from their IPE or their means'
+    /// hash encoding.
+    ///
+    /// # Shapes
+    /// - `mean`, `cov_diag`: `[n, 3]`; output: `[n, 1]`.
+    pub fn density_at(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
+        match &self.hash {
+            Some(grid) => {
+                let mut h = grid.forward(mean.detach());
+                for layer in &self.layers {
+                    h = relu(layer.forward(h));
+                }
+                exp_density(self.density.forward(h))
+            }
+            None => self.density(integrated_pos_enc(
+                mean,
+                cov_diag,
+                self.min_deg,
+                self.max_deg,
+            )),
+        }
+    }
+
     /// Density from the integrated positional encoding.
     ///
     /// # Shapes

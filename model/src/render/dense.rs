@@ -10,7 +10,6 @@ use super::posts::{Posts, ProposalLevel};
 use super::sealed::{Sealed, Token};
 use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::composite::{composite, composite_features_mean};
-use crate::mip::pos_enc;
 use crate::nerf::{OpenNerf, Rays};
 
 /// The training pass: both levels of the rendered rays as tensors, with
@@ -251,7 +250,7 @@ impl OpenNerf {
         let [n, posts] = t_vals.dims();
         let s = posts - 1;
         let ipe = self.encode_samples(t_vals.clone(), rays);
-        let field = self.mlp.forward(ipe, view_enc, s);
+        let field = self.radiance().forward(ipe, view_enc, s);
         let comp = composite(
             field.density.reshape([n, s]),
             field.rgb.reshape([n, s, 3]),
@@ -294,8 +293,9 @@ impl OpenNerf {
             .directions
             .clone()
             .div(dir_norm.clone().clamp_min(1e-20));
-        let enc = pos_enc(viewdirs, 0, self.mlp.viewdir_deg, true);
-        let dim = self.mlp.appearance_dim;
+        let radiance = self.radiance();
+        let enc = radiance.view_encoding(viewdirs);
+        let dim = radiance.appearance_dim();
         if dim == 0 {
             return (dir_norm, enc);
         }

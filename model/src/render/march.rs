@@ -310,7 +310,7 @@ impl OpenNerf {
             .clone()
             .slice_dim(1, range.start..range.end + 1);
         let ipe = self.encode_samples(t.clone(), &alive.rays);
-        let (trunk, density) = self.mlp.trunk_density(ipe);
+        let (trunk, density) = self.radiance().trunk_density(ipe);
         (density.reshape([m, len]), trunk, t)
     }
 
@@ -356,7 +356,7 @@ impl OpenNerf {
         let s = self.num_samples;
         let m = alive.ids.len();
         let device = alive.tau.device();
-        let width = self.mlp.bottleneck.weight.dims()[0];
+        let width = self.radiance().trunk_width();
         let k = self.head_top_k;
         let mut state = FineState {
             rgb: Tensor::zeros([m, 3], &device),
@@ -384,7 +384,9 @@ impl OpenNerf {
             let len = end - begin;
             let rows = alive.ids.len();
             let (density, trunk, t) = self.evaluate(&alive, begin..end);
-            let rgb = self.mlp.color(trunk.clone(), alive.view_enc.clone(), len);
+            let rgb = self
+                .radiance()
+                .color(trunk.clone(), alive.view_enc.clone(), len);
             let (w, tau) = segment_weights(density, t.clone(), alive.dir_norm.clone(), alive.tau);
             alive.tau = tau;
             evaluated += rows * len;

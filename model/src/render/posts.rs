@@ -6,7 +6,6 @@
 use burn::tensor::Tensor;
 
 use crate::composite::compute_weights;
-use crate::mip::integrated_pos_enc;
 use crate::nerf::OpenNerf;
 use crate::proposal::rounds::{Round, resample};
 use crate::proposal::{ProposalConfig, ProposalMlp};
@@ -129,9 +128,8 @@ impl OpenNerf {
         let [n, posts] = t.dims();
         let count = posts - 1;
         let g = self.extent.frustums(t.clone(), rays);
-        let ipe = integrated_pos_enc(g.mean, g.cov_diag, mlp.min_deg, mlp.max_deg);
-        let [_, _, dim] = ipe.dims();
-        let density = mlp.density(ipe.reshape([n * count, dim]));
+        let m = n * count;
+        let density = mlp.density_at(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]));
         compute_weights(density.reshape([n, count]), t, dir_norm.clone())
     }
 }

@@ -1,7 +1,26 @@
 //! The command-line values of the settings `train` decides per capture
-//! (`--field`, `--sampler`, `--appearance`, `--pose-refine`, `--hash-grid`,
+//! (`--field-model`, `--field`, `--sampler`, `--appearance`, `--pose-refine`, `--hash-grid`,
 //! `--sparse-depth`): `auto` (or the flag left out) takes the capture
 //! kind's default ([`super::table`]).
+
+/// What gives density and colour (`--field-model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum FieldModelArg {
+    /// `mip`, the paper's field, on every kind of capture until the fast
+    /// field is measured better there (docs/measurements/fast-field.md); a
+    /// `--config` file's `model.fast` wins.
+    #[default]
+    Auto,
+    /// The Mip-NeRF MLP (8 x 256 at the paper's size) on the IPE of each
+    /// sample's conical frustum.
+    Mip,
+    /// Nerfacto's field: a multiresolution hash grid and two small MLPs
+    /// (density and geometry feature; colour on a spherical-harmonics view
+    /// encoding), about a hundredth of the Mip-NeRF MLP's work a sample;
+    /// with `--sampler proposal` its proposal networks are small hash grids
+    /// too.
+    Fast,
+}
 
 /// The field's extent (`--field`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]

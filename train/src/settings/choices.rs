@@ -4,8 +4,8 @@
 
 use datasets::capture_kind::CaptureKind;
 
-use super::args::{AppearanceArg, FieldArg, HashGridArg, PoseRefineArg, SamplerArg};
-use super::table::{Appearance, Extent, Row, Sampler};
+use super::args::{AppearanceArg, FieldArg, FieldModelArg, HashGridArg, PoseRefineArg, SamplerArg};
+use super::table::{Appearance, Extent, FieldModel, Row, Sampler};
 use crate::cli::Cli;
 use crate::preset::Preset;
 
@@ -49,6 +49,8 @@ pub struct Decided<T> {
 /// What one layer says; `None` leaves a setting to the layers below.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Layer {
+    /// What gives density and colour.
+    pub model: Option<Decided<FieldModel>>,
     /// The field's extent.
     pub extent: Option<Decided<Extent>>,
     /// The sampler.
@@ -66,6 +68,8 @@ pub struct Layer {
 /// Every setting decided.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Choices {
+    /// What gives density and colour.
+    pub model: Decided<FieldModel>,
     /// The field's extent.
     pub extent: Decided<Extent>,
     /// The sampler.
@@ -89,6 +93,10 @@ impl Choices {
     pub fn of_row(row: &Row) -> Self {
         let by = |why| By::Kind(row.kind, why);
         Self {
+            model: Decided {
+                value: FieldModel::Mip,
+                by: By::EveryKind(super::table::FIELD_MODEL_WHY),
+            },
             extent: Decided {
                 value: row.extent,
                 by: by(row.extent_why),
@@ -123,6 +131,7 @@ impl Choices {
     /// These choices with what `layer` says laid over them.
     pub fn overlaid(self, layer: Layer) -> Self {
         Self {
+            model: layer.model.unwrap_or(self.model),
             extent: layer.extent.unwrap_or(self.extent),
             sampler: layer.sampler.unwrap_or(self.sampler),
             appearance: layer.appearance.unwrap_or(self.appearance),
@@ -158,6 +167,10 @@ impl Layer {
             _ => None,
         };
         Self {
+            model: on("fast").and_then(|f| {
+                let m = if f { FieldModel::Fast } else { FieldModel::Mip };
+                decided(m, file("model.fast"))
+            }),
             extent: on("unbounded").and_then(|u| {
                 let e = if u { Extent::Unbounded } else { Extent::Box };
                 decided(e, file("model.unbounded"))
@@ -183,6 +196,11 @@ impl Layer {
     pub fn of_flags(flags: &Flags) -> Self {
         let flag = |name: &str, value: &str| By::Flag(format!("--{name} {value}"));
         Self {
+            model: match flags.field_model {
+                FieldModelArg::Auto => None,
+                FieldModelArg::Mip => decided(FieldModel::Mip, flag("field-model", "mip")),
+                FieldModelArg::Fast => decided(FieldModel::Fast, flag("field-model", "fast")),
+            },
             extent: match flags.field {
                 FieldArg::Auto => None,
                 FieldArg::Box => decided(Extent::Box, flag("field", "box")),
@@ -226,6 +244,8 @@ impl Layer {
 /// The flags that decide per-capture settings.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Flags {
+    /// `--field-model`.
+    pub field_model: FieldModelArg,
     /// `--field`.
     pub field: FieldArg,
     /// `--sampler`.
@@ -244,6 +264,7 @@ impl Flags {
     /// The flags of the command line.
     pub fn of_cli(cli: &Cli) -> Self {
         Self {
+            field_model: cli.field_model,
             field: cli.field,
             sampler: cli.sampler,
             appearance: cli.appearance,

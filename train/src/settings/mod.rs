@@ -61,6 +61,16 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         choices = choices.overlaid(Layer::of_file(patch));
     }
     choices = choices.overlaid(Layer::of_flags(&choices::Flags::of_cli(cli)));
+    if choices.model.value == table::FieldModel::Fast
+        && (cli.width.is_some() || cli.depth.is_some())
+    {
+        return Err(TrainError::Config(format!(
+            "--width and --depth size the Mip-NeRF MLP, and the field is the fast field ({}): \
+             its sizes are model.fast in a --config file (model.fast.density_width, \
+             model.fast.color_width, ...)",
+            choices.model.by.reason()
+        )));
+    }
     lines.push(write::field_line(&choices));
     let background = match (scene.background, kind, evidence.plain_background) {
         (None, CaptureKind::RenderedObject, Some(c)) => {
@@ -117,10 +127,11 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     }
     lines.extend(depth::apply(cli.sparse_depth, scene, &mut config)?);
     write::apply(&choices, &mut config, scene)?;
+    lines.push(write::model_line(&choices, &config.model));
     lines.extend(write::ray_start_line(&config.model));
     lines.push(write::appearance_line(&choices));
     lines.push(write::pose_line(&choices));
-    lines.push(write::hash_line(&choices, &config.model));
+    lines.extend(write::hash_line(&choices, &config.model));
     // Checked again, without the file's name, where the run starts.
     if let (Err(TrainError::Config(msg)), Some(path)) = (config.validate(), &cli.config) {
         return Err(TrainError::Config(format!(

@@ -7,6 +7,19 @@ use datasets::capture_kind::CaptureKind;
 
 use crate::preset::SceneKind;
 
+/// What gives density and colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FieldModel {
+    /// The Mip-NeRF MLP.
+    Mip,
+    /// The fast field: hash grids and small MLPs.
+    Fast,
+}
+
+/// Why every row keeps the Mip-NeRF MLP.
+pub const FIELD_MODEL_WHY: &str = "the paper's field; the fast field is not yet measured better on any kind of capture \
+     (docs/measurements/fast-field.md)";
+
 /// The field's extent.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Extent {

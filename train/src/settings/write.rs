@@ -4,12 +4,12 @@
 
 use datasets::Scene;
 use model::{
-    AppearanceCodesConfig, ExposureConfig, HashGridConfig, OpenNerfConfig, PoseCorrectionConfig,
-    ProposalConfig, UnboundedConfig,
+    AppearanceCodesConfig, ExposureConfig, FastFieldConfig, HashGridConfig, OpenNerfConfig,
+    PoseCorrectionConfig, ProposalConfig, UnboundedConfig,
 };
 
 use super::choices::{By, Choices};
-use super::table::{Appearance, Extent, Sampler};
+use super::table::{Appearance, Extent, FieldModel, Sampler};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 
@@ -21,6 +21,31 @@ use crate::error::TrainError;
 pub fn contraction_radius(scene: &Scene) -> f32 {
     let corner = scene.scene_box.normalize_point(scene.scene_box.max);
     (corner[0] * corner[0] + corner[1] * corner[1] + corner[2] * corner[2]).sqrt() as f32
+}
+
+/// The fast field `train` builds unless the `--config` file sizes it:
+/// nerfacto's MLPs and levels, with the tables and the finest level of the
+/// hash grid the Mip-NeRF field's grid was measured with on the CPU (2^15
+/// rows, 512 cells across): on the default run 2^19 rows and 2048 cells
+/// took twice the seconds a step (docs/measurements/fast-field.md).
+pub fn fast_field() -> FastFieldConfig {
+    FastFieldConfig::new().with_grid(HashGridConfig::new())
+}
+
+/// The proposal sampler of the fast field unless the `--config` file sets
+/// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
+/// up to 128 cells across, one layer of 16), shared by two rounds of 64
+/// and 32 samples.
+pub fn fast_proposal() -> ProposalConfig {
+    ProposalConfig::new()
+        .with_samples(vec![64, 32])
+        .with_depth(1)
+        .with_width(16)
+        .with_hash(Some(
+            HashGridConfig::new()
+                .with_levels(5)
+                .with_max_resolution(128),
+        ))
 }
 
 /// Writes `choices` into `config` for `scene`. The occupancy grid a preset
@@ -35,6 +60,15 @@ pub fn apply(choices: &Choices, config: &mut TrainConfig, scene: &Scene) -> Resu
              train without --occupancy-grid (and without occupancy.enabled in --config), \
              or with --field box",
             choices.extent.by.reason()
+        )));
+    }
+    let fast = choices.model.value == FieldModel::Fast;
+    if fast && choices.hash.value && matches!(choices.hash.by, By::File(_) | By::Flag(_)) {
+        return Err(TrainError::Config(format!(
+            "the hash grid beside the IPE ({}) belongs to the Mip-NeRF MLP; the fast field ({}) \
+             has its own, model.fast.grid: leave out --hash-grid on and model.hash",
+            choices.hash.by.reason(),
+            choices.model.by.reason()
         )));
     }
     config.occupancy.enabled = grid;
@@ -55,9 +89,7 @@ pub fn apply(choices: &Choices, config: &mut TrainConfig, scene: &Scene) -> Resu
         .pose
         .value
         .then(|| PoseCorrectionConfig::new(frames));
-    model.hash = choices
-        .hash
-        .value
+    model.hash = (choices.hash.value && !fast)
         .then(|| model.hash.clone().unwrap_or_else(HashGridConfig::new));
     Ok(())
 }
@@ -80,9 +112,16 @@ pub fn apply_field(choices: &Choices, model: &mut OpenNerfConfig, scene: &Scene)
         }
         _ => None,
     };
+    let fast = choices.model.value == FieldModel::Fast;
+    model.fast = match model.fast.take() {
+        Some(given) if fast => Some(given),
+        _ if fast => Some(fast_field()),
+        _ => None,
+    };
     let proposal = choices.sampler.value == Sampler::Proposal;
     model.proposal = match model.proposal.take() {
         Some(given) if proposal => Some(given),
+        _ if proposal && fast => Some(fast_proposal()),
         _ if proposal => Some(ProposalConfig::new()),
         _ => None,
     };
@@ -149,17 +188,51 @@ pub fn pose_line(choices: &Choices) -> String {
     }
 }
 
-/// The hash grid line, with the grid's sizes from `model`.
-pub fn hash_line(choices: &Choices, model: &OpenNerfConfig) -> String {
+/// The field model line, with its sizes from `model`.
+pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
+    let reason = choices.model.by.reason();
+    match &model.fast {
+        Some(f) => {
+            let g = &f.grid;
+            format!(
+                "field model: fast, a hash grid of {} levels of 2^{} rows x {} features ({} to {} \
+                 cells across), a density MLP of {} x {} with a {}-wide geometry feature, a \
+                 colour MLP of {} x {} on {} spherical-harmonics bands ({reason})",
+                g.levels,
+                g.log2_table,
+                g.features,
+                g.base_resolution,
+                g.max_resolution,
+                f.density_layers,
+                f.density_width,
+                f.geo_features,
+                f.color_layers,
+                f.color_width,
+                f.sh_degree
+            )
+        }
+        None => format!(
+            "field model: mip, the Mip-NeRF MLP of {} x {} ({reason})",
+            model.mlp.depth, model.mlp.width
+        ),
+    }
+}
+
+/// The hash grid line, with the grid's sizes from `model` (`None` for the
+/// fast field, whose grid the field model line gives).
+pub fn hash_line(choices: &Choices, model: &OpenNerfConfig) -> Option<String> {
+    if model.fast.is_some() {
+        return None;
+    }
     let reason = choices.hash.by.reason();
-    match &model.hash {
+    Some(match &model.hash {
         Some(h) => format!(
             "hash grid: {} levels of 2^{} rows x {} features, {} to {} cells across, beside the \
              IPE ({reason})",
             h.levels, h.log2_table, h.features, h.base_resolution, h.max_resolution
         ),
         None => format!("hash grid: none, the IPE alone ({reason})"),
-    }
+    })
 }
 
 #[cfg(test)]

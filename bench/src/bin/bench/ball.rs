@@ -49,7 +49,7 @@ fn batch(n: usize, rng: &mut Lcg) -> (Vec<f32>, Vec<f32>) {
 /// `model`'s MLP (on the autodiff device) after `steps` Adam steps (learning rate 1e-3) fitting its
 /// density to the ball (squared error relative to the inside density, on
 /// points of radius 0.01), and the final loss.
-pub fn fit(model: OpenNerf, steps: usize, points: usize, device: &Device) -> (MipMlp, f32) {
+pub fn fit(model: OpenNerf, steps: usize, points: usize, device: &Device) -> (Option<MipMlp>, f32) {
     let mut rng = Lcg(9);
     let mut optim = AdamConfig::new().init();
     let mut model = model;

@@ -116,7 +116,7 @@ pub struct Setup<'a> {
     pub size: Size,
     pub mlp: &'a MipMlpConfig,
     /// The MLP with its density fitted to the ball.
-    pub fitted: &'a MipMlp,
+    pub fitted: &'a Option<MipMlp>,
     pub grid: &'a OccupancyGrid,
     /// Timed steps.
     pub steps: usize,

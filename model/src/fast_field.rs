@@ -1,0 +1,211 @@
+//! The fast field (nerfacto's, after Instant-NGP): a multiresolution hash
+//! encoding of the sample's position, a small density MLP giving the
+//! density and a geometry feature, and a small colour MLP on the geometry
+//! feature and a spherical-harmonics encoding of the view direction. Per
+//! sample it costs about a hundredth of the Mip-NeRF trunk; the open-set
+//! head reads the detached geometry feature, as it reads the detached
+//! trunk of the Mip-NeRF MLP.
+//!
+//! The first colour layer acts on a concatenation (geometry feature, view
+//! encoding and appearance code) and is stored as two linear maps whose
+//! outputs are added, as the Mip-NeRF MLP's view branch is: the view part is
+//! evaluated once per ray and broadcast over its samples.
+
+use burn::config::Config;
+use burn::module::Module;
+use burn::nn::{Initializer, Linear, LinearConfig};
+use burn::tensor::activation::{relu, sigmoid};
+use burn::tensor::{Device, Tensor};
+
+use crate::field::FieldOutputs;
+use crate::hashgrid::{HashGrid, HashGridConfig};
+use crate::sh::sh_dim;
+
+/// Configuration of [`FastField`].
+#[derive(Config, Debug)]
+pub struct FastFieldConfig {
+    /// The position's hash encoding (nerfacto: 16 levels of 2 features, 16
+    /// to 2048 cells across, tables of 2^19 rows).
+    #[config(default = "HashGridConfig::new().with_log2_table(19).with_max_resolution(2048)")]
+    pub grid: HashGridConfig,
+    /// Hidden layers of the density MLP.
+    #[config(default = 1)]
+    pub density_layers: usize,
+    /// Width of the density MLP.
+    #[config(default = 64)]
+    pub density_width: usize,
+    /// Width of the geometry feature the density MLP gives beside the
+    /// density (the colour MLP's and the open-set head's input).
+    #[config(default = 15)]
+    pub geo_features: usize,
+    /// Hidden layers of the colour MLP.
+    #[config(default = 2)]
+    pub color_layers: usize,
+    /// Width of the colour MLP.
+    #[config(default = 64)]
+    pub color_width: usize,
+    /// Bands of the view direction's spherical-harmonics encoding (1..=4).
+    #[config(default = 4)]
+    pub sh_degree: usize,
+}
+
+/// The raw output above which the density's exponential stops growing (and
+/// passes no gradient): `exp(15)` is far denser than any surface needs,
+/// and the bound keeps a diverging step finite.
+const MAX_LOG_DENSITY: f32 = 15.0;
+
+/// The fast field's density from the density MLP's raw output: `exp(raw)`,
+/// the raw value capped at [`MAX_LOG_DENSITY`] (Instant-NGP's activation:
+/// its range spans the orders of magnitude between empty space and a
+/// surface, where a softplus would need raw values as large as the density).
+///
+/// # Shapes
+/// - `raw`: `[n, 1]`; output: `[n, 1]`, positive.
+pub fn exp_density(raw: Tensor<2>) -> Tensor<2> {
+    raw.clamp_max(MAX_LOG_DENSITY).exp()
+}
+
+/// A linear layer whose weights are drawn as if it had `fan_in` inputs (the
+/// halves of the first colour layer).
+fn split_linear(d_in: usize, d_out: usize, fan_in: usize, bias: bool, device: &Device) -> Linear {
+    let bound = 1.0 / (fan_in.max(1) as f64).sqrt();
+    LinearConfig::new(d_in, d_out)
+        .with_bias(bias)
+        .with_initializer(Initializer::Uniform {
+            min: -bound,
+            max: bound,
+        })
+        .init(device)
+}
+
+impl FastFieldConfig {
+    /// Width of the view encoding.
+    pub fn view_dim(&self) -> usize {
+        sh_dim(self.sh_degree)
+    }
+
+    /// Builds the field, whose colour MLP also takes a per-photograph
+    /// appearance code of `appearance_dim` numbers after the view encoding
+    /// (0: none). Sizes of 0 are taken as 1.
+    pub fn init(&self, appearance_dim: usize, device: &Device) -> FastField {
+        let grid = self.grid.init(device);
+        let encoded = self.grid.output_dim();
+        let width = self.density_width.max(1);
+        let geo = self.geo_features.max(1);
+        let density_hidden = (0..self.density_layers)
+            .map(|i| LinearConfig::new(if i == 0 { encoded } else { width }, width).init(device))
+            .collect();
+        let density_in = if self.density_layers == 0 {
+            encoded
+        } else {
+            width
+        };
+        let color_width = self.color_width.max(1);
+        let view_in = self.view_dim() + appearance_dim;
+        let fan = geo + view_in;
+        let color_hidden = (1..self.color_layers.max(1))
+            .map(|_| LinearConfig::new(color_width, color_width).init(device))
+            .collect();
+        FastField {
+            grid,
+            density_hidden,
+            density_out: LinearConfig::new(density_in, 1 + geo).init(device),
+            color_geo: split_linear(geo, color_width, fan, true, device),
+            color_view: split_linear(view_in, color_width, fan, false, device),
+            color_hidden,
+            rgb: LinearConfig::new(color_width, 3).init(device),
+            sh_degree: self.sh_degree.clamp(1, crate::sh::MAX_SH_DEGREE),
+            appearance_dim,
+        }
+    }
+}
+
+/// The fast field: hash encoding, density MLP, colour MLP.
+#[derive(Module, Debug)]
+pub struct FastField {
+    /// The position's hash encoding.
+    pub grid: HashGrid,
+    /// Hidden ReLU layers of the density MLP.
+    pub density_hidden: Vec<Linear>,
+    /// Raw density (first output) and geometry feature (the rest).
+    pub density_out: Linear,
+    /// First colour layer, the part acting on the geometry feature.
+    pub color_geo: Linear,
+    /// First colour layer, the part acting on the view encoding and the
+    /// appearance code (no bias).
+    pub color_view: Linear,
+    /// Further hidden layers of the colour MLP.
+    pub color_hidden: Vec<Linear>,
+    /// Colour output.
+    pub rgb: Linear,
+    /// Bands of the view encoding.
+    pub sh_degree: usize,
+    /// Length of the appearance code the colour MLP takes (0: none).
+    pub appearance_dim: usize,
+}
+
+impl FastField {
+    /// Width of the geometry feature (the open-set head's input).
+    pub fn geo_features(&self) -> usize {
+        self.density_out.weight.dims()[1] - 1
+    }
+
+    /// The hash encoding of sample positions (the field's input).
+    ///
+    /// # Shapes
+    /// - `mean`: `[n, 3]`; output: `[n, levels * features]`.
+    pub fn encode(&self, mean: Tensor<2>) -> Tensor<2> {
+        self.grid.forward(mean.detach())
+    }
+
+    /// Geometry feature and density from the hash encoding.
+    ///
+    /// # Shapes
+    /// - `encoded`: `[n, levels * features]`; output: (`[n, geo]`, `[n, 1]`).
+    pub fn trunk_density(&self, encoded: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+        let mut h = encoded;
+        for layer in &self.density_hidden {
+            h = relu(layer.forward(h));
+        }
+        let out = self.density_out.forward(h);
+        let [n, width] = out.dims();
+        let density = exp_density(out.clone().narrow(1, 0, 1));
+        let geo = out.narrow(1, 1, width - 1);
+        debug_assert_eq!(geo.dims()[0], n);
+        (geo, density)
+    }
+
+    /// View-dependent colour.
+    ///
+    /// # Shapes
+    /// - `geo`: `[rays * samples, geo]`, ray-major.
+    /// - `view_enc`: `[rays, sh_dim + appearance_dim]`.
+    /// - output: `[rays * samples, 3]`, in `[0, 1]`.
+    pub fn color(&self, geo: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> Tensor<2> {
+        let [n, _] = geo.dims();
+        let rays = n / samples.max(1);
+        let g = self.color_geo.forward(geo);
+        let [_, width] = g.dims();
+        let v = self.color_view.forward(view_enc).unsqueeze_dim::<3>(1);
+        let mut h = relu(g.reshape([rays, samples, width]).add(v)).reshape([n, width]);
+        for layer in &self.color_hidden {
+            h = relu(layer.forward(h));
+        }
+        sigmoid(self.rgb.forward(h))
+    }
+
+    /// Full evaluation on `rays * samples` encoded samples.
+    ///
+    /// # Shapes
+    /// - `encoded`: `[rays * samples, levels * features]`, ray-major;
+    ///   `view_enc`: `[rays, sh_dim + appearance_dim]`.
+    pub fn forward(&self, encoded: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> FieldOutputs {
+        let (trunk, density) = self.trunk_density(encoded);
+        let rgb = self.color(trunk.clone(), view_enc, samples);
+        FieldOutputs {
+            trunk,
+            density,
+            rgb,
+        }
+    }
+}

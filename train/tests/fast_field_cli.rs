@@ -1,0 +1,146 @@
+//! `--field-model` through the real `train` binary: bad values refused
+//! with the choices named, flags that size the other field or add a second
+//! grid refused, bad `model.fast` settings refused naming their key, the
+//! choice printed with its reason, the field saved with the run and loaded
+//! back as `eval` loads a run, and the flag refused with `--resume`.
+
+use std::path::Path;
+
+mod common;
+
+use common::{TINY, assert_config_refused, assert_refused, s, tiny_run, train};
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
+}
+
+#[test]
+fn bad_field_model_values_and_settings_are_refused() {
+    assert_refused(
+        &["--field-model", "nerfacto"],
+        &["nerfacto", "auto", "mip", "fast"],
+    );
+    assert_refused(
+        &["--field-model", "fast", "--width", "64"],
+        &["--width", "model.fast"],
+    );
+    assert_refused(
+        &["--field-model", "fast", "--depth", "2"],
+        &["--depth", "model.fast"],
+    );
+    assert_refused(
+        &["--field-model", "fast", "--hash-grid", "on"],
+        &["--hash-grid on", "model.fast.grid"],
+    );
+    let tmp = tempfile::tempdir().expect("tmp");
+    for (name, body, key) in [
+        (
+            "levels.json",
+            r#"{"grid": {"levels": 0}}"#,
+            "model.fast.grid.levels",
+        ),
+        (
+            "rows.json",
+            r#"{"grid": {"log2_table": 30}}"#,
+            "model.fast.grid.log2_table",
+        ),
+        (
+            "geo.json",
+            r#"{"geo_features": 0}"#,
+            "model.fast.geo_features",
+        ),
+        ("sh.json", r#"{"sh_degree": 9}"#, "model.fast.sh_degree"),
+        (
+            "word.json",
+            r#"{"color_width": "wide"}"#,
+            "\"wide\", expected usize",
+        ),
+    ] {
+        let config = format!(r#"{{"model": {{"fast": {body}}}}}"#);
+        assert_config_refused(tmp.path(), name, &config, &[key]);
+    }
+    let config = r#"{"model": {"proposal": {"hash": {"levels": 0}}}}"#;
+    assert_config_refused(
+        tmp.path(),
+        "proposal.json",
+        config,
+        &["model.proposal.hash.levels"],
+    );
+}
+
+#[test]
+fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let plain = tmp.path().join("plain");
+    let err = tiny_run(tmp.path(), &plain, TINY, &[]);
+    assert!(
+        err.contains("field model: mip, the Mip-NeRF MLP of 2 x 16 (auto: the paper's field"),
+        "{err}"
+    );
+    assert!(json(&plain.join("config.json"))["model"]["fast"].is_null());
+
+    let fast = tmp.path().join("fast");
+    let err = tiny_run(
+        tmp.path(),
+        &fast,
+        TINY,
+        &["--field-model", "fast", "--sampler", "proposal"],
+    );
+    assert!(
+        err.contains("field model: fast, a hash grid of 16 levels of 2^15 rows x 2 features")
+            && err.contains("(--field-model fast)"),
+        "{err}"
+    );
+    assert!(!err.contains("hash grid: none"), "{err}");
+    let saved = json(&fast.join("config.json"));
+    assert_eq!(saved["model"]["fast"]["grid"]["log2_table"], 15);
+    assert_eq!(saved["model"]["proposal"]["hash"]["levels"], 5);
+    let device = burn::tensor::Device::flex();
+    let loaded = field_ops::run_dir::load_run(&fast, &device).expect("the run loads");
+    assert!(loaded.model.mlp.is_none());
+    let field = loaded.model.fast.as_ref().expect("the fast field");
+    assert_eq!(field.grid.table.val().dims(), [16 << 15, 2]);
+    let proposal = loaded
+        .model
+        .proposal
+        .as_ref()
+        .expect("the proposal network");
+    assert!(proposal.hash.is_some());
+
+    // A configuration's own sizes are kept, and `mip` overrides it.
+    let mut asked: serde_json::Value = serde_json::from_str(TINY).expect("tiny json");
+    asked["model"]["fast"] = serde_json::json!({"grid": {"levels": 3, "log2_table": 8}});
+    let asked = asked.to_string();
+    let by_config = tmp.path().join("by-config");
+    let err = tiny_run(tmp.path(), &by_config, &asked, &[]);
+    assert!(
+        err.contains("field model: fast, a hash grid of 3 levels of 2^8 rows")
+            && err.contains("auto: the configuration's model.fast"),
+        "{err}"
+    );
+    let mip = tmp.path().join("mip");
+    let err = tiny_run(tmp.path(), &mip, &asked, &["--field-model", "mip"]);
+    assert!(
+        err.contains("field model: mip") && err.contains("(--field-model mip)"),
+        "{err}"
+    );
+    assert!(json(&mip.join("config.json"))["model"]["fast"].is_null());
+
+    // A resumed run keeps its configuration: these flags are refused.
+    for flag in [
+        &["--field-model", "mip"][..],
+        &["--field", "box"],
+        &["--sampler", "coarse-fine"],
+        &["--appearance", "none"],
+    ] {
+        let args = [&["--resume", s(&fast)][..], flag].concat();
+        assert_refused(&args, &[flag[0], "--resume"]);
+    }
+    // And the run resumes as it was trained.
+    let out = train(&["--resume", s(&fast), "--iters", "3", "--quiet"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
