@@ -17,6 +17,8 @@ use burn::config::Config;
 use burn::module::{Module, Param};
 use burn::tensor::{Device, Int, Tensor, TensorData};
 
+use crate::hash_kernel::{GridSpec, PRIMES, level_corners, unit_point};
+
 /// Configuration of [`HashGrid`].
 #[derive(Config, Debug)]
 pub struct HashGridConfig {
@@ -101,23 +103,6 @@ pub struct HashGrid {
     pub half_extent: f32,
 }
 
-/// Instant-NGP's spatial hash primes.
-const PRIMES: [u32; 3] = [1, 2_654_435_761, 805_459_861];
-
-/// The table row of vertex `v` of a level with `res` cells across and
-/// `rows` rows: dense indexing where the grid fits, the hash elsewhere.
-fn vertex_row(v: [u32; 3], res: u32, rows: usize) -> usize {
-    let side = res as u64 + 1;
-    if side * side * side <= rows as u64 {
-        (v[0] as u64 + side * (v[1] as u64 + side * v[2] as u64)) as usize
-    } else {
-        let h = v[0].wrapping_mul(PRIMES[0])
-            ^ v[1].wrapping_mul(PRIMES[1])
-            ^ v[2].wrapping_mul(PRIMES[2]);
-        h as usize & (rows - 1)
-    }
-}
-
 impl HashGrid {
     /// Width of the encoding.
     pub fn output_dim(&self) -> usize {
@@ -131,37 +116,13 @@ impl HashGrid {
         let levels = self.resolutions.len();
         let mut rows = Vec::with_capacity(n * levels * 8);
         let mut weights = Vec::with_capacity(n * levels * 8);
-        let scale = 0.5 / self.half_extent;
         for p in points.chunks_exact(3) {
-            let u = [
-                ((p[0] * scale) + 0.5).clamp(0.0, 1.0),
-                ((p[1] * scale) + 0.5).clamp(0.0, 1.0),
-                ((p[2] * scale) + 0.5).clamp(0.0, 1.0),
-            ];
+            let u = unit_point(p, self.half_extent);
             for (l, &res) in self.resolutions.iter().enumerate() {
                 let base = (l * self.rows) as i64;
-                let mut cell = [0u32; 3];
-                let mut frac = [0f32; 3];
-                for k in 0..3 {
-                    let x = u[k] * res as f32;
-                    let c = (x.floor() as u32).min(res.saturating_sub(1));
-                    cell[k] = c;
-                    frac[k] = x - c as f32;
-                }
-                for corner in 0..8u32 {
-                    let mut v = cell;
-                    let mut w = 1.0;
-                    for k in 0..3 {
-                        if corner >> k & 1 == 1 {
-                            v[k] += 1;
-                            w *= frac[k];
-                        } else {
-                            w *= 1.0 - frac[k];
-                        }
-                    }
-                    rows.push(base + vertex_row(v, res, self.rows) as i64);
-                    weights.push(w);
-                }
+                let (ids, w) = level_corners(u, res, self.rows);
+                rows.extend(ids.iter().map(|&r| base + r as i64));
+                weights.extend(w);
             }
         }
         (rows, weights)
@@ -226,7 +187,7 @@ impl HashGrid {
         )
     }
 
-    /// [`vertex_row`] of every corner plus its level's first row, from each
+    /// [`crate::hash_kernel::vertex_row`] of every corner plus its level's first row, from each
     /// axis's vertex coordinates (`[n, levels, ..]`, the axis's pair along
     /// its own dimension): `[n, levels, 2, 2, 2]`. The levels whose grid
     /// fits its table (the coarse ones, first) index it densely, the rest
@@ -274,15 +235,15 @@ impl HashGrid {
 
     /// The encoding of `points`: its corners computed with tensor ops on
     /// the points' device ([`HashGrid::corner_tensors`], nothing read back)
-    /// on a GPU backend, and on the host ([`HashGrid::forward_host`]) on the
-    /// CPU backends, where that is the faster form (measured in
-    /// docs/measurements/training-step.md).
+    /// on a GPU backend, and in one pass over the backend's memory
+    /// ([`HashGrid::forward_fused`]) on the CPU backends, where that is the
+    /// faster form (`bench`'s `hash_encoding` times the forms side by side).
     ///
     /// # Shapes
     /// - `points`: `[n, 3]`; output: `[n, levels * features]`.
     pub fn forward(&self, points: Tensor<2>) -> Tensor<2> {
         if crate::host_work::is_cpu_backend(&points.device()) {
-            self.forward_host(points)
+            self.forward_fused(points)
         } else {
             self.forward_device(points)
         }
@@ -295,6 +256,20 @@ impl HashGrid {
         let [n, _] = points.dims();
         let (ids, w) = self.corner_tensors(points);
         self.gather(n, ids, w)
+    }
+
+    /// The encoding of `points` computed level by level in one pass, its
+    /// backward a scatter-add of the same kind ([`crate::hash_kernel`]); the
+    /// CPU backends only (flex, ndarray), which hold their tensors on the
+    /// host: the read of the positions is counted as the hash corners'.
+    pub fn forward_fused(&self, points: Tensor<2>) -> Tensor<2> {
+        crate::host_work::count_host_read(crate::host_work::ReadReason::HashCorners);
+        let spec = GridSpec {
+            resolutions: self.resolutions.clone(),
+            rows: self.rows,
+            half_extent: self.half_extent,
+        };
+        crate::hash_kernel::hash_encode(points, self.table.val(), spec)
     }
 
     /// The encoding of `points` with its corners computed on the host

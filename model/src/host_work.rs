@@ -109,6 +109,12 @@ pub fn is_cpu_backend(device: &Device) -> bool {
     name.contains("Flex(") || name.contains("NdArray(")
 }
 
+/// Counts a read of the host's copy of a tensor under `reason`, made by a
+/// CPU backend's operation on its own memory (no device to wait for).
+pub fn count_host_read(reason: ReadReason) {
+    READS.with(|r| r.borrow_mut().counts[reason.index()] += 1);
+}
+
 /// The values of `t` on the host, as `f32` (detached), counted under
 /// `reason`. On a GPU this waits for the device's queue to drain: the
 /// training step reads nothing (the loop reads its values when it logs),
@@ -116,7 +122,7 @@ pub fn is_cpu_backend(device: &Device) -> bool {
 /// ([`is_cpu_backend`]); inference's early ray termination reads its alive
 /// rays back once a segment of samples.
 pub fn read_back<const D: usize>(reason: ReadReason, t: Tensor<D>) -> Vec<f32> {
-    READS.with(|r| r.borrow_mut().counts[reason.index()] += 1);
+    count_host_read(reason);
     t.detach()
         .into_data()
         .try_into_vec_as::<f32>()

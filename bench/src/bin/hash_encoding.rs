@@ -1,11 +1,13 @@
-//! The multiresolution hash encoding's two forms side by side, in one run:
-//! the corners computed on the points' device with tensor ops
-//! (`HashGrid::forward_device`, no read-back) and on the host
-//! (`forward_host`:
-//! the positions read back, the rows and weights uploaded), each timed as
-//! one training step's work on the encoding (forward, backward into the
-//! tables), on every backend asked for. The two forms alternate, step by
-//! step, so that a change in the machine's speed falls on both alike.
+//! The multiresolution hash encoding's three forms side by side, in one
+//! run: the corners computed on the points' device with tensor ops
+//! (`HashGrid::forward_device`, no read-back), on the host (`forward_host`:
+//! the positions read back, the rows and weights uploaded, the lookup in
+//! tensor ops), and the CPU backends' one-pass encoding (`forward_fused`:
+//! level by level, no corner array, its backward a scatter-add of the same
+//! kind), each timed as one training step's work on the encoding (forward,
+//! backward into the tables), on every backend asked for. The forms
+//! alternate, step by step, so that a change in the machine's speed falls
+//! on all alike.
 //!
 //! `cargo run -p bench --release --bin hash_encoding -- [--points N] [--steps N] [--backend flex,ndarray]`
 
@@ -46,13 +48,21 @@ struct Args {
     compute: BackendListArgs,
 }
 
+/// A form of the encoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Form {
+    Device,
+    Host,
+    Fused,
+}
+
 /// One step of the encoding's work: the encoding of `points`, a weighted
 /// sum as the loss, its gradient into the table (waited for).
-fn step(grid: &HashGrid, points: &Tensor<2>, weights: &Tensor<2>, host: bool) {
-    let enc = if host {
-        grid.forward_host(points.clone())
-    } else {
-        grid.forward_device(points.clone())
+fn step(grid: &HashGrid, points: &Tensor<2>, weights: &Tensor<2>, form: Form) {
+    let enc = match form {
+        Form::Device => grid.forward_device(points.clone()),
+        Form::Host => grid.forward_host(points.clone()),
+        Form::Fused => grid.forward_fused(points.clone()),
     };
     let grads = enc.mul(weights.clone()).sum().backward();
     let g = grid
@@ -86,7 +96,10 @@ fn main() -> Result<()> {
         "{} points a step, {} levels of 2^{} rows x 2 features, {} timed steps of each form",
         args.points, args.levels, args.log2_table, args.steps
     );
-    println!("backend   device (ms/step)   host (ms/step)   host / device");
+    println!(
+        "backend   device (ms/step)   host (ms/step)   fused (ms/step)   host / device   \
+         fused / device"
+    );
     for &kind in &args.compute.backend {
         let device: Device = args.compute.of(kind).device().autodiff();
         device.seed(1);
@@ -101,23 +114,34 @@ fn main() -> Result<()> {
             Distribution::Uniform(-1.0, 1.0),
             &device,
         );
-        step(&grid, &points, &weights, false);
-        step(&grid, &points, &weights, true);
-        let mut seconds = [0.0f64; 2];
+        // The one-pass form runs on the CPU backends only.
+        let cpu = model::host_work::is_cpu_backend(&device);
+        let forms: &[Form] = if cpu {
+            &[Form::Device, Form::Host, Form::Fused]
+        } else {
+            &[Form::Device, Form::Host]
+        };
+        for &form in forms {
+            step(&grid, &points, &weights, form);
+        }
+        let mut seconds = [0.0f64; 3];
         for _ in 0..args.steps {
-            for (form, host) in [(0, false), (1, true)] {
+            for (i, &form) in forms.iter().enumerate() {
                 let start = Instant::now();
-                step(&grid, &points, &weights, host);
-                seconds[form] += start.elapsed().as_secs_f64();
+                step(&grid, &points, &weights, form);
+                seconds[i] += start.elapsed().as_secs_f64();
             }
         }
         let ms = seconds.map(|s| 1e3 * s / args.steps as f64);
+        let fused = |v: f64| if cpu { format!("{v:.2}") } else { "-".into() };
         println!(
-            "{:<9} {:>17.2}   {:>14.2}   {:>13.2}",
+            "{:<9} {:>17.2}   {:>14.2}   {:>15}   {:>13.2}   {:>14}",
             kind.name(),
             ms[0],
             ms[1],
-            ms[1] / ms[0]
+            fused(ms[2]),
+            ms[1] / ms[0],
+            fused(ms[2] / ms[0]),
         );
     }
     Ok(())

@@ -1,0 +1,304 @@
+//! The hash encoding computed in one pass on the CPU backends: for each
+//! level, every point's cell, its eight corner rows and trilinear weights,
+//! and the weighted sum of those rows, with no corner array written to
+//! memory; and its backward, the same corners recomputed and the output's
+//! gradient scatter-added into the level's rows.
+//!
+//! The work goes level by level: one level's table (2^15 rows of two
+//! features: 256 KB) stays in the core's cache while every point reads it,
+//! where point by point each read lands in another level's table. Levels
+//! run in parallel, and since each level writes only its own rows of the
+//! table's gradient, the backward needs no atomics.
+//!
+//! It is a Burn backend extension ([`HashEncode`]): flex runs the loops on
+//! its tensors' memory, ndarray through copies, and the autodiff form
+//! registers the backward. The GPU backends keep the tensor-op form
+//! ([`crate::hashgrid::HashGrid::forward_device`]).
+
+// ndarray is deprecated upstream; the workspace keeps it as the reference
+// CPU backend, so the extension routes to it too.
+#![allow(deprecated)]
+
+use burn::backend::autodiff::Autodiff;
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::ops::FloatTensorOps;
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Backend, Dispatch, Flex, TensorMetadata, backend_extension};
+use burn::tensor::{DType, Tensor, TensorData};
+use rayon::prelude::*;
+
+/// Instant-NGP's spatial hash primes.
+pub const PRIMES: [u32; 3] = [1, 2_654_435_761, 805_459_861];
+
+/// The table row of vertex `v` of a level with `res` cells across and
+/// `rows` rows: dense indexing where the grid fits, the hash elsewhere.
+pub fn vertex_row(v: [u32; 3], res: u32, rows: usize) -> usize {
+    let side = res as u64 + 1;
+    if side * side * side <= rows as u64 {
+        (v[0] as u64 + side * (v[1] as u64 + side * v[2] as u64)) as usize
+    } else {
+        let h = v[0].wrapping_mul(PRIMES[0])
+            ^ v[1].wrapping_mul(PRIMES[1])
+            ^ v[2].wrapping_mul(PRIMES[2]);
+        h as usize & (rows - 1)
+    }
+}
+
+/// A point of the grids' cube (half side `half_extent`) in the unit cube,
+/// clamped to it.
+pub fn unit_point(p: &[f32], half_extent: f32) -> [f32; 3] {
+    let scale = 0.5 / half_extent;
+    [
+        ((p[0] * scale) + 0.5).clamp(0.0, 1.0),
+        ((p[1] * scale) + 0.5).clamp(0.0, 1.0),
+        ((p[2] * scale) + 0.5).clamp(0.0, 1.0),
+    ]
+}
+
+/// The rows (within the level's table of `rows` rows) and trilinear
+/// weights of the eight corners of unit point `u`'s cell at a level of
+/// `res` cells across; corner `c` takes axis `k`'s upper vertex where bit
+/// `k` of `c` is set.
+pub fn level_corners(u: [f32; 3], res: u32, rows: usize) -> ([usize; 8], [f32; 8]) {
+    let mut cell = [0u32; 3];
+    let mut frac = [0f32; 3];
+    for k in 0..3 {
+        let x = u[k] * res as f32;
+        let c = (x.floor() as u32).min(res.saturating_sub(1));
+        cell[k] = c;
+        frac[k] = x - c as f32;
+    }
+    let mut ids = [0usize; 8];
+    let mut weights = [0f32; 8];
+    for corner in 0..8u32 {
+        let mut v = cell;
+        let mut w = 1.0;
+        for k in 0..3 {
+            if corner >> k & 1 == 1 {
+                v[k] += 1;
+                w *= frac[k];
+            } else {
+                w *= 1.0 - frac[k];
+            }
+        }
+        ids[corner as usize] = vertex_row(v, res, rows);
+        weights[corner as usize] = w;
+    }
+    (ids, weights)
+}
+
+/// What the encoding needs of a grid besides its table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridSpec {
+    /// Cells across the domain at each level.
+    pub resolutions: Vec<u32>,
+    /// Rows of each level's table.
+    pub rows: usize,
+    /// Half the side of the covered cube.
+    pub half_extent: f32,
+}
+
+/// The encoding of `points` (`[n, 3]`, flat) from `table` (`[levels *
+/// rows, features]`, flat): `[n, levels * features]`, flat.
+pub fn encode(points: &[f32], table: &[f32], spec: &GridSpec, features: usize) -> Vec<f32> {
+    let n = points.len() / 3;
+    let f = features.max(1);
+    let levels = spec.resolutions.len();
+    let per_level: Vec<Vec<f32>> = (0..levels)
+        .into_par_iter()
+        .map(|l| {
+            let res = spec.resolutions[l];
+            let level = &table[l * spec.rows * f..(l + 1) * spec.rows * f];
+            let mut out = vec![0.0f32; n * f];
+            for (p, acc) in points.chunks_exact(3).zip(out.chunks_exact_mut(f)) {
+                let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
+                for (&row, &w) in ids.iter().zip(&weights) {
+                    for (a, &t) in acc.iter_mut().zip(&level[row * f..row * f + f]) {
+                        *a += w * t;
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    let mut out = vec![0.0f32; n * levels * f];
+    for (l, level) in per_level.iter().enumerate() {
+        for (i, values) in level.chunks_exact(f).enumerate() {
+            out[(i * levels + l) * f..(i * levels + l + 1) * f].copy_from_slice(values);
+        }
+    }
+    out
+}
+
+/// The gradient of [`encode`] with respect to the table, from the output's
+/// gradient `grad` (`[n, levels * features]`, flat): `[levels * rows,
+/// features]`, flat.
+pub fn encode_backward(points: &[f32], grad: &[f32], spec: &GridSpec, features: usize) -> Vec<f32> {
+    let f = features.max(1);
+    let levels = spec.resolutions.len();
+    let mut table = vec![0.0f32; levels * spec.rows * f];
+    table
+        .par_chunks_mut(spec.rows * f)
+        .enumerate()
+        .for_each(|(l, level)| {
+            let res = spec.resolutions[l];
+            for (i, p) in points.chunks_exact(3).enumerate() {
+                let g = &grad[(i * levels + l) * f..(i * levels + l + 1) * f];
+                let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
+                for (&row, &w) in ids.iter().zip(&weights) {
+                    for (t, &v) in level[row * f..row * f + f].iter_mut().zip(g) {
+                        *t += w * v;
+                    }
+                }
+            }
+        });
+    table
+}
+
+/// The hash encoding as one backend operation.
+#[backend_extension(Flex, NdArray, Autodiff)]
+pub trait HashEncode: Backend {
+    /// The encoding of `points` (`[n, 3]`, no gradient) from `table`
+    /// (`[levels * rows, features]`): `[n, levels * features]` ([`encode`]).
+    fn hash_encode(
+        points: FloatTensor<Self>,
+        table: FloatTensor<Self>,
+        spec: GridSpec,
+    ) -> FloatTensor<Self> {
+        let features = table.shape()[1];
+        let device = table.device();
+        let n = points.shape()[0];
+        let out = encode(&host::<Self>(points), &host::<Self>(table), &spec, features);
+        let shape = [n, spec.resolutions.len() * features];
+        Self::float_from_data(TensorData::new(out, shape), &device)
+    }
+
+    /// The table's gradient from the encoding's, `grad` (`[n, levels *
+    /// features]`): `[levels * rows, features]` ([`encode_backward`]).
+    fn hash_encode_backward(
+        points: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+        spec: GridSpec,
+    ) -> FloatTensor<Self> {
+        let levels = spec.resolutions.len().max(1);
+        let features = grad.shape()[1] / levels;
+        let device = grad.device();
+        let table = encode_backward(&host::<Self>(points), &host::<Self>(grad), &spec, features);
+        let shape = [levels * spec.rows, features];
+        Self::float_from_data(TensorData::new(table, shape), &device)
+    }
+}
+
+/// A tensor's values on the host as f32 (a copy).
+fn host<B: Backend>(t: FloatTensor<B>) -> Vec<f32> {
+    let data = burn::tensor::try_read_sync(B::float_into_data(t))
+        .and_then(Result::ok)
+        .expect("a CPU backend's tensor reads synchronously");
+    data.convert::<f32>()
+        .into_vec::<f32>()
+        .expect("converted to f32")
+}
+
+impl HashEncode for burn::backend::NdArray {}
+
+impl HashEncode for Flex {
+    fn hash_encode(
+        points: FloatTensor<Self>,
+        table: FloatTensor<Self>,
+        spec: GridSpec,
+    ) -> FloatTensor<Self> {
+        if points.dtype() != DType::F32 || table.dtype() != DType::F32 {
+            let features = table.shape()[1];
+            let out = encode(&host::<Flex>(points), &host::<Flex>(table), &spec, features);
+            let n = out.len() / (spec.resolutions.len() * features).max(1);
+            let shape = [n, spec.resolutions.len() * features];
+            return Flex::float_from_data(TensorData::new(out, shape), &Default::default());
+        }
+        let features = table.shape()[1];
+        let (points, table) = (points.to_contiguous(), table.to_contiguous());
+        let out = encode(points.storage::<f32>(), table.storage::<f32>(), &spec, features);
+        let n = points.shape()[0];
+        let shape = [n, spec.resolutions.len() * features];
+        Flex::float_from_data(TensorData::new(out, shape), &Default::default())
+    }
+
+    fn hash_encode_backward(
+        points: FloatTensor<Self>,
+        grad: FloatTensor<Self>,
+        spec: GridSpec,
+    ) -> FloatTensor<Self> {
+        let levels = spec.resolutions.len().max(1);
+        let features = grad.shape()[1] / levels;
+        let shape = [levels * spec.rows, features];
+        let table = if points.dtype() == DType::F32 && grad.dtype() == DType::F32 {
+            let (points, grad) = (points.to_contiguous(), grad.to_contiguous());
+            encode_backward(points.storage::<f32>(), grad.storage::<f32>(), &spec, features)
+        } else {
+            encode_backward(&host::<Flex>(points), &host::<Flex>(grad), &spec, features)
+        };
+        Flex::float_from_data(TensorData::new(table, shape), &Default::default())
+    }
+}
+
+impl<B: Backend + HashEncode, C: CheckpointStrategy> HashEncode for Autodiff<B, C> {
+    fn hash_encode(
+        points: FloatTensor<Self>,
+        table: FloatTensor<Self>,
+        spec: GridSpec,
+    ) -> FloatTensor<Self> {
+        #[derive(Debug)]
+        struct HashEncodeBackward;
+
+        impl<B: Backend + HashEncode> Backward<B, 1> for HashEncodeBackward {
+            type State = (FloatTensor<B>, GridSpec);
+
+            fn backward(
+                self,
+                ops: Ops<Self::State, 1>,
+                grads: &mut Gradients,
+                _checkpointer: &mut Checkpointer,
+            ) {
+                let [node] = ops.parents;
+                let grad = grads.consume::<B>(&ops.node);
+                let (points, spec) = ops.state;
+                if let Some(node) = node {
+                    grads.register::<B>(node.id, B::hash_encode_backward(points, grad, spec));
+                }
+            }
+        }
+
+        // The positions are constants: the encoding's gradient reaches only
+        // the table.
+        let points = points.into_primitive();
+        match HashEncodeBackward
+            .prepare::<C>([table.node()])
+            .compute_bound()
+            .stateful()
+        {
+            OpsKind::Tracked(prep) => {
+                let out = B::hash_encode(points.clone(), table.into_primitive(), spec.clone());
+                prep.finish((points, spec), out)
+            }
+            OpsKind::UnTracked(prep) => {
+                prep.finish(B::hash_encode(points, table.into_primitive(), spec))
+            }
+        }
+    }
+}
+
+/// [`HashEncode::hash_encode`] on tensors of a CPU backend (flex or
+/// ndarray, with or without autodiff).
+///
+/// # Shapes
+/// - `points`: `[n, 3]`; `table`: `[levels * rows, features]`; output:
+///   `[n, levels * features]`.
+pub fn hash_encode(points: Tensor<2>, table: Tensor<2>, spec: GridSpec) -> Tensor<2> {
+    Tensor::from_dispatch(<Dispatch as HashEncode>::hash_encode(
+        points.detach().into_dispatch(),
+        table.into_dispatch(),
+        spec,
+    ))
+}
