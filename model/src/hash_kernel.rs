@@ -35,6 +35,7 @@ pub const PRIMES: [u32; 3] = [1, 2_654_435_761, 805_459_861];
 
 /// The table row of vertex `v` of a level with `res` cells across and
 /// `rows` rows: dense indexing where the grid fits, the hash elsewhere.
+#[inline(always)]
 pub fn vertex_row(v: [u32; 3], res: u32, rows: usize) -> usize {
     let side = res as u64 + 1;
     if side * side * side <= rows as u64 {
@@ -62,12 +63,15 @@ pub fn unit_point(p: &[f32], half_extent: f32) -> [f32; 3] {
 /// weights of the eight corners of unit point `u`'s cell at a level of
 /// `res` cells across; corner `c` takes axis `k`'s upper vertex where bit
 /// `k` of `c` is set.
+#[inline(always)]
 pub fn level_corners(u: [f32; 3], res: u32, rows: usize) -> ([usize; 8], [f32; 8]) {
     let mut cell = [0u32; 3];
     let mut frac = [0f32; 3];
     for k in 0..3 {
         let x = u[k] * res as f32;
-        let c = (x.floor() as u32).min(res.saturating_sub(1));
+        // `x` is not negative (the point is clamped to the unit cube), so
+        // the conversion's truncation is its floor.
+        let c = (x as u32).min(res.saturating_sub(1));
         cell[k] = c;
         frac[k] = x - c as f32;
     }
@@ -112,16 +116,11 @@ pub fn encode(points: &[f32], table: &[f32], spec: &GridSpec, features: usize) -
         .map(|l| {
             let res = spec.resolutions[l];
             let level = &table[l * spec.rows * f..(l + 1) * spec.rows * f];
-            let mut out = vec![0.0f32; n * f];
-            for (p, acc) in points.chunks_exact(3).zip(out.chunks_exact_mut(f)) {
-                let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
-                for (&row, &w) in ids.iter().zip(&weights) {
-                    for (a, &t) in acc.iter_mut().zip(&level[row * f..row * f + f]) {
-                        *a += w * t;
-                    }
-                }
+            match f {
+                2 => encode_level::<2>(points, level, res, spec),
+                4 => encode_level::<4>(points, level, res, spec),
+                _ => encode_level_any(points, level, res, spec, f),
             }
-            out
         })
         .collect();
     let mut out = vec![0.0f32; n * levels * f];
@@ -145,17 +144,89 @@ pub fn encode_backward(points: &[f32], grad: &[f32], spec: &GridSpec, features: 
         .enumerate()
         .for_each(|(l, level)| {
             let res = spec.resolutions[l];
-            for (i, p) in points.chunks_exact(3).enumerate() {
-                let g = &grad[(i * levels + l) * f..(i * levels + l + 1) * f];
-                let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
-                for (&row, &w) in ids.iter().zip(&weights) {
-                    for (t, &v) in level[row * f..row * f + f].iter_mut().zip(g) {
-                        *t += w * v;
+            let row_grad = |i: usize| &grad[(i * levels + l) * f..(i * levels + l + 1) * f];
+            match f {
+                2 => scatter_level::<2>(points, row_grad, level, res, spec),
+                _ => {
+                    for (i, p) in points.chunks_exact(3).enumerate() {
+                        let g = row_grad(i);
+                        let (ids, weights) =
+                            level_corners(unit_point(p, spec.half_extent), res, spec.rows);
+                        for (&row, &w) in ids.iter().zip(&weights) {
+                            for (t, &v) in level[row * f..row * f + f].iter_mut().zip(g) {
+                                *t += w * v;
+                            }
+                        }
                     }
                 }
             }
         });
     table
+}
+
+/// One level's part of [`encode_backward`], `F` features a row: each
+/// point's gradient (`row_grad(i)`), weighted, added to its corners' rows.
+fn scatter_level<'g, const F: usize>(
+    points: &[f32],
+    row_grad: impl Fn(usize) -> &'g [f32],
+    level: &mut [f32],
+    res: u32,
+    spec: &GridSpec,
+) {
+    for (i, p) in points.chunks_exact(3).enumerate() {
+        let g: [f32; F] = std::array::from_fn(|k| row_grad(i)[k]);
+        let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
+        for (&row, &w) in ids.iter().zip(&weights) {
+            let t = &mut level[row * F..row * F + F];
+            for k in 0..F {
+                t[k] += w * g[k];
+            }
+        }
+    }
+}
+
+/// One level's encoding of every point, `F` features a row: `[n, F]`.
+fn encode_level<const F: usize>(
+    points: &[f32],
+    level: &[f32],
+    res: u32,
+    spec: &GridSpec,
+) -> Vec<f32> {
+    let n = points.len() / 3;
+    let mut out = vec![0.0f32; n * F];
+    for (p, acc) in points.chunks_exact(3).zip(out.chunks_exact_mut(F)) {
+        let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
+        let mut sum = [0.0f32; F];
+        for (&row, &w) in ids.iter().zip(&weights) {
+            let t = &level[row * F..row * F + F];
+            for k in 0..F {
+                sum[k] += w * t[k];
+            }
+        }
+        acc.copy_from_slice(&sum);
+    }
+    out
+}
+
+/// [`encode_level`] for any number of features.
+fn encode_level_any(
+    points: &[f32],
+    level: &[f32],
+    res: u32,
+    spec: &GridSpec,
+    f: usize,
+) -> Vec<f32> {
+    let n = points.len() / 3;
+    let mut out = vec![0.0f32; n * f];
+    for (p, acc) in points.chunks_exact(3).zip(out.chunks_exact_mut(f)) {
+        let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
+        for (&row, &w) in ids.iter().zip(&weights) {
+            for (a, &t) in acc.iter_mut().zip(&level[row * f..row * f + f]) {
+                *a += w * t;
+            }
+        }
+    }
+    out
 }
 
 /// The hash encoding as one backend operation.
@@ -219,7 +290,12 @@ impl HashEncode for Flex {
         }
         let features = table.shape()[1];
         let (points, table) = (points.to_contiguous(), table.to_contiguous());
-        let out = encode(points.storage::<f32>(), table.storage::<f32>(), &spec, features);
+        let out = encode(
+            points.storage::<f32>(),
+            table.storage::<f32>(),
+            &spec,
+            features,
+        );
         let n = points.shape()[0];
         let shape = [n, spec.resolutions.len() * features];
         Flex::float_from_data(TensorData::new(out, shape), &Default::default())
@@ -235,7 +311,12 @@ impl HashEncode for Flex {
         let shape = [levels * spec.rows, features];
         let table = if points.dtype() == DType::F32 && grad.dtype() == DType::F32 {
             let (points, grad) = (points.to_contiguous(), grad.to_contiguous());
-            encode_backward(points.storage::<f32>(), grad.storage::<f32>(), &spec, features)
+            encode_backward(
+                points.storage::<f32>(),
+                grad.storage::<f32>(),
+                &spec,
+                features,
+            )
         } else {
             encode_backward(&host::<Flex>(points), &host::<Flex>(grad), &spec, features)
         };
