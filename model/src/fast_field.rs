@@ -13,11 +13,11 @@
 
 use burn::config::Config;
 use burn::module::Module;
-use burn::nn::{Initializer, Linear, LinearConfig};
+use burn::nn::{Linear, LinearConfig};
 use burn::tensor::activation::{relu, sigmoid};
 use burn::tensor::{Device, Tensor};
 
-use crate::field::FieldOutputs;
+use crate::field::{FieldOutputs, split_linear};
 use crate::hashgrid::{HashGrid, HashGridConfig};
 use crate::sh::sh_dim;
 
@@ -55,7 +55,7 @@ pub struct FastFieldConfig {
 const MAX_LOG_DENSITY: f32 = 15.0;
 
 /// The fast field's density from the density MLP's raw output: `exp(raw)`,
-/// the raw value capped at [`MAX_LOG_DENSITY`] (Instant-NGP's activation:
+/// the raw value capped at 15 (Instant-NGP's activation:
 /// its range spans the orders of magnitude between empty space and a
 /// surface, where a softplus would need raw values as large as the density).
 ///
@@ -63,19 +63,6 @@ const MAX_LOG_DENSITY: f32 = 15.0;
 /// - `raw`: `[n, 1]`; output: `[n, 1]`, positive.
 pub fn exp_density(raw: Tensor<2>) -> Tensor<2> {
     raw.clamp_max(MAX_LOG_DENSITY).exp()
-}
-
-/// A linear layer whose weights are drawn as if it had `fan_in` inputs (the
-/// halves of the first colour layer).
-fn split_linear(d_in: usize, d_out: usize, fan_in: usize, bias: bool, device: &Device) -> Linear {
-    let bound = 1.0 / (fan_in.max(1) as f64).sqrt();
-    LinearConfig::new(d_in, d_out)
-        .with_bias(bias)
-        .with_initializer(Initializer::Uniform {
-            min: -bound,
-            max: bound,
-        })
-        .init(device)
 }
 
 impl FastFieldConfig {

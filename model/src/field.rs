@@ -40,7 +40,13 @@ pub struct MipMlpConfig {
 
 /// A linear layer whose weights are drawn as if it had `fan_in` inputs (the
 /// default uniform `+-1/sqrt(fan_in)`), for the halves of a split layer.
-fn split_linear(d_in: usize, d_out: usize, fan_in: usize, bias: bool, device: &Device) -> Linear {
+pub(crate) fn split_linear(
+    d_in: usize,
+    d_out: usize,
+    fan_in: usize,
+    bias: bool,
+    device: &Device,
+) -> Linear {
     let bound = 1.0 / (fan_in.max(1) as f64).sqrt();
     LinearConfig::new(d_in, d_out)
         .with_bias(bias)

@@ -239,12 +239,7 @@ pub trait HashEncode: Backend {
         table: FloatTensor<Self>,
         spec: GridSpec,
     ) -> FloatTensor<Self> {
-        let features = table.shape()[1];
-        let device = table.device();
-        let n = points.shape()[0];
-        let out = encode(&host::<Self>(points), &host::<Self>(table), &spec, features);
-        let shape = [n, spec.resolutions.len() * features];
-        Self::float_from_data(TensorData::new(out, shape), &device)
+        encode_copied::<Self>(points, table, spec)
     }
 
     /// The table's gradient from the encoding's, `grad` (`[n, levels *
@@ -254,13 +249,36 @@ pub trait HashEncode: Backend {
         grad: FloatTensor<Self>,
         spec: GridSpec,
     ) -> FloatTensor<Self> {
-        let levels = spec.resolutions.len().max(1);
-        let features = grad.shape()[1] / levels;
-        let device = grad.device();
-        let table = encode_backward(&host::<Self>(points), &host::<Self>(grad), &spec, features);
-        let shape = [levels * spec.rows, features];
-        Self::float_from_data(TensorData::new(table, shape), &device)
+        backward_copied::<Self>(points, grad, spec)
     }
+}
+
+/// [`encode`] on copies of the tensors' values (any CPU backend).
+fn encode_copied<B: Backend>(
+    points: FloatTensor<B>,
+    table: FloatTensor<B>,
+    spec: GridSpec,
+) -> FloatTensor<B> {
+    let features = table.shape()[1];
+    let device = table.device();
+    let n = points.shape()[0];
+    let out = encode(&host::<B>(points), &host::<B>(table), &spec, features);
+    let shape = [n, spec.resolutions.len() * features];
+    B::float_from_data(TensorData::new(out, shape), &device)
+}
+
+/// [`encode_backward`] on copies of the tensors' values (any CPU backend).
+fn backward_copied<B: Backend>(
+    points: FloatTensor<B>,
+    grad: FloatTensor<B>,
+    spec: GridSpec,
+) -> FloatTensor<B> {
+    let levels = spec.resolutions.len().max(1);
+    let features = grad.shape()[1] / levels;
+    let device = grad.device();
+    let table = encode_backward(&host::<B>(points), &host::<B>(grad), &spec, features);
+    let shape = [levels * spec.rows, features];
+    B::float_from_data(TensorData::new(table, shape), &device)
 }
 
 /// A tensor's values on the host as f32 (a copy).
@@ -275,6 +293,8 @@ fn host<B: Backend>(t: FloatTensor<B>) -> Vec<f32> {
 
 impl HashEncode for burn::backend::NdArray {}
 
+/// flex runs the loops on its tensors' own memory (f32; other dtypes on
+/// copies).
 impl HashEncode for Flex {
     fn hash_encode(
         points: FloatTensor<Self>,
@@ -282,11 +302,7 @@ impl HashEncode for Flex {
         spec: GridSpec,
     ) -> FloatTensor<Self> {
         if points.dtype() != DType::F32 || table.dtype() != DType::F32 {
-            let features = table.shape()[1];
-            let out = encode(&host::<Flex>(points), &host::<Flex>(table), &spec, features);
-            let n = out.len() / (spec.resolutions.len() * features).max(1);
-            let shape = [n, spec.resolutions.len() * features];
-            return Flex::float_from_data(TensorData::new(out, shape), &Default::default());
+            return encode_copied::<Self>(points, table, spec);
         }
         let features = table.shape()[1];
         let (points, table) = (points.to_contiguous(), table.to_contiguous());
@@ -296,8 +312,7 @@ impl HashEncode for Flex {
             &spec,
             features,
         );
-        let n = points.shape()[0];
-        let shape = [n, spec.resolutions.len() * features];
+        let shape = [points.shape()[0], spec.resolutions.len() * features];
         Flex::float_from_data(TensorData::new(out, shape), &Default::default())
     }
 
@@ -306,20 +321,19 @@ impl HashEncode for Flex {
         grad: FloatTensor<Self>,
         spec: GridSpec,
     ) -> FloatTensor<Self> {
+        if points.dtype() != DType::F32 || grad.dtype() != DType::F32 {
+            return backward_copied::<Self>(points, grad, spec);
+        }
         let levels = spec.resolutions.len().max(1);
         let features = grad.shape()[1] / levels;
+        let (points, grad) = (points.to_contiguous(), grad.to_contiguous());
+        let table = encode_backward(
+            points.storage::<f32>(),
+            grad.storage::<f32>(),
+            &spec,
+            features,
+        );
         let shape = [levels * spec.rows, features];
-        let table = if points.dtype() == DType::F32 && grad.dtype() == DType::F32 {
-            let (points, grad) = (points.to_contiguous(), grad.to_contiguous());
-            encode_backward(
-                points.storage::<f32>(),
-                grad.storage::<f32>(),
-                &spec,
-                features,
-            )
-        } else {
-            encode_backward(&host::<Flex>(points), &host::<Flex>(grad), &spec, features)
-        };
         Flex::float_from_data(TensorData::new(table, shape), &Default::default())
     }
 }

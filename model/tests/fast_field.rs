@@ -178,7 +178,7 @@ fn gradients_match_finite_differences() {
     };
     let grads = loss(&m).backward();
     let fast = m.fast.as_ref().expect("fast");
-    let checks: Vec<(&str, Tensor<2>, Box<dyn Fn(&mut OpenNerf, Tensor<2>)>)> = vec![
+    let checks: Vec<(&str, Tensor<2>, Box<SetWeights>)> = vec![
         (
             "density_out",
             fast.density_out.weight.val(),
@@ -222,6 +222,9 @@ fn gradients_match_finite_differences() {
         }
     }
 }
+
+/// Puts a weight tensor back into a field.
+type SetWeights = dyn Fn(&mut OpenNerf, Tensor<2>);
 
 fn plain_dims(m: &OpenNerf, name: &str) -> [usize; 2] {
     let fast = m.fast.as_ref().expect("fast");

@@ -167,6 +167,44 @@ fn training_beats_initialisation_and_writes_a_complete_run() {
     assert_eq!(ckpts, vec![150, 300]);
 }
 
+/// A run of `2 n` iterations trained whole, and the same run stopped after
+/// `n` and resumed from its checkpoint: their directories and outcomes
+/// (whole, first half, resumed).
+struct Halves {
+    whole: tempfile::TempDir,
+    parts: tempfile::TempDir,
+    a: train::RunOutcome,
+    half: train::RunOutcome,
+    b: train::RunOutcome,
+}
+
+fn whole_and_resumed(config: train::config::TrainConfig, n: usize) -> Halves {
+    let scene = ci_scene();
+    let whole = scratch_dir();
+    let a = train::train_new(
+        scene,
+        config.clone(),
+        4,
+        whole.path(),
+        &session(BackendKind::Flex),
+    )
+    .unwrap();
+    let parts = scratch_dir();
+    let first = SessionOptions {
+        stop_at: Some(n),
+        ..session(BackendKind::Flex)
+    };
+    let half = train::train_new(scene, config, 4, parts.path(), &first).unwrap();
+    let b = train::resume(parts.path(), None, &session(BackendKind::Flex)).unwrap();
+    Halves {
+        whole,
+        parts,
+        a,
+        half,
+        b,
+    }
+}
+
 /// The fast field (with its hash-grid proposal sampler) resumed halfway
 /// ends with the weights of the uninterrupted run: its tables, MLPs and
 /// their Adam state are all in the checkpoint.
@@ -190,22 +228,9 @@ fn a_resumed_fast_field_run_matches_the_uninterrupted_one() {
             .with_width(8)
             .with_hash(Some(grid.with_levels(2))),
     );
-    let whole = scratch_dir();
-    train::train_new(
-        scene,
-        config.clone(),
-        4,
-        whole.path(),
-        &session(BackendKind::Flex),
-    )
-    .unwrap();
-    let parts = scratch_dir();
-    let first = SessionOptions {
-        stop_at: Some(n),
-        ..session(BackendKind::Flex)
-    };
-    train::train_new(scene, config, 4, parts.path(), &first).unwrap();
-    let b = train::resume(parts.path(), None, &session(BackendKind::Flex)).unwrap();
+    let Halves {
+        whole, parts, b, ..
+    } = whole_and_resumed(config, n);
     assert_eq!(b.summary.iterations, 2 * n);
     let (wa, wb) = (weights(whole.path()), weights(parts.path()));
     assert_eq!(wa.len(), wb.len());
@@ -224,27 +249,17 @@ fn resumed_run_matches_the_uninterrupted_one_and_corruption_is_reported() {
     let _guard = serial();
     let scene = ci_scene();
     let n = 20;
-    let whole = scratch_dir();
     let mut config = tiny_config(scene, 2 * n);
     config.logging.eval_every = 0;
     config.logging.checkpoint_every = n;
-    let a = train::train_new(
-        scene,
-        config.clone(),
-        4,
-        whole.path(),
-        &session(BackendKind::Flex),
-    )
-    .unwrap();
-
-    let parts = scratch_dir();
-    let first = SessionOptions {
-        stop_at: Some(n),
-        ..session(BackendKind::Flex)
-    };
-    let half = train::train_new(scene, config, 4, parts.path(), &first).unwrap();
+    let Halves {
+        whole,
+        parts,
+        a,
+        half,
+        b,
+    } = whole_and_resumed(config, n);
     assert_eq!(half.summary.iterations, n);
-    let b = train::resume(parts.path(), None, &session(BackendKind::Flex)).unwrap();
     assert_eq!(b.summary.iterations, 2 * n);
 
     // Same batches, same jitter, same Adam state: the same weights.

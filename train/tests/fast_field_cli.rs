@@ -74,7 +74,9 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
     let plain = tmp.path().join("plain");
     let err = tiny_run(tmp.path(), &plain, TINY, &[]);
     assert!(
-        err.contains("field model: mip, the Mip-NeRF MLP of 2 x 16 (auto: the paper's field"),
+        err.contains(
+            "field model: mip, the Mip-NeRF MLP of 2 x 16 (auto: a room stood in: the paper's field"
+        ),
         "{err}"
     );
     assert!(json(&plain.join("config.json"))["model"]["fast"].is_null());

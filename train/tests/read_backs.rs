@@ -1,7 +1,8 @@
 //! A training step reads nothing back to the host: every combination of
 //! field (box, unbounded), sampler (coarse and fine level, proposal
 //! rounds), hash encoding, occupancy grid, and appearance codes with sparse
-//! depth takes its step without a read on a GPU backend (wgpu, here on a
+//! depth, with the Mip-NeRF MLP or the fast field (and its hash-grid
+//! proposal networks), takes its step without a read on a GPU backend (wgpu, here on a
 //! CPU Vulkan driver), and on the CPU backends reads only for the work they
 //! do on the host by design (the hash encoding's corners, the proposal
 //! rounds' resampling: `model::host_work`). Every backend's step measures
@@ -13,8 +14,9 @@ use burn::tensor::{Device, Tensor, TensorData};
 use model::geometry::NormalizedRay;
 use model::host_work::{ReadReason, read_backs};
 use model::{
-    AppearanceCodesConfig, FeatureHeadConfig, GridUse, HashGridConfig, MipMlpConfig,
-    OccupancyConfig, OccupancyGrid, OpenNerf, OpenNerfConfig, ProposalConfig, UnboundedConfig,
+    AppearanceCodesConfig, FastFieldConfig, FeatureHeadConfig, GridUse, HashGridConfig,
+    MipMlpConfig, OccupancyConfig, OccupancyGrid, OpenNerf, OpenNerfConfig, ProposalConfig,
+    UnboundedConfig,
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
@@ -33,19 +35,32 @@ struct Parts {
     /// Appearance codes for two photographs, and depth targets on half the
     /// rays (sparse depth).
     extras: bool,
+    /// The fast field in place of the MLP (its own hash grid; the proposal
+    /// networks on a hash grid too).
+    fast: bool,
 }
 
 impl Parts {
     fn all() -> Vec<Parts> {
-        (0..32)
-            .map(|i| Parts {
-                unbounded: i & 1 != 0,
-                proposal: i & 2 != 0,
-                hash: i & 4 != 0,
-                grid: i & 8 != 0,
-                extras: i & 16 != 0,
-            })
-            .collect()
+        let mip = (0..32).map(|i| Parts {
+            unbounded: i & 1 != 0,
+            proposal: i & 2 != 0,
+            hash: i & 4 != 0,
+            grid: i & 8 != 0,
+            extras: i & 16 != 0,
+            fast: false,
+        });
+        // The fast field has no second grid: its combinations with the
+        // extras on.
+        let fast = (0..8).map(|i| Parts {
+            unbounded: i & 1 != 0,
+            proposal: i & 2 != 0,
+            hash: false,
+            grid: i & 4 != 0,
+            extras: true,
+            fast: true,
+        });
+        mip.chain(fast).collect()
     }
 
     fn config(&self) -> OpenNerfConfig {
@@ -61,13 +76,26 @@ impl Parts {
         if self.unbounded {
             c = c.with_unbounded(Some(UnboundedConfig::new(2.0)));
         }
+        let small_grid = HashGridConfig::new()
+            .with_levels(4)
+            .with_log2_table(8)
+            .with_max_resolution(64);
         if self.proposal {
             c = c.with_proposal(Some(
                 ProposalConfig::new()
                     .with_samples(vec![16, 8])
                     .with_depth(1)
                     .with_width(8)
-                    .with_max_deg(4),
+                    .with_max_deg(4)
+                    .with_hash(self.fast.then(|| small_grid.clone().with_levels(2))),
+            ));
+        }
+        if self.fast {
+            c = c.with_fast(Some(
+                FastFieldConfig::new()
+                    .with_grid(small_grid.clone())
+                    .with_density_width(8)
+                    .with_color_width(8),
             ));
         }
         if self.hash {
@@ -246,7 +274,11 @@ fn a_training_step_reads_nothing_back_for_every_combination() {
                 }
                 let hash_reads = reads.iter().any(|r| r.0 == ReadReason::HashCorners);
                 let round_reads = reads.iter().any(|r| r.0 == ReadReason::ProposalRound);
-                assert_eq!(hash_reads, parts.hash, "{what}: hash corners on the host");
+                assert_eq!(
+                    hash_reads,
+                    parts.hash || parts.fast,
+                    "{what}: hash corners on the host"
+                );
                 assert_eq!(round_reads, parts.proposal, "{what}: rounds on the host");
             }
             close(report.loss, flex.loss, &format!("{what}: loss"));

@@ -29,10 +29,10 @@ fn point(name: &str, flags: &[&str], budget: f64) -> SweepPoint {
 
 /// The points common to every scene, around the default run, each changing
 /// one knob (samples per ray, trunk width and depth, rays per batch, the
-/// occupancy grid, the time budget) at `budget` seconds.
+/// occupancy grid, the time budget, the field model) at `budget` seconds.
 pub fn common_points(budget: f64) -> Vec<SweepPoint> {
     let b = budget;
-    vec![
+    let mut points = vec![
         point("default", &[], b),
         point("samples-16", &["--samples", "16"], b),
         point("samples-32", &["--samples", "32"], b),
@@ -86,6 +86,34 @@ pub fn common_points(budget: f64) -> Vec<SweepPoint> {
             4.0 * b,
         ),
         point("grid-budget-4x", &["--occupancy-grid"], 4.0 * b),
+    ];
+    points.extend(fast_points(b));
+    points
+}
+
+/// The fast field's points (`--field-model fast`): with the coarse and
+/// fine sampler and with its hash-grid proposal networks, at the budget, at
+/// half and at double it, and with nerfacto's learning rate (1e-2).
+pub fn fast_points(budget: f64) -> Vec<SweepPoint> {
+    let b = budget;
+    let fast = ["--field-model", "fast"];
+    let proposal = ["--field-model", "fast", "--sampler", "proposal"];
+    let with = |base: &[&'static str], more: &[&'static str]| -> Vec<&'static str> {
+        base.iter().chain(more).copied().collect()
+    };
+    vec![
+        point("fast", &fast, b),
+        point("fast-budget-half", &fast, 0.5 * b),
+        point("fast-budget-double", &fast, 2.0 * b),
+        point("fast-lr-1e-2", &with(&fast, &["--lr", "1e-2"]), b),
+        point("fast-proposal", &proposal, b),
+        point("fast-proposal-budget-half", &proposal, 0.5 * b),
+        point("fast-proposal-budget-double", &proposal, 2.0 * b),
+        point(
+            "fast-proposal-lr-1e-2",
+            &with(&proposal, &["--lr", "1e-2"]),
+            b,
+        ),
     ]
 }
 

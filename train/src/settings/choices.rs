@@ -94,8 +94,8 @@ impl Choices {
         let by = |why| By::Kind(row.kind, why);
         Self {
             model: Decided {
-                value: FieldModel::Mip,
-                by: By::EveryKind(super::table::FIELD_MODEL_WHY),
+                value: row.model,
+                by: by(row.model_why),
             },
             extent: Decided {
                 value: row.extent,

@@ -16,7 +16,7 @@ pub enum FieldModel {
     Fast,
 }
 
-/// Why every row keeps the Mip-NeRF MLP.
+/// Why a row keeps the Mip-NeRF MLP.
 pub const FIELD_MODEL_WHY: &str = "the paper's field; the fast field is not yet measured better on any kind of capture \
      (docs/measurements/fast-field.md)";
 
@@ -55,6 +55,10 @@ pub enum Appearance {
 pub struct Row {
     /// The capture kind.
     pub kind: CaptureKind,
+    /// What gives density and colour.
+    pub model: FieldModel,
+    /// Why this field model.
+    pub model_why: &'static str,
     /// The field's extent.
     pub extent: Extent,
     /// Why this extent.
@@ -88,6 +92,8 @@ pub const NOT_MEASURED: &str = "not measured to help this capture";
 pub fn row(kind: CaptureKind) -> Row {
     let plain = Row {
         kind,
+        model: FieldModel::Mip,
+        model_why: FIELD_MODEL_WHY,
         extent: Extent::Box,
         extent_why: "",
         samples: None,
@@ -144,14 +150,18 @@ pub fn row(kind: CaptureKind) -> Row {
 /// them (the built-in 48 samples and 256 rays where a row keeps them).
 pub fn markdown() -> String {
     let mut s = String::from(
-        "| capture kind | field | sampler | samples per ray and level | rays a batch | \
-         appearance | hash grid | preset settings |\n|---|---|---|---|---|---|---|---|\n",
+        "| capture kind | field model | field | sampler | samples per ray and level | rays a \
+         batch | appearance | hash grid | preset settings |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     for kind in CaptureKind::ALL {
         let r = row(kind);
         s.push_str(&format!(
-            "| {} | {} | coarse-fine | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | coarse-fine | {} | {} | {} | {} | {} |\n",
             kind.describe(),
+            match r.model {
+                FieldModel::Mip => "mip",
+                FieldModel::Fast => "fast",
+            },
             match r.extent {
                 Extent::Box => "box",
                 Extent::Unbounded => "unbounded",
@@ -195,6 +205,7 @@ mod tests {
         for kind in CaptureKind::ALL {
             let r = row(kind);
             assert!(!r.extent_why.is_empty(), "{kind:?}");
+            assert!(r.model_why.contains("docs/"), "{kind:?}");
             if r.samples.is_some() || r.rays.is_some() {
                 assert!(r.sizes_why.contains("docs/"), "{kind:?}");
             }

@@ -5,7 +5,7 @@
 
 use burn::optim::{AdamConfig, GradientsParams};
 use burn::tensor::{Device, Tensor, TensorData};
-use model::{MipMlp, OpenNerf};
+use model::OpenNerf;
 
 /// Radius of the ball (the grid's, see `object_grid`).
 pub const RADIUS: f32 = 1.2;
@@ -46,10 +46,10 @@ fn batch(n: usize, rng: &mut Lcg) -> (Vec<f32>, Vec<f32>) {
     (points, target)
 }
 
-/// `model`'s MLP (on the autodiff device) after `steps` Adam steps (learning rate 1e-3) fitting its
+/// `model` (on the autodiff device) after `steps` Adam steps (learning rate 1e-3) fitting its
 /// density to the ball (squared error relative to the inside density, on
 /// points of radius 0.01), and the final loss.
-pub fn fit(model: OpenNerf, steps: usize, points: usize, device: &Device) -> (Option<MipMlp>, f32) {
+pub fn fit(model: OpenNerf, steps: usize, points: usize, device: &Device) -> (OpenNerf, f32) {
     let mut rng = Lcg(9);
     let mut optim = AdamConfig::new().init();
     let mut model = model;
@@ -68,5 +68,5 @@ pub fn fit(model: OpenNerf, steps: usize, points: usize, device: &Device) -> (Op
         let grads = GradientsParams::from_grads(loss.backward(), &model);
         model = optim.step(1e-3, model, grads);
     }
-    (model.mlp, last)
+    (model, last)
 }

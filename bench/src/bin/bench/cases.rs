@@ -8,11 +8,12 @@ use burn::optim::AdamConfig;
 use burn::tensor::{Device, Tensor, TensorData};
 use model::geometry::NormalizedRay;
 use model::{
-    FeatureHeadConfig, FeatureMode, MipMlp, MipMlpConfig, OccupancyConfig, OccupancyGrid,
+    FeatureHeadConfig, FeatureMode, MipMlpConfig, OccupancyConfig, OccupancyGrid, OpenNerf,
     OpenNerfConfig, ProposalConfig, RenderRequest, Termination,
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
+use train::settings::write::{fast_field, fast_proposal};
 use train::step::{StepRates, train_step_from_deferred};
 
 use crate::Size;
@@ -29,6 +30,12 @@ pub enum CaseName {
     /// Composited + top-k with the proposal sampler (two rounds of 64
     /// samples of the proposal MLP, then the MLP's samples).
     Proposal,
+    /// The fast field (`train --field-model fast`'s) in place of the MLP,
+    /// composited + top-k, the coarse and the fine level.
+    Fast,
+    /// The fast field with its hash-grid proposal networks (`train
+    /// --field-model fast --sampler proposal`'s: rounds of 64 and 32).
+    FastProposal,
 }
 
 /// Rays of the bench: `n` rays through the box from a plane in front of it.
@@ -84,6 +91,26 @@ pub struct Case {
     pub with_grid: bool,
     /// The proposal sampler instead of the coarse and the fine level.
     pub proposal: bool,
+    /// The fast field in place of the Mip-NeRF MLP.
+    pub fast: bool,
+}
+
+impl Case {
+    /// The field's configuration in this case: `mlp`, or the fast field
+    /// `train` builds; its proposal sampler as `train` builds it.
+    pub fn config(&self, mlp: &MipMlpConfig, size: crate::Size) -> OpenNerfConfig {
+        let proposal = match (self.proposal, self.fast) {
+            (false, _) => None,
+            (true, false) => Some(ProposalConfig::new()),
+            (true, true) => Some(fast_proposal()),
+        };
+        OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
+            .with_mlp(mlp.clone())
+            .with_fast(self.fast.then(fast_field))
+            .with_num_samples(size.samples)
+            .with_head_top_k((self.top_k > 0).then_some(self.top_k))
+            .with_proposal(proposal)
+    }
 }
 
 /// What one case measured.
@@ -115,8 +142,10 @@ pub struct Setup<'a> {
     pub ad: &'a Device,
     pub size: Size,
     pub mlp: &'a MipMlpConfig,
-    /// The MLP with its density fitted to the ball.
-    pub fitted: &'a Option<MipMlp>,
+    /// The Mip-NeRF field with its density fitted to the ball.
+    pub fitted: &'a OpenNerf,
+    /// The fast field fitted likewise, when a fast case is asked for.
+    pub fitted_fast: Option<&'a OpenNerf>,
     pub grid: &'a OccupancyGrid,
     /// Timed steps.
     pub steps: usize,
@@ -131,19 +160,19 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
         size,
         mlp,
         fitted,
+        fitted_fast,
         grid,
         steps,
         segment,
     } = *setup;
     ad.seed(0);
-    let config =
-        OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim).with_width(size.head_width))
-            .with_mlp(mlp.clone())
-            .with_num_samples(size.samples)
-            .with_head_top_k((case.top_k > 0).then_some(case.top_k))
-            .with_proposal(case.proposal.then(ProposalConfig::new));
-    let mut model = config.init(ad);
-    model.mlp = fitted.clone();
+    let mut model = case.config(mlp, size).init(ad);
+    if case.fast {
+        model.fast = fitted_fast.and_then(|f| f.fast.clone());
+        assert!(model.fast.is_some(), "a fast case has its fitted field");
+    } else {
+        model.mlp = fitted.mlp.clone();
+    }
     if case.with_grid {
         model = model.with_occupancy(Some(grid.clone()));
     }
@@ -260,7 +289,7 @@ fn inference(
 }
 
 /// The Burn cases, in the order printed, with their names.
-pub fn cases(top_k: usize) -> [(CaseName, Case); 4] {
+pub fn cases(top_k: usize) -> [(CaseName, Case); 6] {
     [
         (
             CaseName::Composited,
@@ -270,6 +299,7 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 4] {
                 top_k,
                 with_grid: false,
                 proposal: false,
+                fast: false,
             },
         ),
         (
@@ -280,6 +310,7 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 4] {
                 top_k: 0,
                 with_grid: false,
                 proposal: false,
+                fast: false,
             },
         ),
         (
@@ -290,6 +321,7 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 4] {
                 top_k,
                 with_grid: true,
                 proposal: false,
+                fast: false,
             },
         ),
         (
@@ -300,6 +332,29 @@ pub fn cases(top_k: usize) -> [(CaseName, Case); 4] {
                 top_k,
                 with_grid: false,
                 proposal: true,
+                fast: false,
+            },
+        ),
+        (
+            CaseName::Fast,
+            Case {
+                label: "fast field, composited",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: false,
+                proposal: false,
+                fast: true,
+            },
+        ),
+        (
+            CaseName::FastProposal,
+            Case {
+                label: "fast field + proposal",
+                path: FeatureMode::Composited,
+                top_k,
+                with_grid: false,
+                proposal: true,
+                fast: true,
             },
         ),
     ]

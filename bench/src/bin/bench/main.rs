@@ -77,7 +77,7 @@ struct Args {
     #[arg(long)]
     keep_subnormals: bool,
     /// Cases to run (all by default), e.g. `--cases plain` to profile one.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [CaseName::Composited, CaseName::Plain, CaseName::Grid, CaseName::Proposal])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [CaseName::Composited, CaseName::Plain, CaseName::Grid, CaseName::Proposal, CaseName::Fast, CaseName::FastProposal])]
     cases: Vec<CaseName>,
     /// Samples evaluated between two checks of the early ray termination.
     #[arg(long, default_value_t = Termination::default().segment)]
@@ -92,7 +92,7 @@ struct Args {
 
 /// Sizes of one case.
 #[derive(Debug, Clone, Copy)]
-struct Size {
+pub struct Size {
     rays: usize,
     samples: usize,
     width: usize,
@@ -102,27 +102,39 @@ struct Size {
 }
 
 impl Size {
-    /// Multiply-add FLOPs (x2) of one forward pass of the MLP and head over
-    /// both levels (with `proposal`: the MLP's one level and the proposal
-    /// MLP's rounds); the backward pass costs twice that, hence x3 per step.
-    fn step_flops(
-        &self,
-        mlp: &MipMlpConfig,
-        path: FeatureMode,
-        top_k: usize,
-        proposal: Option<&model::ProposalConfig>,
-    ) -> f64 {
-        let (w, s, n) = (self.width as f64, self.samples as f64, self.rays as f64);
-        let input = mlp.input_dim() as f64;
-        let view = mlp.view_dim() as f64;
-        let mut per_sample = input * w + (self.depth as f64 - 1.0) * w * w; // trunk
-        if mlp.skip_layer > 0 && mlp.skip_layer < self.depth {
-            per_sample += input * w; // skip injection
-        }
-        per_sample += w + w * w + w * (w / 2.0) + (w / 2.0) * 3.0; // density, bottleneck, view, rgb
-        let per_ray_view = view * (w / 2.0);
+    /// Multiply-add FLOPs (x2) of one forward pass of the field (the
+    /// Mip-NeRF MLP, or the fast field's MLPs: its hash lookups are not
+    /// counted) and head over both levels (with a proposal sampler: the
+    /// field's one level and the proposal network's rounds); the backward
+    /// pass costs twice that, hence x3 per step.
+    fn step_flops(&self, config: &model::OpenNerfConfig, path: FeatureMode, top_k: usize) -> f64 {
+        let (s, n) = (self.samples as f64, self.rays as f64);
+        let (per_sample, per_ray_view, trunk) = match &config.fast {
+            None => {
+                let mlp = &config.mlp;
+                let w = self.width as f64;
+                let input = mlp.input_dim() as f64;
+                let mut per_sample = input * w + (self.depth as f64 - 1.0) * w * w; // trunk
+                if mlp.skip_layer > 0 && mlp.skip_layer < self.depth {
+                    per_sample += input * w; // skip injection
+                }
+                per_sample += w + w * w + w * (w / 2.0) + (w / 2.0) * 3.0; // density, bottleneck, view, rgb
+                (per_sample, mlp.view_dim() as f64 * (w / 2.0), w)
+            }
+            Some(f) => {
+                let (dw, cw) = (f.density_width as f64, f.color_width as f64);
+                let (enc, geo) = (f.grid.output_dim() as f64, f.geo_features as f64);
+                let density = if f.density_layers == 0 {
+                    enc * (1.0 + geo)
+                } else {
+                    enc * dw + (f.density_layers as f64 - 1.0) * dw * dw + dw * (1.0 + geo)
+                };
+                let color = geo * cw + (f.color_layers.max(1) as f64 - 1.0) * cw * cw + cw * 3.0;
+                (density + color, f.view_dim() as f64 * cw, geo)
+            }
+        };
         let hw = self.head_width as f64;
-        let hidden = w * hw + hw * hw; // two hidden head layers
+        let hidden = trunk * hw + hw * hw; // two hidden head layers
         let head = match path {
             FeatureMode::None => 0.0,
             FeatureMode::PerSample => s * n * (hidden + hw * self.feature_dim as f64),
@@ -131,11 +143,14 @@ impl Size {
                 k * n * hidden + n * hw * self.feature_dim as f64
             }
         };
-        let (levels, proposal_flops) = match proposal {
+        let (levels, proposal_flops) = match &config.proposal {
             None => (2.0, 0.0),
             Some(p) => {
                 let pw = p.width as f64;
-                let pin = model::mip::ipe_dim(p.min_deg, p.max_deg) as f64;
+                let pin = match &p.hash {
+                    Some(h) => h.output_dim() as f64,
+                    None => model::mip::ipe_dim(p.min_deg, p.max_deg) as f64,
+                };
                 let per = pin * pw + (p.depth.max(1) as f64 - 1.0) * pw * pw + pw;
                 let samples: usize = p.samples.iter().sum();
                 (1.0, n * samples as f64 * per)
@@ -223,11 +238,25 @@ fn run_backend(
         fit_start.elapsed().as_secs_f64(),
         fit_loss
     );
+    let fast_asked = args
+        .cases
+        .iter()
+        .any(|c| matches!(c, CaseName::Fast | CaseName::FastProposal));
+    let fitted_fast = fast_asked.then(|| {
+        let fast = cases::cases(args.top_k)[4].1.config(mlp, size).init(&ad);
+        let (field, loss) = ball::fit(fast, args.fit_steps, 8192, &ad);
+        eprintln!(
+            "{}: the fast field's density fitted to the ball, relative squared error {loss:.3}",
+            backend.name()
+        );
+        field
+    });
     let setup = Setup {
         ad: &ad,
         size,
         mlp,
         fitted: &fitted,
+        fitted_fast: fitted_fast.as_ref(),
         grid: &grid,
         steps: args.steps,
         segment: args.segment,
@@ -246,12 +275,7 @@ fn run_backend(
             rays: rendered,
             ..size
         }
-        .step_flops(
-            mlp,
-            case.path,
-            case.top_k,
-            case.proposal.then(model::ProposalConfig::new).as_ref(),
-        );
+        .step_flops(&case.config(mlp, size), case.path, case.top_k);
         let row = Row {
             backend: backend.name().to_string(),
             path: if case.top_k > 0 {
@@ -314,7 +338,9 @@ fn main() -> anyhow::Result<()> {
     };
     report::print_header(peer.as_ref());
     if let Some(p) = &peer {
-        let ours = size.step_flops(&mlp, FeatureMode::PerSample, 0, None);
+        let config = model::OpenNerfConfig::new(FeatureHeadConfig::new(size.feature_dim))
+            .with_mlp(mlp.clone());
+        let ours = size.step_flops(&config, FeatureMode::PerSample, 0);
         if (p.flops - ours).abs() > 1e-6 * ours {
             eprintln!(
                 "warning: the JAX peer counts {:.3} GFLOP per step, bench {:.3}",
