@@ -272,22 +272,6 @@ impl HashGrid {
         crate::hash_kernel::hash_encode(points, self.table.val(), spec)
     }
 
-    /// The encoding of `points` with its corners computed on the host
-    /// ([`HashGrid::corners`]): the positions are read back and the rows and
-    /// weights uploaded. The same values as [`HashGrid::forward_device`];
-    /// the faster form on the CPU backends (`bench`'s `hash_encoding` times
-    /// the two side by side).
-    pub fn forward_host(&self, points: Tensor<2>) -> Tensor<2> {
-        let [n, _] = points.dims();
-        let device = points.device();
-        let host = crate::host_work::read_back(crate::host_work::ReadReason::HashCorners, points);
-        let (rows, weights) = self.corners(&host);
-        let count = rows.len();
-        let ids = Tensor::<1, Int>::from_data(TensorData::new(rows, [count]), &device);
-        let w = Tensor::<2>::from_data(TensorData::new(weights, [count, 1]), &device);
-        self.gather(n, ids, w)
-    }
-
     /// The trilinear sum of the table rows `ids` weighted by `w`, eight
     /// corners a level: `[n, levels * features]`.
     fn gather(&self, n: usize, ids: Tensor<1, Int>, w: Tensor<2>) -> Tensor<2> {

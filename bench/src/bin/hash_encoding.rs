@@ -1,8 +1,7 @@
-//! The multiresolution hash encoding's three forms side by side, in one
+//! The multiresolution hash encoding's two forms side by side, in one
 //! run: the corners computed on the points' device with tensor ops
-//! (`HashGrid::forward_device`, no read-back), on the host (`forward_host`:
-//! the positions read back, the rows and weights uploaded, the lookup in
-//! tensor ops), and the CPU backends' one-pass encoding (`forward_fused`:
+//! (`HashGrid::forward_device`, no read-back) and the CPU backends'
+//! one-pass encoding (`forward_fused`:
 //! level by level, no corner array, its backward a scatter-add of the same
 //! kind), each timed as one training step's work on the encoding (forward,
 //! backward into the tables), on every backend asked for. The forms
@@ -29,7 +28,7 @@ static ALLOCATOR: field_ops::allocator::Jemalloc = field_ops::allocator::Jemallo
 #[derive(Debug, Parser)]
 #[command(
     name = "hash_encoding",
-    about = "The hash encoding with its corners on the device against on the host"
+    about = "The hash encoding with its corners on the device against in one pass on the CPU"
 )]
 struct Args {
     /// Points encoded a step [default: 8192, 64 rays x 64 samples x 2
@@ -54,7 +53,6 @@ struct Args {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Form {
     Device,
-    Host,
     Fused,
 }
 
@@ -63,7 +61,6 @@ enum Form {
 fn step(grid: &HashGrid, points: &Tensor<2>, weights: &Tensor<2>, form: Form) {
     let enc = match form {
         Form::Device => grid.forward_device(points.clone()),
-        Form::Host => grid.forward_host(points.clone()),
         Form::Fused => grid.forward_fused(points.clone()),
     };
     let grads = enc.mul(weights.clone()).sum().backward();
@@ -122,10 +119,7 @@ fn main() -> Result<()> {
         "{} points a step, {} levels of 2^{} rows x 2 features, {} timed steps of each form",
         args.points, args.levels, args.log2_table, args.steps
     );
-    println!(
-        "backend   device (ms/step)   host (ms/step)   fused (ms/step)   host / device   \
-         fused / device"
-    );
+    println!("backend   device (ms/step)   fused (ms/step)   fused / device");
     for &kind in &args.compute.backend {
         let device: Device = args.compute.of(kind).device().autodiff();
         device.seed(1);
@@ -143,14 +137,14 @@ fn main() -> Result<()> {
         // The one-pass form runs on the CPU backends only.
         let cpu = model::host_work::is_cpu_backend(&device);
         let forms: &[Form] = if cpu {
-            &[Form::Device, Form::Host, Form::Fused]
+            &[Form::Device, Form::Fused]
         } else {
-            &[Form::Device, Form::Host]
+            &[Form::Device]
         };
         for &form in forms {
             step(&grid, &points, &weights, form);
         }
-        let mut seconds = [0.0f64; 3];
+        let mut seconds = [0.0f64; 2];
         for _ in 0..args.steps {
             for (i, &form) in forms.iter().enumerate() {
                 let start = Instant::now();
@@ -161,13 +155,11 @@ fn main() -> Result<()> {
         let ms = seconds.map(|s| 1e3 * s / args.steps as f64);
         let fused = |v: f64| if cpu { format!("{v:.2}") } else { "-".into() };
         println!(
-            "{:<9} {:>17.2}   {:>14.2}   {:>15}   {:>13.2}   {:>14}",
+            "{:<9} {:>17.2}   {:>15}   {:>14}",
             kind.name(),
             ms[0],
-            ms[1],
-            fused(ms[2]),
-            ms[1] / ms[0],
-            fused(ms[2] / ms[0]),
+            fused(ms[1]),
+            fused(ms[1] / ms[0]),
         );
         let adam = adam_ms(grid, &points, &weights, args.steps);
         println!(

@@ -243,7 +243,11 @@ fn run_backend(
         .iter()
         .any(|c| matches!(c, CaseName::Fast | CaseName::FastProposal));
     let fitted_fast = fast_asked.then(|| {
-        let fast = cases::cases(args.top_k)[4].1.config(mlp, size).init(&ad);
+        let (_, case) = cases::cases(args.top_k)
+            .into_iter()
+            .find(|(name, _)| *name == CaseName::Fast)
+            .expect("the fast case is listed");
+        let fast = case.config(mlp, size).init(&ad);
         let (field, loss) = ball::fit(fast, args.fit_steps, 8192, &ad);
         eprintln!(
             "{}: the fast field's density fitted to the ball, relative squared error {loss:.3}",
