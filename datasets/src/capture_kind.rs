@@ -273,10 +273,9 @@ fn plain_share(f: &Frame) -> Option<(f64, [f32; 3])> {
         return None;
     }
     let total = (w as usize) * (h as usize);
-    let equal = img
-        .data
-        .chunks_exact(3)
-        .filter(|c| same([c[0], c[1], c[2]]))
+    let equal = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| same(img.get(x, y)))
         .count();
     let share = equal as f64 / total as f64;
     (share >= PLAIN_BACKGROUND).then_some((share, corner))

@@ -131,8 +131,10 @@ impl Format {
                 (is_dir("color") && is_dir("pose") && is_file("intrinsic/intrinsic_color.txt"))
                     .then(|| "color/, pose/ and intrinsic/intrinsic_color.txt".to_string())
             }
-            Self::ScannerApp => first_named(dir, "frame_", "json").and_then(|json| {
-                let stem = json.trim_end_matches(".json");
+            // The app writes a pose for every frame and an image only for
+            // its keyframes, which need not include the first.
+            Self::ScannerApp => named(dir, "frame_", "json").into_iter().find_map(|json| {
+                let stem = json.trim_end_matches(".json").to_string();
                 ["jpg", "jpeg", "png"]
                     .into_iter()
                     .find(|e| is_file(&format!("{stem}.{e}")))
@@ -173,11 +175,13 @@ pub struct Detected {
     pub evidence: String,
 }
 
-/// The name of the first file of `dir` (in name order) called
-/// `<prefix><digits>.<ext>`.
-fn first_named(dir: &Path, prefix: &str, ext: &str) -> Option<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .ok()?
+/// The names of the files of `dir` called `<prefix><digits>.<ext>`, in
+/// name order.
+fn named(dir: &Path, prefix: &str, ext: &str) -> Vec<String> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut names: Vec<String> = entries
         .filter_map(|e| e.ok()?.file_name().into_string().ok())
         .filter(|n| {
             n.strip_prefix(prefix)
@@ -186,7 +190,7 @@ fn first_named(dir: &Path, prefix: &str, ext: &str) -> Option<String> {
         })
         .collect();
     names.sort();
-    names.into_iter().next()
+    names
 }
 
 /// Detects the format of the scene directory `dir`: exactly one format's

@@ -46,14 +46,14 @@ pub trait FeatureExtractor {
 /// Checks that an image's buffer matches its size.
 fn check_image(image: &RgbImage) -> Result<(), DatasetError> {
     let n = image.width as usize * image.height as usize * 3;
-    if image.width == 0 || image.height == 0 || image.data.len() != n {
+    if image.width == 0 || image.height == 0 || image.len() != n {
         return Err(DatasetError::invalid(
             "<image>",
             format!(
                 "{}x{} image with {} values (expected {n})",
                 image.width,
                 image.height,
-                image.data.len()
+                image.len()
             ),
         ));
     }
@@ -243,11 +243,7 @@ impl SimulatedExtractor {
                 (0..3).for_each(|k| out[o + k] = s[k] / wsum);
             }
         }
-        Ok(RgbImage {
-            width: w,
-            height: h,
-            data: out,
-        })
+        Ok(RgbImage::from_f32(w, h, out))
     }
 
     /// Class probabilities (top classes only, renormalised) of a perceived

@@ -65,6 +65,9 @@ pub fn load_rgb(
 }
 
 /// [`load_rgb`] of an image already decoded (from `path`, named in errors).
+/// An 8-bit image that needs no compositing (no background asked for, or
+/// no transparent pixel) stays 8-bit, resampled in 8 bits; any other is
+/// converted to floats first.
 pub fn to_rgb(
     img: DynamicImage,
     path: &Path,
@@ -72,6 +75,22 @@ pub fn to_rgb(
     size: Option<(u32, u32)>,
 ) -> Result<RgbImage, DatasetError> {
     let (w, h) = (img.width(), img.height());
+    let resize = match size {
+        Some((0, _)) | Some((_, 0)) => {
+            return Err(DatasetError::invalid(path, "target resolution is zero"));
+        }
+        Some(s) if s != (w, h) => Some(s),
+        _ => None,
+    };
+    if is_eight_bit(&img) && (background.is_none() || is_opaque(&img)) {
+        let rgb = img.into_rgb8();
+        let rgb = match resize {
+            Some((tw, th)) => image::imageops::resize(&rgb, tw, th, FilterType::Triangle),
+            None => rgb,
+        };
+        let (width, height) = rgb.dimensions();
+        return Ok(RgbImage::from_u8(width, height, rgb.into_raw()));
+    }
     let rgba = img.into_rgba32f();
     let mut rgb: ImageBuffer<Rgb<f32>, Vec<f32>> = ImageBuffer::new(w, h);
     for (dst, src) in rgb.pixels_mut().zip(rgba.pixels()) {
@@ -85,25 +104,34 @@ pub fn to_rgb(
             None => [r, g, b],
         };
     }
-    let rgb = match size {
-        Some((tw, th)) if (tw, th) != (w, h) => {
-            if tw == 0 || th == 0 {
-                return Err(DatasetError::invalid(path, "target resolution is zero"));
-            }
-            image::imageops::resize(&rgb, tw, th, FilterType::Triangle)
-        }
-        _ => rgb,
+    let rgb = match resize {
+        Some((tw, th)) => image::imageops::resize(&rgb, tw, th, FilterType::Triangle),
+        None => rgb,
     };
     let (width, height) = rgb.dimensions();
-    Ok(RgbImage {
+    Ok(RgbImage::from_f32(
         width,
         height,
-        data: rgb
-            .into_raw()
+        rgb.into_raw()
             .into_iter()
             .map(|v| v.clamp(0.0, 1.0))
             .collect(),
-    })
+    ))
+}
+
+/// Whether the image holds 8-bit channels.
+fn is_eight_bit(img: &DynamicImage) -> bool {
+    use image::ColorType as C;
+    matches!(img.color(), C::L8 | C::La8 | C::Rgb8 | C::Rgba8)
+}
+
+/// Whether no pixel of the image is transparent.
+fn is_opaque(img: &DynamicImage) -> bool {
+    match img {
+        DynamicImage::ImageLumaA8(b) => b.pixels().all(|p| p.0[1] == u8::MAX),
+        DynamicImage::ImageRgba8(b) => b.pixels().all(|p| p.0[3] == u8::MAX),
+        other => !other.color().has_alpha(),
+    }
 }
 
 /// Loads a 16-bit depth PNG as metres (`value / scale`, 0 stays invalid),

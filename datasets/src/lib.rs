@@ -14,6 +14,7 @@ pub mod detect;
 pub mod error;
 pub mod extractor;
 pub mod features;
+pub mod footprint;
 pub mod grid;
 pub mod imageio;
 pub mod llff;
@@ -25,10 +26,12 @@ pub mod options;
 pub mod phone;
 pub mod points;
 pub mod poses;
+pub mod progress;
 pub mod replica;
 pub mod sampler;
 pub mod scannet;
 pub mod scene;
+pub mod sharpness;
 pub mod synthetic;
 pub mod text;
 pub mod unseen;
@@ -38,7 +41,7 @@ pub use error::DatasetError;
 pub use features::FeatureMap;
 pub use options::{LoaderOptions, PhoneOptions};
 pub use scene::{
-    DepthImage, Frame, RgbImage, Scene, SceneMeta, SceneSource, VlmSource, WorldFrame,
+    DepthImage, Frame, RgbData, RgbImage, Scene, SceneMeta, SceneSource, VlmSource, WorldFrame,
 };
 
 use std::path::{Path, PathBuf};
@@ -92,6 +95,7 @@ pub fn load_scene_with_basis(
 /// to stderr (one line each, naming the format) once the scene is whole.
 /// The scene's source records `loader` without its basis.
 pub fn load_disk(path: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetError> {
+    let mut resolution = None;
     let (mut scene, notes) = match loader {
         LoaderOptions::Replica(o) => (replica::load_without_features(path, o)?, Vec::new()),
         LoaderOptions::Blender(o) => (blender::load_blender(path, o)?, Vec::new()),
@@ -103,6 +107,7 @@ pub fn load_disk(path: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetEr
         }
         LoaderOptions::ScannerApp(_) | LoaderOptions::Record3d(_) | LoaderOptions::Polycam(_) => {
             let assembled = phone::assemble_export(path, loader)?;
+            resolution = assembled.resolution;
             let notes = assembled.notes.iter();
             let notes = notes.map(|n| format!("{}: {n}", loader.format()));
             (assembled.scene, notes.collect())
@@ -111,8 +116,14 @@ pub fn load_disk(path: &Path, loader: &LoaderOptions) -> Result<Scene, DatasetEr
     if let Some(input) = loader.feature_input() {
         input.attach(&mut scene)?;
     }
+    // A size the loader chose is recorded, so that the scene is rebuilt at
+    // it whatever the machine.
+    let mut recorded = loader.without_basis();
+    if resolution.is_some() {
+        recorded.selection_mut().resolution = resolution;
+    }
     scene.source = SceneSource::Disk {
-        loader: loader.without_basis(),
+        loader: recorded,
         path: path.to_path_buf(),
     };
     for note in notes {

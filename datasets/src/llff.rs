@@ -182,7 +182,12 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
     }
     let mut frames = Vec::new();
     let mut pts: Vec<Vec3> = Vec::new();
-    for (view, path) in options.selection.select(views.iter().zip(&images)) {
+    let kept = options
+        .selection
+        .select_sharpest(views.iter().zip(&images).collect(), |(_, p)| {
+            crate::sharpness::file_sharpness(p)
+        })?;
+    for (view, path) in kept {
         let (w, h) = imageio::dimensions(path)?;
         let k = &view.intrinsics;
         let (ew, eh) = (

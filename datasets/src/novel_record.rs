@@ -299,11 +299,7 @@ mod tests {
                 intrinsics: Intrinsics::from_fov_x(w, h, 1.1),
                 pose: look_at([0.1 * i as f64, 1.0, 0.3], [0.0; 3], [0.0, 0.0, 1.0]).expect("pose"),
             },
-            rgb: RgbImage {
-                width: w,
-                height: h,
-                data: (0..3 * n).map(|k| (k % 256) as f32 / 255.0).collect(),
-            },
+            rgb: RgbImage::from_f32(w, h, (0..3 * n).map(|k| (k % 256) as f32 / 255.0).collect()),
             depth: DepthImage {
                 width: w,
                 height: h,
@@ -348,7 +344,7 @@ mod tests {
             assert_eq!(frame.depth.as_ref().expect("depth"), &v.depth);
             assert_eq!(frame.depth_weight, 0.25);
             assert_eq!(frame.color_weight, v.color_weight);
-            for (a, b) in frame.rgb.data.iter().zip(&v.rgb.data) {
+            for (a, b) in frame.rgb.to_f32().iter().zip(&v.rgb.to_f32()) {
                 assert!((a - b).abs() <= 0.5 / 255.0 + 1e-6, "{a} vs {b}");
             }
             assert_eq!((map.width, map.height, map.dim), (4, 3, 3));

@@ -162,7 +162,11 @@ pub(crate) fn load_without_features(
     };
     let (tw, th) = options.selection.size((cam.w, cam.h));
     let intrinsics = base.scaled(tw, th);
-    let keep = options.selection.select(0..images.len());
+    let keep = options
+        .selection
+        .select_sharpest((0..images.len()).collect(), |&i| {
+            crate::sharpness::file_sharpness(&images[i])
+        })?;
     let mut frames = Vec::with_capacity(keep.len());
     let mut box_points = Vec::new();
     for &i in &keep {

@@ -5,22 +5,100 @@ use model::geometry::{Camera, SceneBox};
 use crate::grid::nearest_pixel;
 use crate::options::LoaderOptions;
 
-/// An RGB image with values in `[0, 1]`, row-major `[height, width, 3]`.
+/// An RGB image with values in `[0, 1]`, row-major `[height, width, 3]`,
+/// stored as its source gave it: 8-bit where it came from an 8-bit file
+/// (a quarter of the memory of floats, which a capture of hundreds of
+/// frames needs), floats where it was rendered or composited.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RgbImage {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// `height * width * 3` values in `[0, 1]`.
-    pub data: Vec<f32>,
+    /// `height * width * 3` values.
+    pub data: RgbData,
+}
+
+/// The values of an [`RgbImage`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum RgbData {
+    /// 8-bit values, `v / 255` each.
+    U8(Vec<u8>),
+    /// Values in `[0, 1]`.
+    F32(Vec<f32>),
 }
 
 impl RgbImage {
+    /// An image of float values in `[0, 1]`.
+    pub fn from_f32(width: u32, height: u32, data: Vec<f32>) -> Self {
+        Self {
+            width,
+            height,
+            data: RgbData::F32(data),
+        }
+    }
+
+    /// An image of 8-bit values.
+    pub fn from_u8(width: u32, height: u32, data: Vec<u8>) -> Self {
+        Self {
+            width,
+            height,
+            data: RgbData::U8(data),
+        }
+    }
+
+    /// Number of values (`3 * width * height` in a well-formed image).
+    pub fn len(&self) -> usize {
+        match &self.data {
+            RgbData::U8(v) => v.len(),
+            RgbData::F32(v) => v.len(),
+        }
+    }
+
+    /// Whether the image holds no value.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Value `i` of the row-major `[height, width, 3]` array, in `[0, 1]`.
+    pub fn value(&self, i: usize) -> f32 {
+        match &self.data {
+            RgbData::U8(v) => f32::from(v[i]) / 255.0,
+            RgbData::F32(v) => v[i],
+        }
+    }
+
+    /// Every value in `[0, 1]`, row-major `[height, width, 3]`.
+    pub fn to_f32(&self) -> Vec<f32> {
+        match &self.data {
+            RgbData::U8(v) => v.iter().map(|&b| f32::from(b) / 255.0).collect(),
+            RgbData::F32(v) => v.clone(),
+        }
+    }
+
+    /// Every value as a byte (`round(255 v)`, clamped), row-major.
+    pub fn to_u8(&self) -> Vec<u8> {
+        match &self.data {
+            RgbData::U8(v) => v.clone(),
+            RgbData::F32(v) => v
+                .iter()
+                .map(|&x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+                .collect(),
+        }
+    }
+
+    /// Bytes the values take in memory.
+    pub fn memory_bytes(&self) -> usize {
+        match &self.data {
+            RgbData::U8(v) => v.len(),
+            RgbData::F32(v) => 4 * v.len(),
+        }
+    }
+
     /// Colour of pixel `(x, y)`.
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
         let i = 3 * (y as usize * self.width as usize + x as usize);
-        [self.data[i], self.data[i + 1], self.data[i + 2]]
+        [self.value(i), self.value(i + 1), self.value(i + 2)]
     }
 
     /// Colour at image point `(u, v)` of an `image_width x image_height`
@@ -262,11 +340,7 @@ mod tests {
                 assert_eq!(y, brute_force(v, (from.1, 0), to.1), "v {v}");
             }
         }
-        let img = RgbImage {
-            width: 2,
-            height: 1,
-            data: vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6],
-        };
+        let img = RgbImage::from_f32(2, 1, vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
         // Pixel 3 of an 8-wide camera lies in the first half of the image.
         assert_eq!(img.lookup(3.0, 0.0, 8, 4), [0.1, 0.2, 0.3]);
         assert_eq!(img.lookup(4.0, 3.0, 8, 4), [0.4, 0.5, 0.6]);

@@ -26,7 +26,7 @@ fn scene() -> Scene {
         rgb: RgbImage {
             width: W,
             height: W,
-            data: vec![0.5; (W * W * 3) as usize],
+            data: datasets::RgbData::F32(vec![0.5; (W * W * 3) as usize]),
         },
         depth: None,
         depth_weight: 1.0,

@@ -49,7 +49,7 @@ fn frame(i: usize, k: Intrinsics) -> Frame {
         rgb: RgbImage {
             width: w,
             height: h,
-            data: rgb,
+            data: datasets::RgbData::F32(rgb),
         },
         depth: Some(DepthImage {
             width: w,
@@ -171,7 +171,7 @@ fn a_capture_round_trips_through_writer_and_loader() {
         assert_eq!(ka.distortion, kb.distortion);
         let (ma, mb) = (a.camera.pose.to_matrix(), b.camera.pose.to_matrix());
         assert!(close(ma.as_flattened(), mb.as_flattened(), 1e-12));
-        for (x, y) in a.rgb.data.iter().zip(&b.rgb.data) {
+        for (x, y) in a.rgb.to_f32().iter().zip(&b.rgb.to_f32()) {
             assert!((x - y).abs() <= 0.5 / 255.0 + 1e-6, "colour {x} vs {y}");
         }
         let (da, db) = (a.depth.as_ref().expect("d"), b.depth.as_ref().expect("d"));

@@ -54,11 +54,11 @@ fn check_roundtrip(format: ImageFormat, colour_tolerance: f32, mean_tolerance: f
         }
         let mut max = 0f32;
         let mut sum = 0f32;
-        for (x, y) in a.rgb.data.iter().zip(&b.rgb.data) {
+        for (x, y) in a.rgb.to_f32().iter().zip(&b.rgb.to_f32()) {
             max = max.max((x - y).abs());
             sum += (x - y).abs();
         }
-        let mean = sum / a.rgb.data.len() as f32;
+        let mean = sum / a.rgb.len() as f32;
         assert!(max <= colour_tolerance, "colour max error {max}");
         assert!(mean <= mean_tolerance, "colour mean error {mean}");
     }

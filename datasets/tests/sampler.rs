@@ -31,7 +31,7 @@ fn frame(i: usize, w: u32, h: u32, depth: bool) -> Frame {
         rgb: RgbImage {
             width: w,
             height: h,
-            data: rgb,
+            data: datasets::RgbData::F32(rgb),
         },
         depth: depth.then_some(DepthImage {
             width: w,

@@ -65,6 +65,7 @@ fn selection(
         stride,
         max_frames,
         resolution,
+        ..FrameSelection::default()
     }
 }
 

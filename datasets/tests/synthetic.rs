@@ -36,8 +36,8 @@ fn ci_preset_shapes_and_source() {
     assert_eq!(s.frames.len(), 20);
     for f in &s.frames {
         assert_eq!((f.rgb.width, f.rgb.height), (96, 54));
-        assert_eq!(f.rgb.data.len(), 96 * 54 * 3);
-        assert!(f.rgb.data.iter().all(|v| (0.0..=1.0).contains(v)));
+        assert_eq!(f.rgb.len(), 96 * 54 * 3);
+        assert!(f.rgb.to_f32().iter().all(|v| (0.0..=1.0).contains(v)));
         let d = f.depth.as_ref().unwrap();
         assert!(
             d.data.iter().all(|&z| z > 0.05 && z < 10.0),
@@ -228,13 +228,14 @@ fn extractor_depends_only_on_the_colour_image() {
         assert!((n - 1.0).abs() < 0.01, "unit norm, got {n}");
     }
     // A local change only changes the map near it (reduced resolution + 3x3 blur).
-    let mut edited = img.clone();
+    let mut values = img.to_f32();
     for y in 40..48 {
         for x in 80..88 {
             let o = 3 * (y * 96 + x);
-            edited.data[o..o + 3].copy_from_slice(&[1.0, 0.0, 1.0]);
+            values[o..o + 3].copy_from_slice(&[1.0, 0.0, 1.0]);
         }
     }
+    let edited = datasets::RgbImage::from_f32(img.width, img.height, values);
     let c = ex.extract(&edited).unwrap();
     let mut changed = Vec::new();
     for y in 0..c.height {
@@ -252,8 +253,9 @@ fn extractor_depends_only_on_the_colour_image() {
         "{changed:?}"
     );
     // Bad input is an error, not a panic.
-    let mut bad = img.clone();
-    bad.data.pop();
+    let mut values = img.to_f32();
+    values.pop();
+    let bad = datasets::RgbImage::from_f32(img.width, img.height, values);
     assert!(ex.extract(&bad).is_err());
 }
 

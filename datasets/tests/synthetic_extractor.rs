@@ -10,7 +10,7 @@ fn image(w: u32, h: u32) -> RgbImage {
     RgbImage {
         width: w,
         height: h,
-        data: (0..w * h * 3).map(|i| (i % 7) as f32 / 7.0).collect(),
+        data: datasets::RgbData::F32((0..w * h * 3).map(|i| (i % 7) as f32 / 7.0).collect()),
     }
 }
 

@@ -89,15 +89,11 @@ pub fn resized_photograph(photo: &RgbImage, width: u32, height: u32) -> RgbImage
     if (photo.width, photo.height) == (width, height) {
         return photo.clone();
     }
-    let Some(img) = Rgb32FImage::from_raw(photo.width, photo.height, photo.data.clone()) else {
+    let Some(img) = Rgb32FImage::from_raw(photo.width, photo.height, photo.to_f32()) else {
         return photo.clone();
     };
     let out = image::imageops::resize(&img, width, height, FilterType::Triangle);
-    RgbImage {
-        width,
-        height,
-        data: out.into_raw(),
-    }
+    RgbImage::from_f32(width, height, out.into_raw())
 }
 
 /// `photo | render | error | depth` side by side (`4 * width` wide): the
@@ -107,16 +103,17 @@ pub fn resized_photograph(photo: &RgbImage, width: u32, height: u32) -> RgbImage
 pub fn strip(photo: &RgbImage, view: &RenderedView, depth: &[u8]) -> Option<Picture> {
     let (w, h) = (view.width as usize, view.height as usize);
     if (photo.width, photo.height) != (view.width, view.height)
-        || photo.data.len() != 3 * w * h
+        || photo.len() != 3 * w * h
         || view.rgb.len() != 3 * w * h
         || depth.len() != 3 * w * h
     {
         return None;
     }
+    let photo = photo.to_f32();
     let mut out = Vec::with_capacity(12 * w * h);
     for y in 0..h {
         let row = 3 * y * w..3 * (y + 1) * w;
-        let (g, r) = (&photo.data[row.clone()], &view.rgb[row.clone()]);
+        let (g, r) = (&photo[row.clone()], &view.rgb[row.clone()]);
         out.extend(g.iter().map(|&v| to_u8(v)));
         out.extend(r.iter().map(|&v| to_u8(v)));
         for x in 0..w {
@@ -187,7 +184,7 @@ mod tests {
         RgbImage {
             width: w,
             height: h,
-            data: vec![v; (3 * w * h) as usize],
+            data: datasets::RgbData::F32(vec![v; (3 * w * h) as usize]),
         }
     }
 
@@ -215,17 +212,14 @@ mod tests {
         let data = (0..w * h)
             .flat_map(|p| [(p % 2) as f32; 3])
             .collect::<Vec<f32>>();
-        let p = RgbImage {
-            width: w,
-            height: h,
-            data,
-        };
+        let p = RgbImage::from_f32(w, h, data);
         let small = resized_photograph(&p, 4, 2);
-        assert_eq!((small.width, small.height, small.data.len()), (4, 2, 24));
-        for v in &small.data {
+        assert_eq!((small.width, small.height, small.len()), (4, 2, 24));
+        let small = small.to_f32();
+        for v in &small {
             assert!((v - 0.5).abs() < 0.2, "{v}");
         }
-        let mean = small.data.iter().sum::<f32>() / 24.0;
+        let mean = small.iter().sum::<f32>() / 24.0;
         assert!((mean - 0.5).abs() < 0.05, "{mean}");
         assert_eq!(resized_photograph(&p, 8, 4), p);
     }

@@ -60,7 +60,7 @@ fn terminated_rays_render_the_trained_room_as_the_plain_render_does() {
                 .with_background(bg);
             let plain = run.model.render(&dense).fine;
             let plain_rgb = tensor_to_vec(plain.rgb);
-            let truth = &frame.rgb.data;
+            let truth = &frame.rgb.to_f32();
             let (p_fast, p_plain) = (psnr(&fast.rgb, truth), psnr(&plain_rgb, truth));
             let what = format!("{} at {transmittance}", frame.name);
             assert!(

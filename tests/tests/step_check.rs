@@ -69,7 +69,10 @@ fn a_window_with_a_non_finite_step_trains_as_checking_every_step_does() {
     // whose batch draws one has a non-finite loss.
     let mut scene = ci_scene().clone();
     for frame in scene.frames.iter_mut().skip(1) {
-        for (i, v) in frame.rgb.data.iter_mut().enumerate() {
+        let datasets::RgbData::F32(values) = &mut frame.rgb.data else {
+            panic!("the synthetic scene's colours are floats");
+        };
+        for (i, v) in values.iter_mut().enumerate() {
             if (i / 3) % 150 == 7 {
                 *v = f32::NAN;
             }

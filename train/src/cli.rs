@@ -98,10 +98,24 @@ pub struct Cli {
     /// Scenes on disk: keep every Nth frame (N >= 1), in the format's
     /// order (capture order; image name order for COLMAP and LLFF; the
     /// transforms file's order for Blender), before --max-frames
-    /// [default: 1, every frame].
+    /// [default: 1, every frame; a Record3D video: about 3 frames a
+    /// second of its `fps`].
     #[arg(long, value_name = "N", allow_negative_numbers = true,
           value_parser = datasets::options::parse_count)]
     pub stride: Option<usize>,
+    /// Scenes on disk: keep the sharpest frame (highest variance of the
+    /// Laplacian of its luminance; Polycam's own blur score where every
+    /// frame has one) of each run of K consecutive frames, instead of
+    /// every Nth (--stride). Every image is decoded once more to score it.
+    #[arg(long, value_name = "K", allow_negative_numbers = true, conflicts_with = "stride",
+          value_parser = datasets::options::parse_count)]
+    pub sharpest_of: Option<usize>,
+    /// Scenes on disk: the most memory the loaded frames may take (e.g.
+    /// 8G, 512M); a capture that would need more is refused before its
+    /// images are decoded, naming the flags that make it fit [default: 80%
+    /// of the memory the machine has available].
+    #[arg(long, value_name = "SIZE", value_parser = datasets::footprint::parse_memory)]
+    pub max_memory: Option<u64>,
     /// Scenes on disk: keep at most N frames (N >= 1), the first N after
     /// --stride [default: all].
     #[arg(long, value_name = "N", allow_negative_numbers = true,
@@ -109,7 +123,9 @@ pub struct Cli {
     pub max_frames: Option<usize>,
     /// Scenes on disk: resample the images to WxH, intrinsics scaled
     /// (Replica, ScanNet, phone captures; Blender, LLFF and COLMAP read
-    /// pre-sized images: use --downscale) [default: the images' own size].
+    /// pre-sized images: use --downscale) [default: the images' own size;
+    /// phone captures: a long side over 1280 px is trained at 960, and
+    /// smaller still where the frames would take over 2 GiB].
     #[arg(long, conflicts_with = "downscale")]
     pub resolution: Option<Resolution>,
     /// Blender, LLFF and COLMAP: divide the image size by N (Blender

@@ -56,6 +56,28 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
     // What every format shares is made once here; loader_options refused
     // what the format does not take.
     *loader.selection_mut() = frame_selection(cli);
+    if format == Format::Record3d
+        && cli.stride.is_none()
+        && cli.sharpest_of.is_none()
+        && let Some(video) = datasets::phone::record3d::default_stride(&path)?
+    {
+        loader.selection_mut().stride = video.stride;
+        eprintln!(
+            "frames: every {} of the {} frames ({} kept; auto: a Record3D video at {} fps, \
+             about {} frames a second; --stride 1 keeps every frame, --sharpest-of {} the \
+             sharpest of each {})",
+            ordinal(video.stride),
+            video.frames,
+            video
+                .frames
+                .div_ceil(video.stride)
+                .min(cli.max_frames.unwrap_or(usize::MAX)),
+            video.fps,
+            datasets::phone::record3d::VIDEO_FRAMES_PER_SECOND,
+            video.stride,
+            video.stride
+        );
+    }
     if let Some(input) = loader.feature_input_mut() {
         *input = feature_input(cli);
     }
@@ -204,10 +226,13 @@ fn frame_selection(cli: &Cli) -> FrameSelection {
     FrameSelection {
         stride: cli.stride.unwrap_or(defaults.stride),
         max_frames: cli.max_frames.or(defaults.max_frames),
+        sharpest_of: cli.sharpest_of,
+        max_memory: cli.max_memory,
         resolution: cli
             .resolution
             .map(|r| (r.width, r.height))
             .or(defaults.resolution),
+        ..FrameSelection::default()
     }
 }
 
@@ -222,6 +247,18 @@ fn feature_input(cli: &Cli) -> FeatureInput {
         },
         ..FeatureInput::default()
     }
+}
+
+/// `n` as an ordinal ("2nd", "20th").
+fn ordinal(n: usize) -> String {
+    let suffix = match (n % 10, n % 100) {
+        (_, 11..=13) => "th",
+        (1, _) => "st",
+        (2, _) => "nd",
+        (3, _) => "rd",
+        _ => "th",
+    };
+    format!("{n}{suffix}")
 }
 
 /// The first flag of `flags` that was given.

@@ -151,7 +151,7 @@ fn measure_view(
         }
     }
     if (frame.rgb.width, frame.rgb.height) == (w, h)
-        && let Some(map) = ssim_map(&view.rgb, &frame.rgb.data, w, h)
+        && let Some(map) = ssim_map(&view.rgb, &frame.rgb.to_f32(), w, h)
     {
         let target = |x: u32, y: u32| frame.is_target_pixel(x, y);
         let ssim_whole = map.mean_where(target);

@@ -9,48 +9,6 @@ use anyhow::{Context, Result};
 
 use super::{ReplicaFrames, confidence, copy};
 
-/// The unit quaternion `[x, y, z, w]` (scalar last) of a rotation matrix
-/// (Shepperd's method: the largest of the four squared components first,
-/// so no division is by a small number).
-pub fn quaternion(r: [[f64; 3]; 3]) -> [f64; 4] {
-    let trace = r[0][0] + r[1][1] + r[2][2];
-    let q = if trace > 0.0 {
-        let s = 2.0 * (1.0 + trace).sqrt();
-        [
-            (r[2][1] - r[1][2]) / s,
-            (r[0][2] - r[2][0]) / s,
-            (r[1][0] - r[0][1]) / s,
-            s / 4.0,
-        ]
-    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
-        let s = 2.0 * (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt();
-        [
-            s / 4.0,
-            (r[0][1] + r[1][0]) / s,
-            (r[0][2] + r[2][0]) / s,
-            (r[2][1] - r[1][2]) / s,
-        ]
-    } else if r[1][1] > r[2][2] {
-        let s = 2.0 * (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt();
-        [
-            (r[0][1] + r[1][0]) / s,
-            s / 4.0,
-            (r[1][2] + r[2][1]) / s,
-            (r[0][2] - r[2][0]) / s,
-        ]
-    } else {
-        let s = 2.0 * (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt();
-        [
-            (r[0][2] + r[2][0]) / s,
-            (r[1][2] + r[2][1]) / s,
-            s / 4.0,
-            (r[1][0] - r[0][1]) / s,
-        ]
-    };
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    q.map(|v| v / n)
-}
-
 /// The metadata both exports share.
 fn metadata(frames: &ReplicaFrames) -> String {
     let k = frames.intrinsics;
@@ -58,7 +16,9 @@ fn metadata(frames: &ReplicaFrames) -> String {
     let poses: Vec<[f64; 7]> = (0..frames.images.len())
         .map(|i| {
             let m = frames.arkit_pose(i);
-            let q = quaternion(std::array::from_fn(|r| std::array::from_fn(|c| m[r][c])));
+            let q = datasets::writer::rotation_quaternion(std::array::from_fn(|r| {
+                std::array::from_fn(|c| m[r][c])
+            }));
             [q[0], q[1], q[2], q[3], m[0][3], m[1][3], m[2][3]]
         })
         .collect();
@@ -135,45 +95,4 @@ pub fn write_r3d(frames: &ReplicaFrames, out: &Path) -> Result<()> {
     }
     zip.finish().context("finishing the archive")?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A rotation by `a` about the unit `axis` (Rodrigues).
-    fn rotation(axis: [f64; 3], a: f64) -> [[f64; 3]; 3] {
-        let (s, c) = a.sin_cos();
-        std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                let k = [
-                    [0.0, -axis[2], axis[1]],
-                    [axis[2], 0.0, -axis[0]],
-                    [-axis[1], axis[0], 0.0],
-                ];
-                let kk: f64 = (0..3).map(|m| k[i][m] * k[m][j]).sum();
-                f64::from(u8::from(i == j)) + s * k[i][j] + (1.0 - c) * kk
-            })
-        })
-    }
-
-    /// Every branch of Shepperd's method gives back the axis and angle.
-    #[test]
-    fn quaternions_recover_axis_and_angle() {
-        for (axis, a) in [
-            ([0.0, 0.0, 1.0], 0.3),
-            ([1.0, 0.0, 0.0], 3.0),
-            ([0.0, 1.0, 0.0], 2.9),
-            ([0.0, 0.0, 1.0], 3.1),
-            ([0.6, 0.0, 0.8], 1.7),
-        ] {
-            let q = quaternion(rotation(axis, a));
-            let (s, c) = (a / 2.0).sin_cos();
-            let want = [axis[0] * s, axis[1] * s, axis[2] * s, c];
-            let sign = if q[3] * want[3] < 0.0 { -1.0 } else { 1.0 };
-            for i in 0..4 {
-                assert!((sign * q[i] - want[i]).abs() < 1e-12, "{axis:?} {a}: {q:?}");
-            }
-        }
-    }
 }

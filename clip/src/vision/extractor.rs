@@ -46,7 +46,7 @@ impl FeatureExtractor for ClipExtractor {
         let map = self
             .model
             .dense_map(
-                &image.data,
+                &image.to_f32(),
                 (image.height as usize, image.width as usize),
                 &self.options,
             )

@@ -120,7 +120,13 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
     // file's index.
     let frames = options
         .selection
-        .select(t.frames.iter().enumerate())
+        .select_sharpest(
+            t.frames.iter().enumerate().collect(),
+            |(_, f)| match resolve_image(root, &f.file_path) {
+                Some(p) => crate::sharpness::file_sharpness(&p),
+                None => Ok(0.0),
+            },
+        )?
         .into_iter()
         .map(|entry| load_frame(root, &tpath, &t, entry, options, unit_scale))
         .collect::<Result<Vec<_>, _>>()?;

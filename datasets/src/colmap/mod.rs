@@ -57,6 +57,7 @@ pub use crate::options::ColmapOptions;
 use crate::options::LoaderOptions;
 use crate::points::PointCloud;
 use crate::scene::{Frame, Scene, SceneSource, WorldFrame};
+use crate::sharpness::file_sharpness;
 
 /// The model directory of a reconstruction: `dir/sparse/0` when it holds
 /// a model, else `dir/sparse`.
@@ -274,7 +275,9 @@ pub(crate) fn load_without_features(
     };
     let frames = options
         .selection
-        .select(&views)
+        .select_sharpest(views.iter().collect(), |v| {
+            file_sharpness(&dir.join(&options.images).join(&v.image.name))
+        })?
         .into_iter()
         .map(|v| load_frame(dir, &model, v, options, &to_scene, &by_id))
         .collect::<Result<Vec<_>, _>>()?;

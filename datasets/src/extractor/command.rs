@@ -50,12 +50,7 @@ impl Drop for Scratch {
 /// Writes an RGB image in `[0, 1]` as an 8-bit PNG.
 pub fn save_png(image: &RgbImage, path: &Path) -> Result<(), DatasetError> {
     check_image(image)?;
-    let bytes: Vec<u8> = image
-        .data
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    crate::imageio::save_rgb8(path, image.width, image.height, &bytes)
+    crate::imageio::save_rgb8(path, image.width, image.height, &image.to_u8())
 }
 
 impl CommandExtractor {

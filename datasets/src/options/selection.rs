@@ -11,8 +11,9 @@ use crate::error::DatasetError;
 
 /// Which frames a loader keeps and the size it loads them at, shared by
 /// every format on disk. Serialised flattened into each format's options
-/// (the keys `stride`, `max_frames`, `resolution`), as they were before
-/// the formats shared it.
+/// (the keys `stride`, `max_frames`, `resolution`, `sharpest_of`), as they
+/// were before the formats shared it; the memory limit is the machine's,
+/// not the scene's, and is not saved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct FrameSelection {
@@ -27,6 +28,16 @@ pub struct FrameSelection {
     /// format whose loader cannot resample refuses it
     /// ([`DatasetError::Unsupported`]).
     pub resolution: Option<(u32, u32)>,
+    /// Keep the sharpest frame (largest variance of the Laplacian of its
+    /// luminance, [`crate::sharpness`]) of each window of this many
+    /// consecutive frames, instead of every `stride`-th.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sharpest_of: Option<usize>,
+    /// The most memory the loaded frames may need, in bytes (`None`: the
+    /// machine's, [`crate::footprint::machine_memory`]). A capture that
+    /// would need more is refused before its images are decoded.
+    #[serde(skip)]
+    pub max_memory: Option<u64>,
 }
 
 impl Default for FrameSelection {
@@ -35,6 +46,8 @@ impl Default for FrameSelection {
             stride: 1,
             max_frames: None,
             resolution: None,
+            sharpest_of: None,
+            max_memory: None,
         }
     }
 }
@@ -51,7 +64,14 @@ impl FrameSelection {
         {
             return Err(DatasetError::invalid(dir, "resolution is zero"));
         }
-        Ok(())
+        match self.sharpest_of {
+            Some(0) => Err(DatasetError::invalid(dir, "sharpest-of must be at least 1")),
+            Some(_) if self.stride > 1 => Err(DatasetError::invalid(
+                dir,
+                "stride and sharpest-of both choose the frames kept: give one of them",
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// [`Self::check`] for a `format` whose loader cannot resample: a
@@ -83,6 +103,48 @@ impl FrameSelection {
             .step_by(self.stride.max(1))
             .take(self.max_frames.unwrap_or(usize::MAX))
             .collect()
+    }
+
+    /// The frames kept of `frames` when they may be chosen by sharpness:
+    /// with [`Self::sharpest_of`], the one of each window of that many
+    /// consecutive frames whose `score` is highest (the first on a tie;
+    /// scores are computed in parallel), then at most `max_frames`;
+    /// otherwise [`Self::select`]. `score` errors are returned.
+    pub fn select_sharpest<T: Send + Sync>(
+        &self,
+        frames: Vec<T>,
+        score: impl Fn(&T) -> Result<f64, DatasetError> + Sync,
+    ) -> Result<Vec<T>, DatasetError> {
+        use rayon::prelude::*;
+        let Some(k) = self.sharpest_of.filter(|&k| k > 1) else {
+            return Ok(self.select(frames));
+        };
+        let scores: Vec<f64> = frames.par_iter().map(&score).collect::<Result<_, _>>()?;
+        let best: Vec<usize> = scores
+            .chunks(k)
+            .enumerate()
+            .map(|(w, chunk)| {
+                let mut b = 0;
+                for (i, s) in chunk.iter().enumerate() {
+                    if *s > chunk[b] {
+                        b = i;
+                    }
+                }
+                w * k + b
+            })
+            .take(self.max_frames.unwrap_or(usize::MAX))
+            .collect();
+        let mut keep = best.into_iter().peekable();
+        Ok(frames
+            .into_iter()
+            .enumerate()
+            .filter_map(|(i, f)| {
+                (keep.peek() == Some(&i)).then(|| {
+                    keep.next();
+                    f
+                })
+            })
+            .collect())
     }
 
     /// The size images are loaded at: the resolution asked for, else
@@ -143,6 +205,7 @@ mod tests {
                 stride,
                 max_frames,
                 resolution: None,
+                ..FrameSelection::default()
             }
             .select(0..10)
         };
@@ -151,6 +214,63 @@ mod tests {
         assert_eq!(pick(2, Some(3)), vec![0, 2, 4]);
         assert_eq!(pick(4, Some(9)), vec![0, 4, 8]);
         assert_eq!(pick(1, Some(0)), Vec::<i32>::new());
+    }
+
+    #[test]
+    fn sharpest_of_keeps_the_best_of_each_window() {
+        let scores = [1.0, 5.0, 2.0, 9.0, 0.0, 9.0, 4.0];
+        let pick = |k, max_frames| {
+            FrameSelection {
+                sharpest_of: Some(k),
+                max_frames,
+                ..FrameSelection::default()
+            }
+            .select_sharpest((0..7).collect(), |&i: &usize| Ok(scores[i]))
+            .unwrap()
+        };
+        // Windows 0..3, 3..6 (a tie: the first) and 6..7.
+        assert_eq!(pick(3, None), vec![1, 3, 6]);
+        assert_eq!(pick(3, Some(2)), vec![1, 3]);
+        assert_eq!(pick(7, None), vec![3]);
+        // A window of one keeps every frame, without scoring any.
+        let all = FrameSelection {
+            sharpest_of: Some(1),
+            ..FrameSelection::default()
+        }
+        .select_sharpest((0..4).collect(), |_: &usize| -> Result<f64, DatasetError> {
+            panic!("scored")
+        })
+        .unwrap();
+        assert_eq!(all, vec![0, 1, 2, 3]);
+        let failing = FrameSelection {
+            sharpest_of: Some(2),
+            ..FrameSelection::default()
+        }
+        .select_sharpest((0..4).collect(), |&i: &usize| {
+            if i == 2 {
+                Err(DatasetError::invalid("/scene/2.jpg", "cannot decode image"))
+            } else {
+                Ok(1.0)
+            }
+        });
+        assert!(failing.unwrap_err().to_string().contains("2.jpg"));
+        let dir = Path::new("/scene");
+        let zero = FrameSelection {
+            sharpest_of: Some(0),
+            ..FrameSelection::default()
+        };
+        assert!(
+            zero.check(dir)
+                .unwrap_err()
+                .to_string()
+                .contains("sharpest-of")
+        );
+        let both = FrameSelection {
+            sharpest_of: Some(3),
+            stride: 2,
+            ..FrameSelection::default()
+        };
+        assert!(both.check(dir).unwrap_err().to_string().contains("stride"));
     }
 
     #[test]

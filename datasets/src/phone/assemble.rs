@@ -137,12 +137,36 @@ pub fn assemble(
         return Err(DatasetError::invalid(dir, "max depth must be positive"));
     }
     let mut notes = capture.notes;
-    let kept = options.selection.select(capture.frames);
+    let listed = capture.frames.len();
+    let kept = select(&options.selection, capture.frames)?;
+    if let Some(k) = options.selection.sharpest_of.filter(|&k| k > 1) {
+        let scored = if kept.iter().all(|f| f.blur_score.is_some()) {
+            "the export's blur scores"
+        } else {
+            "the variance of the Laplacian"
+        };
+        notes.push(format!(
+            "kept the sharpest frame of each {k} ({} of {listed}, by {scored})",
+            kept.len()
+        ));
+    }
     let Some(first) = kept.first() else {
         return Err(DatasetError::invalid(dir, "the export holds no frame"));
     };
     let first_size = first.image.dimensions()?;
-    let (tw, th) = options.selection.size(first_size);
+    let has_depth = kept.iter().any(|f| f.depth.is_some()) || capture.mesh.is_some();
+    let ((tw, th), chosen) = crate::footprint::plan_size(
+        dir,
+        &options.selection,
+        kept.len(),
+        first_size,
+        has_depth,
+        true,
+    )?;
+    if let Some(line) = &chosen {
+        eprintln!("{}: {line}", loader.format());
+    }
+    let resolution = chosen.map(|_| (tw, th));
     let up = up();
     let mesh = match &capture.mesh {
         Some(path) => {
@@ -218,7 +242,39 @@ pub fn assemble(
         },
         world: Some(world),
     };
-    Ok(Assembled { scene, notes })
+    Ok(Assembled {
+        scene,
+        notes,
+        resolution,
+    })
+}
+
+/// The frames `selection` keeps: by sharpness within windows when it says
+/// so (the export's own blur scores where every frame has one, else the
+/// variance of the Laplacian of each decoded image), else by stride.
+fn select(
+    selection: &crate::options::FrameSelection,
+    frames: Vec<CaptureFrame>,
+) -> Result<Vec<CaptureFrame>, DatasetError> {
+    let scores = frames.iter().all(|f| f.blur_score.is_some());
+    let progress = crate::progress::Progress::new(
+        if selection.sharpest_of.is_some_and(|k| k > 1) {
+            frames.len()
+        } else {
+            0
+        },
+        "scoring sharpness",
+    );
+    let kept = selection.select_sharpest(frames, |f| {
+        let score = match f.blur_score {
+            Some(s) if scores => Ok(s),
+            _ => f.image.sharpness(),
+        };
+        progress.tick();
+        score
+    });
+    progress.finish();
+    kept
 }
 
 /// The kept frames, loaded at `size` (`first_size` the images' own size):
@@ -231,49 +287,28 @@ fn load_frames(
     options: &PhoneOptions,
     notes: &mut Vec<String>,
 ) -> Result<Vec<Frame>, DatasetError> {
+    use rayon::prelude::*;
     let any_depth = kept.iter().any(|f| f.depth.is_some());
+    let progress = crate::progress::Progress::new(kept.len(), "loading frames");
+    let loaded: Vec<(Frame, Dropped)> = kept
+        .par_iter()
+        .map(|cf| {
+            let loaded = load_frame(cf, first_size, (tw, th), raycaster, options);
+            progress.tick();
+            loaded
+        })
+        .collect::<Result<_, _>>()?;
+    progress.finish();
     let mut dropped = Dropped::default();
-    let mut frames = Vec::with_capacity(kept.len());
-    for cf in kept {
-        let size = cf.image.dimensions()?;
-        if size != first_size {
-            return Err(DatasetError::invalid(
-                cf.image.path(),
-                format!(
-                    "image is {}x{}, the first image {}x{}",
-                    size.0, size.1, first_size.0, first_size.1
-                ),
-            ));
-        }
-        let colour = colour_intrinsics(cf, size)?;
-        let target = colour.scaled(tw, th);
-        let camera = Camera {
-            intrinsics: target,
-            pose: z_up_pose(cf)?,
-        };
-        let depth = match (&cf.depth, raycaster) {
-            (Some(d), _) => Some(sensor_depth(
-                cf,
-                d,
-                &colour,
-                &target,
-                options,
-                &mut dropped,
-            )?),
-            (None, Some(r)) => Some(r.depth_image(&camera)),
-            (None, None) => None,
-        };
-        frames.push(Frame {
-            name: cf.name.clone(),
-            camera,
-            rgb: cf.image.load_rgb((tw, th))?,
-            depth,
-            depth_weight: 1.0,
-            color_weight: 1.0,
-            labels: None,
-            mask: None,
-        });
-    }
+    let frames = loaded
+        .into_iter()
+        .map(|(frame, d)| {
+            dropped.confidence += d.confidence;
+            dropped.range += d.range;
+            dropped.all += d.all;
+            frame
+        })
+        .collect();
     if any_depth && dropped.all > 0 {
         let pct = |n: usize| 100.0 * n as f64 / dropped.all as f64;
         notes.push(format!(
@@ -285,6 +320,58 @@ fn load_frames(
         ));
     }
     Ok(frames)
+}
+
+/// One frame loaded at `(tw, th)`, with the depth pixels it dropped.
+fn load_frame(
+    cf: &CaptureFrame,
+    first_size: (u32, u32),
+    (tw, th): (u32, u32),
+    raycaster: Option<&Raycaster>,
+    options: &PhoneOptions,
+) -> Result<(Frame, Dropped), DatasetError> {
+    let mut dropped = Dropped::default();
+    let size = cf.image.dimensions()?;
+    if size != first_size {
+        return Err(DatasetError::invalid(
+            cf.image.path(),
+            format!(
+                "image is {}x{}, the first image {}x{}",
+                size.0, size.1, first_size.0, first_size.1
+            ),
+        ));
+    }
+    let colour = colour_intrinsics(cf, size)?;
+    let target = colour.scaled(tw, th);
+    let camera = Camera {
+        intrinsics: target,
+        pose: z_up_pose(cf)?,
+    };
+    let depth = match (&cf.depth, raycaster) {
+        (Some(d), _) => Some(sensor_depth(
+            cf,
+            d,
+            &colour,
+            &target,
+            options,
+            &mut dropped,
+        )?),
+        (None, Some(r)) => Some(r.depth_image(&camera)),
+        (None, None) => None,
+    };
+    Ok((
+        Frame {
+            name: cf.name.clone(),
+            camera,
+            rgb: cf.image.load_rgb((tw, th))?,
+            depth,
+            depth_weight: 1.0,
+            color_weight: 1.0,
+            labels: None,
+            mask: None,
+        },
+        dropped,
+    ))
 }
 
 /// Frames, points and box turned about the vertical so that the smallest

@@ -68,6 +68,9 @@ pub struct CaptureFrame {
     pub depth: Option<DepthSource>,
     /// Its confidence map, when the export has one.
     pub confidence: Option<ConfidenceSource>,
+    /// The app's own sharpness score of the image, higher sharper, where
+    /// it writes one (Polycam's `blur_score`).
+    pub blur_score: Option<f64>,
 }
 
 /// A phone export's frames, mesh and what its reader left out.
@@ -121,6 +124,10 @@ pub struct Assembled {
     pub scene: Scene,
     /// Notes for the user.
     pub notes: Vec<String>,
+    /// The training size chosen for the frames when none was asked for
+    /// and it is not their own ([`crate::footprint::default_size`]), to be
+    /// recorded in the scene's source.
+    pub resolution: Option<(u32, u32)>,
 }
 
 /// Loads any phone format `loader` names from `dir`, with its feature maps,

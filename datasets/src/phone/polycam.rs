@@ -18,8 +18,9 @@
 //! JSON, while depth and confidence maps are optional per frame. The pose
 //! is passed as Polycam writes it (ARKit's y-up world: nerfstudio's row
 //! permutation to a z-up world is done by [`super::assemble`]'s rotation).
-//! Not read: `blur_score` and the cameras' other keys, the mesh and its
-//! `mesh_info.json`, and any other file of the export.
+//! `blur_score` (higher is sharper) chooses frames with `sharpest_of`. Not
+//! read: the cameras' other keys, the mesh and its `mesh_info.json`, and
+//! any other file of the export.
 
 #[cfg(test)]
 mod tests;
@@ -151,6 +152,13 @@ pub fn read_camera(path: &Path) -> Result<([[f64; 4]; 4], Intrinsics), DatasetEr
     Ok((pose, intrinsics))
 }
 
+/// The camera JSON's `blur_score`, when it has a finite one.
+fn read_blur_score(path: &Path) -> Option<f64> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let json: Value = serde_json::from_str(&text).ok()?;
+    json.get("blur_score")?.as_f64().filter(|v| v.is_finite())
+}
+
 /// Reads the frames of a Polycam raw-data export.
 pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
     let keyframes = keyframes(path)?;
@@ -196,6 +204,7 @@ pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
         let depth = keyframes.join("depth").join(format!("{stamp}.png"));
         let confidence = keyframes.join("confidence").join(format!("{stamp}.png"));
         capture.frames.push(CaptureFrame {
+            blur_score: read_blur_score(&camera),
             name: format!("frame_{stamp}"),
             image: ImageSource::File(image),
             pose,

@@ -18,7 +18,8 @@
 //! camera-to-world in ARKit's conventions. The intrinsics `K` are at the
 //! colour size `w` x `h`. Without `dw`/`dh`, an EXR's size is its own and a
 //! `.depth` map's is inferred from its length (256x192 or 640x480). Depth
-//! and confidence maps are optional per frame. Not read: `fps`, `initPose`,
+//! and confidence maps are optional per frame. `fps` sets the default
+//! stride ([`default_stride`]). Not read: `initPose`,
 //! any other key of the metadata, and the archive's other entries (`icon`,
 //! sound); nothing is extracted to disk.
 
@@ -199,6 +200,46 @@ fn open(path: &Path) -> Result<(Store, &'static Layout), DatasetError> {
     ))
 }
 
+/// Frames a second of a Record3D video kept by default: neighbouring
+/// frames of a 60 fps video nearly repeat each other, and a capture of
+/// hundreds of them costs memory and loading time without adding views.
+pub const VIDEO_FRAMES_PER_SECOND: f64 = 3.0;
+
+/// The default stride of a Record3D export and why.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VideoStride {
+    /// Keep every `stride`-th frame.
+    pub stride: usize,
+    /// The video's frames a second (the metadata's `fps`).
+    pub fps: f64,
+    /// Frames in the export.
+    pub frames: usize,
+}
+
+/// The stride that keeps about [`VIDEO_FRAMES_PER_SECOND`] frames a
+/// second of the export at `path`, from its metadata's `fps`; `None` when
+/// it states none or every frame is kept at that rate anyway.
+pub fn default_stride(path: &Path) -> Result<Option<VideoStride>, DatasetError> {
+    let (store, layout) = open(path)?;
+    let Some(meta_name) = [layout.metadata, "metadata.json", "metadata"]
+        .into_iter()
+        .find(|n| store.exists(n))
+    else {
+        return Ok(None);
+    };
+    let meta = Metadata::parse(&store.read(meta_name)?, &store.describe(meta_name))?;
+    let Some(fps) = meta.fps else {
+        return Ok(None);
+    };
+    let stride = (fps / VIDEO_FRAMES_PER_SECOND).round().max(1.0) as usize;
+    let frames = store.numbered(layout.images, layout.image_exts)?.len();
+    Ok((stride > 1).then_some(VideoStride {
+        stride,
+        fps,
+        frames,
+    }))
+}
+
 /// Reads the frames of a Record3D export: an EXR + JPG directory, a `.r3d`
 /// file, or a directory of a `.r3d` file's contents.
 pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
@@ -238,6 +279,7 @@ pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
             true => ConfidenceSource::LzfseU8(store.bytes(&conf_name)),
         });
         capture.frames.push(CaptureFrame {
+            blur_score: None,
             name: format!("frame_{i:05}"),
             image: store.image(image),
             pose,

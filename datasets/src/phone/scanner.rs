@@ -173,6 +173,7 @@ pub fn read_capture(dir: &Path) -> Result<Capture, DatasetError> {
         let size = crate::imageio::dimensions(image)?;
         let (pose, intrinsics) = read_frame_json(json, size)?;
         capture.frames.push(CaptureFrame {
+            blur_score: None,
             name: format!("frame_{i:05}"),
             image: ImageSource::File(image.clone()),
             pose,

@@ -115,6 +115,15 @@ impl ImageSource {
         }
     }
 
+    /// The image's sharpness ([`crate::sharpness::image_sharpness`]).
+    pub fn sharpness(&self) -> Result<f64, DatasetError> {
+        let img = match self {
+            Self::File(p) => imageio::open(p)?,
+            Self::Zip(z) => imageio::decode(z.read()?, &z.describe())?,
+        };
+        Ok(crate::sharpness::image_sharpness(&img))
+    }
+
     /// The image as `[0, 1]` RGB, resampled to `size`.
     pub fn load_rgb(&self, size: (u32, u32)) -> Result<RgbImage, DatasetError> {
         match self {

@@ -50,7 +50,7 @@ pub(super) struct PosedImage {
     /// Its number `<i>`.
     index: u64,
     /// The colour image.
-    path: PathBuf,
+    pub(super) path: PathBuf,
     /// Its camera-to-world pose.
     pose: Pose,
 }

@@ -210,7 +210,9 @@ pub fn load_scannet_with_report(
     let colour = colour_files(dir)?;
     let camera = ColourCamera::read(dir, &colour[0].1, options)?;
     let (posed, report) = posed_images(dir, colour)?;
-    let keep = options.selection.select(posed);
+    let keep = options
+        .selection
+        .select_sharpest(posed, |p| crate::sharpness::file_sharpness(&p.path))?;
     let mut depth_camera = DepthCamera::new(dir);
     let frames = keep
         .into_iter()

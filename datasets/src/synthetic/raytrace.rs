@@ -140,11 +140,7 @@ pub fn render_view(room: &Room, palette: &[[f64; 3]], camera: &Camera) -> Render
         }
     }
     Rendered {
-        rgb: RgbImage {
-            width: w,
-            height: h,
-            data: rgb,
-        },
+        rgb: RgbImage::from_f32(w, h, rgb),
         depth: DepthImage {
             width: w,
             height: h,

@@ -15,10 +15,13 @@
 //!
 //! [`write_nerfstudio`] writes a scene as a nerfstudio `transforms.json`
 //! capture instead (per-frame intrinsics and distortion, depth, masks), and
-//! [`write_colmap_text`] as a COLMAP text model without points.
+//! [`write_colmap_text`] as a COLMAP text model without points, and
+//! [`write_record3d`] as a Record3D phone export of any number of frames at
+//! any size.
 
 mod colmap;
 mod nerfstudio;
+mod record3d;
 
 use std::io::Write;
 use std::path::Path;
@@ -32,6 +35,7 @@ use crate::scene::{DepthImage, Frame, RgbImage, Scene};
 
 pub use colmap::write_colmap_text;
 pub use nerfstudio::{NERFSTUDIO_DEPTH_UNIT, write_depth_mm, write_nerfstudio};
+pub use record3d::{Record3dExport, rotation_quaternion, sharp_frames, write_record3d};
 
 /// Depth PNG scale of the Nice-SLAM layout (value = metres * scale).
 pub const DEPTH_SCALE: f64 = 6553.5;
@@ -163,11 +167,7 @@ fn write_frame(
 
 /// Writes an RGB image in `[0, 1]` as 8-bit PNG or JPEG.
 pub fn write_rgb(path: &Path, image: &RgbImage, format: ImageFormat) -> Result<(), DatasetError> {
-    let bytes: Vec<u8> = image
-        .data
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
+    let bytes = image.to_u8();
     let bad =
         |e: image::ImageError| DatasetError::invalid(path, format!("cannot write image: {e}"));
     match format {

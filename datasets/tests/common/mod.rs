@@ -18,7 +18,7 @@ pub fn grey_frame(i: usize, w: u32, h: u32, mask: Option<Vec<bool>>) -> Frame {
         rgb: RgbImage {
             width: w,
             height: h,
-            data: vec![0.5; (w * h * 3) as usize],
+            data: datasets::RgbData::F32(vec![0.5; (w * h * 3) as usize]),
         },
         depth: None,
         depth_weight: 0.0,

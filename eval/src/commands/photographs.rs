@@ -54,9 +54,9 @@ impl Photographs {
         let original = [photo.width, photo.height];
         let resized = original != [view.width, view.height];
         let photo = resized_photograph(photo, view.width, view.height);
-        let n = photo.data.len().max(1) as f64;
-        let mse = photo
-            .data
+        let values = photo.to_f32();
+        let n = values.len().max(1) as f64;
+        let mse = values
             .iter()
             .zip(&view.rgb)
             .map(|(&a, &b)| (a as f64 - b as f64).powi(2))
@@ -67,7 +67,7 @@ impl Photographs {
             name: name.to_string(),
             mse,
             psnr: psnr(mse),
-            ssim: ssim(&photo.data, &view.rgb, view.width, view.height),
+            ssim: ssim(&values, &view.rgb, view.width, view.height),
             photograph_resized_from: resized.then_some(original),
         });
         Ok(self.scores.last().expect("just pushed"))

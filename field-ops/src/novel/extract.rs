@@ -257,7 +257,7 @@ fn field_render(
     let rgb = RgbImage {
         width: view.width,
         height: view.height,
-        data: view.rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect(),
+        data: datasets::RgbData::F32(view.rgb.iter().map(|v| v.clamp(0.0, 1.0)).collect()),
     };
     let depth = DepthImage {
         width: view.width,

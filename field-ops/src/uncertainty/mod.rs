@@ -195,9 +195,8 @@ pub fn uncertainty_map(
         let intr = &frame.camera.intrinsics;
         let centre = frame.camera.pose.center();
         let rgb = &frame.rgb;
-        let has_rgb = rgb.width > 0
-            && rgb.height > 0
-            && rgb.data.len() >= 3 * (rgb.width * rgb.height) as usize;
+        let has_rgb =
+            rgb.width > 0 && rgb.height > 0 && rgb.len() >= 3 * (rgb.width * rgb.height) as usize;
         let depth = frame.depth.as_ref().map(|d| DepthRef {
             width: d.width,
             height: d.height,

@@ -60,9 +60,9 @@ impl HeldOut {
     }
 
     /// The final figures of `model`: with `render`, the views in full
-    /// (their pictures, strips and contact sheet written into `renders`),
-    /// on interior pixels, on every pixel and per view; else on the pixel
-    /// sample only.
+    /// (their pictures, strips and contact sheet written into `renders`;
+    /// as many as [`full_render_views`] allows), on interior pixels, on
+    /// every pixel and per view; else on the pixel sample only.
     pub(super) fn last(
         &self,
         model: &OpenNerf,
@@ -73,16 +73,25 @@ impl HeldOut {
         let valid = model.valid();
         let start = std::time::Instant::now();
         let (interior, whole, views, rays) = if render {
+            let rendered = full_render_views(scene, &self.frames);
+            if rendered.len() < self.frames.len() {
+                eprintln!(
+                    "held-out views rendered in full: {} of {}, evenly spaced (at most {} \
+                     million pixels; the periodic figures cover all of them)",
+                    rendered.len(),
+                    self.frames.len(),
+                    FULL_RENDER_PIXELS / 1_000_000
+                );
+            }
             let m = evaluate_views(
                 &valid,
                 scene,
-                &self.frames,
+                &rendered,
                 self.border_margin,
                 self.render_chunk,
                 renders,
             )?;
-            let rays: usize = self
-                .frames
+            let rays: usize = rendered
                 .iter()
                 .map(|&f| {
                     let k = &scene.frames[f].camera.intrinsics;
@@ -101,6 +110,30 @@ impl HeldOut {
             rays_per_second: rays as f64 / start.elapsed().as_secs_f64().max(1e-9),
         })
     }
+}
+
+/// The most pixels the final render of the held-out views covers: a
+/// capture of hundreds of held-out frames would otherwise take longer to
+/// render than to train.
+pub const FULL_RENDER_PIXELS: usize = 4_000_000;
+
+/// The held-out `frames` rendered in full at the end: all of them when
+/// their pixels are at most [`FULL_RENDER_PIXELS`], else as many as fit
+/// (at least one), evenly spaced.
+pub fn full_render_views(scene: &Scene, frames: &[usize]) -> Vec<usize> {
+    let pixels = |f: usize| {
+        let k = &scene.frames[f].camera.intrinsics;
+        k.width as usize * k.height as usize
+    };
+    let total: usize = frames.iter().map(|&f| pixels(f)).sum();
+    if total <= FULL_RENDER_PIXELS || frames.is_empty() {
+        return frames.to_vec();
+    }
+    let per_view = total.div_ceil(frames.len()).max(1);
+    let count = (FULL_RENDER_PIXELS / per_view).clamp(1, frames.len());
+    (0..count)
+        .map(|i| frames[i * frames.len() / count])
+        .collect()
 }
 
 /// The final figures of a session.

@@ -20,6 +20,8 @@ pub struct Metadata {
     pub intrinsics: Intrinsics,
     /// `dw` x `dh`, when stated.
     pub depth_size: Option<(u32, u32)>,
+    /// `fps`, the video's frames a second, when stated (and positive).
+    pub fps: Option<f64>,
     /// `poses`, one entry per frame, each checked when its frame is read
     /// ([`Metadata::pose`]).
     poses: Vec<Value>,
@@ -177,10 +179,12 @@ impl Metadata {
             }
             None => return Err(missing("poses", "one camera pose per frame")),
         };
+        let fps = number(map, "fps", path)?.filter(|&f| f > 0.0);
         Ok(Self {
             path: path.to_path_buf(),
             intrinsics,
             depth_size,
+            fps,
             poses,
         })
     }

@@ -1,0 +1,43 @@
+//! A progress bar on stderr for the long parts of loading a capture
+//! (decoding hundreds of images), drawn only when stderr is a terminal
+//! and the work has more than a few steps.
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Fewer steps than this draw no bar.
+const MIN_STEPS: usize = 16;
+
+/// A bar of `total` steps, shared by the threads that do them.
+pub struct Progress(Option<ProgressBar>);
+
+impl Progress {
+    /// A bar for `total` steps of `what` (none for fewer than
+    /// [`MIN_STEPS`]).
+    pub fn new(total: usize, what: &str) -> Self {
+        if total < MIN_STEPS {
+            return Self(None);
+        }
+        let bar = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
+        if let Ok(style) = ProgressStyle::with_template(
+            "{msg} {bar:30} {pos}/{len} [{elapsed_precise}, {eta} left]",
+        ) {
+            bar.set_style(style);
+        }
+        bar.set_message(what.to_string());
+        Self(Some(bar))
+    }
+
+    /// One step done.
+    pub fn tick(&self) {
+        if let Some(bar) = &self.0 {
+            bar.inc(1);
+        }
+    }
+
+    /// All done: the bar is cleared.
+    pub fn finish(&self) {
+        if let Some(bar) = &self.0 {
+            bar.finish_and_clear();
+        }
+    }
+}
