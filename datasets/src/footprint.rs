@@ -90,9 +90,14 @@ impl Footprint {
     }
 }
 
-/// `bytes` in GB (10^9), one decimal.
+/// `bytes` in GB (10^9): two decimals below 10 GB, one above.
 pub fn gigabytes(bytes: u64) -> String {
-    format!("{:.1} GB", bytes as f64 / 1e9)
+    let gb = bytes as f64 / 1e9;
+    if gb < 10.0 {
+        format!("{gb:.2} GB")
+    } else {
+        format!("{gb:.1} GB")
+    }
 }
 
 /// The machine's available memory in bytes (`MemAvailable` of
@@ -206,6 +211,22 @@ pub fn plan_size(
         )
     });
     Ok((size, line))
+}
+
+/// [`plan_size`] for a loader that loads its `frames` frames at `size`
+/// (chosen by its own options), checking only that they fit.
+pub fn check_fits(
+    dir: &Path,
+    selection: &FrameSelection,
+    frames: usize,
+    size: (u32, u32),
+    depth: bool,
+) -> Result<(), DatasetError> {
+    let at_size = FrameSelection {
+        resolution: Some(size),
+        ..*selection
+    };
+    plan_size(dir, &at_size, frames, size, depth, false).map(|_| ())
 }
 
 /// The refusal of a load that needs more than `limit`: what it needs, and

@@ -187,6 +187,10 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
         .select_sharpest(views.iter().zip(&images).collect(), |(_, p)| {
             crate::sharpness::file_sharpness(p)
         })?;
+    if let Some((_, first)) = kept.first() {
+        let size = imageio::dimensions(first)?;
+        crate::footprint::check_fits(dir, &options.selection, kept.len(), size, false)?;
+    }
     for (view, path) in kept {
         let (w, h) = imageio::dimensions(path)?;
         let k = &view.intrinsics;

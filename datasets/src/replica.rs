@@ -160,13 +160,20 @@ pub(crate) fn load_without_features(
         cy: cam.cy,
         distortion: model::geometry::Distortion::NONE,
     };
-    let (tw, th) = options.selection.size((cam.w, cam.h));
-    let intrinsics = base.scaled(tw, th);
     let keep = options
         .selection
         .select_sharpest((0..images.len()).collect(), |&i| {
             crate::sharpness::file_sharpness(&images[i])
         })?;
+    let ((tw, th), _) = crate::footprint::plan_size(
+        dir,
+        &options.selection,
+        keep.len(),
+        (cam.w, cam.h),
+        true,
+        false,
+    )?;
+    let intrinsics = base.scaled(tw, th);
     let mut frames = Vec::with_capacity(keep.len());
     let mut box_points = Vec::new();
     for &i in &keep {

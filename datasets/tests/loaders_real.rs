@@ -294,3 +294,45 @@ fn detection_recognises_every_shared_scene() {
         "a shared data directory is missing from the table"
     );
 }
+
+/// The shared captures' photographs, loaded at their own size as 8-bit
+/// colour, read back exactly the floats the decoder gives them (`v / 255`
+/// of each byte): their scenes, and the runs trained on them, are those of
+/// the float storage they replaced.
+#[test]
+fn eight_bit_photographs_read_back_the_decoders_floats() {
+    let mut checked = 0;
+    for (name, folder) in [
+        ("colmap_statue", "images"),
+        ("colmap_cup", "images"),
+        ("llff_fern", "images_8"),
+        ("replica_room0_20f", "results"),
+    ] {
+        let Some(dir) = shared_dataset(name) else {
+            continue;
+        };
+        let mut files: Vec<_> = std::fs::read_dir(dir.join(folder))
+            .expect("images")
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.extension()
+                    .is_some_and(|x| ["jpg", "JPG", "png"].contains(&x.to_str().unwrap_or("")))
+                    && !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("depth"))
+            })
+            .collect();
+        files.sort();
+        let path = &files[0];
+        let stored = datasets::imageio::load_rgb(path, None, None).expect("load");
+        assert!(
+            matches!(stored.data, datasets::RgbData::U8(_)),
+            "{}: kept as bytes",
+            path.display()
+        );
+        let floats = image::open(path).expect("decode").into_rgb32f();
+        let want: Vec<u32> = floats.into_raw().iter().map(|v| v.to_bits()).collect();
+        let got: Vec<u32> = stored.to_f32().iter().map(|v| v.to_bits()).collect();
+        assert_eq!(got, want, "{}", path.display());
+        checked += 1;
+    }
+    println!("{checked} captures' photographs read back bit for bit");
+}

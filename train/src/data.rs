@@ -62,18 +62,20 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
         && let Some(video) = datasets::phone::record3d::default_stride(&path)?
     {
         loader.selection_mut().stride = video.stride;
+        let kept = video
+            .frames
+            .div_ceil(video.stride)
+            .min(cli.max_frames.unwrap_or(usize::MAX));
         eprintln!(
-            "frames: every {} of the {} frames ({} kept; auto: a Record3D video at {} fps, \
-             about {} frames a second; --stride 1 keeps every frame, --sharpest-of {} the \
-             sharpest of each {})",
+            "frames: every {} of the {} frames ({kept} kept, {:.1} a second of the {} fps \
+             video; auto: about {} a second of a Record3D video, at least {}; --stride 1 keeps \
+             every frame, --sharpest-of {} the sharpest of each {})",
             ordinal(video.stride),
             video.frames,
-            video
-                .frames
-                .div_ceil(video.stride)
-                .min(cli.max_frames.unwrap_or(usize::MAX)),
+            video.fps / video.stride as f64,
             video.fps,
             datasets::phone::record3d::VIDEO_FRAMES_PER_SECOND,
+            datasets::phone::record3d::MIN_VIDEO_FRAMES,
             video.stride,
             video.stride
         );

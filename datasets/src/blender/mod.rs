@@ -126,7 +126,23 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
                 Some(p) => crate::sharpness::file_sharpness(&p),
                 None => Ok(0.0),
             },
-        )?
+        )?;
+    if let Some(image) = frames
+        .first()
+        .and_then(|(_, f)| resolve_image(root, &f.file_path))
+    {
+        let (w, h) = imageio::dimensions(&image)?;
+        let d = options.downscale;
+        let depth = frames.iter().any(|(_, f)| f.depth_file_path.is_some());
+        crate::footprint::check_fits(
+            dir,
+            &options.selection,
+            frames.len(),
+            ((w / d).max(1), (h / d).max(1)),
+            depth,
+        )?;
+    }
+    let frames = frames
         .into_iter()
         .map(|entry| load_frame(root, &tpath, &t, entry, options, unit_scale))
         .collect::<Result<Vec<_>, _>>()?;

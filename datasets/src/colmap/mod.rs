@@ -273,11 +273,19 @@ pub(crate) fn load_without_features(
     } else {
         HashMap::new()
     };
-    let frames = options
+    let kept = options
         .selection
         .select_sharpest(views.iter().collect(), |v| {
             file_sharpness(&dir.join(&options.images).join(&v.image.name))
-        })?
+        })?;
+    if let Some(first) = kept.first() {
+        let image = dir.join(&options.images).join(&first.image.name);
+        if let Ok(size) = imageio::dimensions(&image) {
+            let depth = options.depth || options.sparse_depth;
+            crate::footprint::check_fits(dir, &options.selection, kept.len(), size, depth)?;
+        }
+    }
+    let frames = kept
         .into_iter()
         .map(|v| load_frame(dir, &model, v, options, &to_scene, &by_id))
         .collect::<Result<Vec<_>, _>>()?;

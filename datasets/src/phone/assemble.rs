@@ -137,19 +137,7 @@ pub fn assemble(
         return Err(DatasetError::invalid(dir, "max depth must be positive"));
     }
     let mut notes = capture.notes;
-    let listed = capture.frames.len();
-    let kept = select(&options.selection, capture.frames)?;
-    if let Some(k) = options.selection.sharpest_of.filter(|&k| k > 1) {
-        let scored = if kept.iter().all(|f| f.blur_score.is_some()) {
-            "the export's blur scores"
-        } else {
-            "the variance of the Laplacian"
-        };
-        notes.push(format!(
-            "kept the sharpest frame of each {k} ({} of {listed}, by {scored})",
-            kept.len()
-        ));
-    }
+    let kept = select(&options.selection, capture.frames, &mut notes)?;
     let Some(first) = kept.first() else {
         return Err(DatasetError::invalid(dir, "the export holds no frame"));
     };
@@ -251,12 +239,26 @@ pub fn assemble(
 
 /// The frames `selection` keeps: by sharpness within windows when it says
 /// so (the export's own blur scores where every frame has one, else the
-/// variance of the Laplacian of each decoded image), else by stride.
+/// variance of the Laplacian of each decoded image; a note says which),
+/// else by stride.
 fn select(
     selection: &crate::options::FrameSelection,
     frames: Vec<CaptureFrame>,
+    notes: &mut Vec<String>,
 ) -> Result<Vec<CaptureFrame>, DatasetError> {
+    let listed = frames.len();
     let scores = frames.iter().all(|f| f.blur_score.is_some());
+    if let Some(k) = selection.sharpest_of.filter(|&k| k > 1) {
+        let by = if scores {
+            "the export's blur scores"
+        } else {
+            "the variance of the Laplacian"
+        };
+        let kept = listed.div_ceil(k).min(selection.max_frames.unwrap_or(usize::MAX));
+        notes.push(format!(
+            "kept the sharpest frame of each {k} ({kept} of {listed}, by {by})"
+        ));
+    }
     let progress = crate::progress::Progress::new(
         if selection.sharpest_of.is_some_and(|k| k > 1) {
             frames.len()

@@ -216,9 +216,14 @@ pub struct VideoStride {
     pub frames: usize,
 }
 
+/// The fewest frames the default stride keeps: a field is not trained on
+/// fewer views, however short the video.
+pub const MIN_VIDEO_FRAMES: usize = 20;
+
 /// The stride that keeps about [`VIDEO_FRAMES_PER_SECOND`] frames a
-/// second of the export at `path`, from its metadata's `fps`; `None` when
-/// it states none or every frame is kept at that rate anyway.
+/// second of the export at `path`, from its metadata's `fps`, but at least
+/// [`MIN_VIDEO_FRAMES`]; `None` when it states no rate or every frame is
+/// kept anyway.
 pub fn default_stride(path: &Path) -> Result<Option<VideoStride>, DatasetError> {
     let (store, layout) = open(path)?;
     let Some(meta_name) = [layout.metadata, "metadata.json", "metadata"]
@@ -231,8 +236,10 @@ pub fn default_stride(path: &Path) -> Result<Option<VideoStride>, DatasetError> 
     let Some(fps) = meta.fps else {
         return Ok(None);
     };
-    let stride = (fps / VIDEO_FRAMES_PER_SECOND).round().max(1.0) as usize;
     let frames = store.numbered(layout.images, layout.image_exts)?.len();
+    let stride = ((fps / VIDEO_FRAMES_PER_SECOND).round().max(1.0) as usize)
+        .min(frames / MIN_VIDEO_FRAMES)
+        .max(1);
     Ok((stride > 1).then_some(VideoStride {
         stride,
         fps,

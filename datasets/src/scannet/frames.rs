@@ -18,7 +18,7 @@ use crate::scene::{DepthImage, Frame};
 /// (checked against the first colour image) scaled to `resolution`.
 pub(super) struct ColourCamera {
     /// Size of the colour images, which every one must have.
-    size: (u32, u32),
+    pub(super) size: (u32, u32),
     /// The intrinsics at the loaded resolution.
     target: Intrinsics,
 }
