@@ -233,8 +233,8 @@ fn sample_frames(frames: &[Frame]) -> Vec<&Frame> {
 /// The share of a frame's depth pixels with a measurement.
 fn depth_coverage(f: &Frame) -> f64 {
     f.depth.as_ref().map_or(0.0, |d| {
-        let valid = d.data.iter().filter(|&&v| v > 0.0).count();
-        valid as f64 / d.data.len().max(1) as f64
+        let valid = (0..d.len()).filter(|&i| d.value(i) > 0.0).count();
+        valid as f64 / d.len().max(1) as f64
     })
 }
 

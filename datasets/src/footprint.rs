@@ -3,8 +3,8 @@
 //! is refused before any image is decoded, with the flags that make it fit.
 //!
 //! A loaded frame holds its colour as 8-bit RGB (3 bytes a pixel) and its
-//! depth, where it has any, as 32-bit floats (4 bytes a pixel) at the
-//! training size. Decoding holds a few images at their own size at once
+//! depth, where it has any, as 32-bit floats (4 bytes a pixel) or, for a
+//! phone's LiDAR depth, half floats (2 bytes) at the training size. Decoding holds a few images at their own size at once
 //! (one per thread), and the scene's point cloud keeps one depth pixel in
 //! 64 of every frame.
 
@@ -44,8 +44,8 @@ pub struct Footprint {
     pub frames: usize,
     /// Their size at training, width x height.
     pub size: (u32, u32),
-    /// Whether they carry depth.
-    pub depth: bool,
+    /// Bytes a pixel of their depth takes (0: no depth).
+    pub depth_bytes: u64,
     /// Colour and depth of every frame, in bytes.
     pub frame_bytes: u64,
     /// Decoding and the point cloud, in bytes.
@@ -53,23 +53,24 @@ pub struct Footprint {
 }
 
 impl Footprint {
-    /// The estimate for `frames` frames of own size `own` loaded at `size`,
-    /// decoded `threads` at a time.
+    /// The estimate for `frames` frames of own size `own` loaded at `size`
+    /// with `depth_bytes` bytes of depth a pixel, decoded `threads` at a
+    /// time.
     pub fn new(
         frames: usize,
         own: (u32, u32),
         size: (u32, u32),
-        depth: bool,
+        depth_bytes: u64,
         threads: usize,
     ) -> Self {
         let pixels = |(w, h): (u32, u32)| w as u64 * h as u64;
-        let per_pixel = 3 + if depth { 4 } else { 0 };
+        let per_pixel = 3 + depth_bytes;
         let frame_bytes = frames as u64 * pixels(size) * per_pixel;
         // A decoded image at its own size, 8-bit and as floats while it is
         // resampled, per thread; a point (position and colour, 27 bytes)
         // per 64 depth pixels.
         let decoding = threads.max(1) as u64 * pixels(own) * (3 + 12);
-        let points = if depth {
+        let points = if depth_bytes > 0 {
             frames as u64 * pixels(size) / 64 * 27
         } else {
             0
@@ -77,7 +78,7 @@ impl Footprint {
         Self {
             frames,
             size,
-            depth,
+            depth_bytes,
             frame_bytes,
             working_bytes: decoding + points,
         }
@@ -143,7 +144,11 @@ pub fn with_long_side(own: (u32, u32), long: u32) -> (u32, u32) {
 /// [`LARGE_LONG_SIDE`] becomes [`DEFAULT_LONG_SIDE`], and `frames` frames
 /// that would take more than [`FRAME_BUDGET`] are made smaller still (down
 /// to [`MIN_LONG_SIDE`]).
-pub fn default_size(own: (u32, u32), frames: usize, depth: bool) -> ((u32, u32), Option<String>) {
+pub fn default_size(
+    own: (u32, u32),
+    frames: usize,
+    depth_bytes: u64,
+) -> ((u32, u32), Option<String>) {
     let long = own.0.max(own.1);
     let mut size = own;
     let mut why = Vec::new();
@@ -153,7 +158,7 @@ pub fn default_size(own: (u32, u32), frames: usize, depth: bool) -> ((u32, u32),
             "images with a long side over {LARGE_LONG_SIDE} px are trained at {DEFAULT_LONG_SIDE}"
         ));
     }
-    let bytes = |s| Footprint::new(frames, own, s, depth, 1).frame_bytes;
+    let bytes = |s| Footprint::new(frames, own, s, depth_bytes, 1).frame_bytes;
     if bytes(size) > FRAME_BUDGET {
         let mut side = size.0.max(size.1);
         while side > MIN_LONG_SIDE && bytes(with_long_side(own, side)) > FRAME_BUDGET {
@@ -169,7 +174,8 @@ pub fn default_size(own: (u32, u32), frames: usize, depth: bool) -> ((u32, u32),
     (size, why)
 }
 
-/// The size a loader loads `frames` frames of own size `own` at: the
+/// The size a loader loads `frames` frames of own size `own` (with
+/// `depth_bytes` bytes of depth a pixel) at: the
 /// selection's resolution, else [`default_size`] where the loader
 /// resamples (`resamples`), else their own; refused when the estimate
 /// ([`Footprint`]) exceeds the memory limit ([`memory_limit`] of the
@@ -180,16 +186,16 @@ pub fn plan_size(
     selection: &FrameSelection,
     frames: usize,
     own: (u32, u32),
-    depth: bool,
+    depth_bytes: u64,
     resamples: bool,
 ) -> Result<((u32, u32), Option<String>), DatasetError> {
     let (size, why) = match selection.resolution {
         Some(r) => (r, None),
-        None if resamples => default_size(own, frames, depth),
+        None if resamples => default_size(own, frames, depth_bytes),
         None => (own, None),
     };
     let threads = rayon::current_num_threads();
-    let need = Footprint::new(frames, own, size, depth, threads);
+    let need = Footprint::new(frames, own, size, depth_bytes, threads);
     if let Some((limit, whence)) = memory_limit(selection.max_memory)
         && need.total() > limit
     {
@@ -220,13 +226,13 @@ pub fn check_fits(
     selection: &FrameSelection,
     frames: usize,
     size: (u32, u32),
-    depth: bool,
+    depth_bytes: u64,
 ) -> Result<(), DatasetError> {
     let at_size = FrameSelection {
         resolution: Some(size),
         ..*selection
     };
-    plan_size(dir, &at_size, frames, size, depth, false).map(|_| ())
+    plan_size(dir, &at_size, frames, size, depth_bytes, false).map(|_| ())
 }
 
 /// The refusal of a load that needs more than `limit`: what it needs, and
@@ -248,14 +254,14 @@ fn too_large(
                 need.frames,
                 own,
                 with_long_side(own, side),
-                need.depth,
+                need.depth_bytes,
                 threads,
             ))
         {
             side -= 8;
         }
         let s = with_long_side(own, side);
-        let f = Footprint::new(need.frames, own, s, need.depth, threads);
+        let f = Footprint::new(need.frames, own, s, need.depth_bytes, threads);
         if fits(&f) {
             ways.push(format!(
                 "--resolution {}x{} (about {})",
@@ -265,10 +271,10 @@ fn too_large(
             ));
         }
     }
-    let per_frame = Footprint::new(1, own, need.size, need.depth, threads);
-    let room = limit.saturating_sub(per_frame.working_bytes + BASE_BYTES);
-    let frames_fit = (room / per_frame.frame_bytes.max(1)) as usize;
-    if frames_fit >= 1 {
+    let fixed = Footprint::new(0, own, need.size, need.depth_bytes, threads).total();
+    let per_frame = Footprint::new(1, own, need.size, need.depth_bytes, threads).total() - fixed;
+    let frames_fit = (limit.saturating_sub(fixed) / per_frame.max(1)) as usize;
+    if (1..need.frames).contains(&frames_fit) {
         let stride = need.frames.div_ceil(frames_fit).max(2);
         ways.push(format!("--stride {stride} or --max-frames {frames_fit}"));
     }
@@ -280,7 +286,11 @@ fn too_large(
         need.size.0,
         need.size.1,
         gigabytes(need.total()),
-        if need.depth { " and depth" } else { "" },
+        if need.depth_bytes > 0 {
+            " and depth"
+        } else {
+            ""
+        },
         gigabytes(need.frame_bytes),
         gigabytes(need.working_bytes),
         gigabytes(BASE_BYTES),
@@ -326,36 +336,38 @@ mod tests {
 
     #[test]
     fn small_images_keep_their_size_and_phone_frames_shrink() {
-        assert_eq!(default_size((1000, 658), 23, false), ((1000, 658), None));
-        assert_eq!(default_size((504, 378), 20, false), ((504, 378), None));
-        let (size, why) = default_size((1920, 1440), 345, true);
+        assert_eq!(default_size((1000, 658), 23, 0), ((1000, 658), None));
+        assert_eq!(default_size((504, 378), 20, 0), ((504, 378), None));
+        let (size, why) = default_size((1920, 1440), 345, 2);
         assert_eq!(size, (960, 720));
         assert!(why.unwrap().contains("960"));
-        let (portrait, _) = default_size((1440, 1920), 10, true);
+        let (portrait, _) = default_size((1440, 1920), 10, 2);
         assert_eq!(portrait, (720, 960));
     }
 
     #[test]
     fn many_frames_are_made_to_fit_the_budget() {
-        let (size, why) = default_size((1920, 1440), 2000, true);
-        let bytes = Footprint::new(2000, (1920, 1440), size, true, 1).frame_bytes;
+        let (size, why) = default_size((1920, 1440), 2000, 2);
+        let bytes = Footprint::new(2000, (1920, 1440), size, 2, 1).frame_bytes;
         assert!(bytes <= FRAME_BUDGET, "{bytes}");
         // Eight pixels more on the long side would not fit.
         let bigger = with_long_side((1920, 1440), size.0 + 8);
-        assert!(Footprint::new(2000, (1920, 1440), bigger, true, 1).frame_bytes > FRAME_BUDGET);
+        assert!(Footprint::new(2000, (1920, 1440), bigger, 2, 1).frame_bytes > FRAME_BUDGET);
         assert!(why.unwrap().contains("2000 frames"));
     }
 
     #[test]
     fn the_footprint_adds_up() {
-        let f = Footprint::new(10, (200, 100), (100, 50), true, 2);
+        let f = Footprint::new(10, (200, 100), (100, 50), 4, 2);
         assert_eq!(f.frame_bytes, 10 * 100 * 50 * 7);
         assert_eq!(
             f.working_bytes,
             2 * 200 * 100 * 15 + 10 * 100 * 50 / 64 * 27
         );
         assert_eq!(f.total(), f.frame_bytes + f.working_bytes + BASE_BYTES);
-        let colour_only = Footprint::new(10, (200, 100), (100, 50), false, 2);
+        let half = Footprint::new(10, (200, 100), (100, 50), 2, 2);
+        assert_eq!(half.frame_bytes, 10 * 100 * 50 * 5);
+        let colour_only = Footprint::new(10, (200, 100), (100, 50), 0, 2);
         assert_eq!(colour_only.frame_bytes, 10 * 100 * 50 * 3);
     }
 
@@ -367,7 +379,7 @@ mod tests {
             ..FrameSelection::default()
         };
         let dir = Path::new("/capture");
-        let e = plan_size(dir, &selection, 2000, (1920, 1440), true, true).unwrap_err();
+        let e = plan_size(dir, &selection, 2000, (1920, 1440), 2, true).unwrap_err();
         let msg = e.to_string();
         for want in [
             "/capture",
@@ -388,14 +400,14 @@ mod tests {
             resolution: Some(size),
             ..selection
         };
-        assert!(plan_size(dir, &again, 2000, (1920, 1440), true, true).is_ok());
+        assert!(plan_size(dir, &again, 2000, (1920, 1440), 2, true).is_ok());
         // Within the limit: loaded at the size asked for, nothing said.
         let roomy = FrameSelection {
             max_memory: Some(1 << 40),
             ..selection
         };
         assert_eq!(
-            plan_size(dir, &roomy, 2000, (1920, 1440), true, true).unwrap(),
+            plan_size(dir, &roomy, 2000, (1920, 1440), 2, true).unwrap(),
             ((1920, 1440), None)
         );
     }

@@ -168,7 +168,7 @@ pub fn load_depth16(
     Ok(DepthImage {
         width: tw,
         height: th,
-        data,
+        data: crate::scene::DepthData::F32(data),
     })
 }
 

@@ -41,7 +41,8 @@ pub use error::DatasetError;
 pub use features::FeatureMap;
 pub use options::{LoaderOptions, PhoneOptions};
 pub use scene::{
-    DepthImage, Frame, RgbData, RgbImage, Scene, SceneMeta, SceneSource, VlmSource, WorldFrame,
+    DepthData, DepthImage, Frame, RgbData, RgbImage, Scene, SceneMeta, SceneSource, VlmSource,
+    WorldFrame,
 };
 
 use std::path::{Path, PathBuf};

@@ -189,7 +189,7 @@ pub fn load_llff(dir: &Path, options: &LlffOptions) -> Result<Scene, DatasetErro
         })?;
     if let Some((_, first)) = kept.first() {
         let size = imageio::dimensions(first)?;
-        crate::footprint::check_fits(dir, &options.selection, kept.len(), size, false)?;
+        crate::footprint::check_fits(dir, &options.selection, kept.len(), size, 0)?;
     }
     for (view, path) in kept {
         let (w, h) = imageio::dimensions(path)?;

@@ -114,7 +114,7 @@ pub fn write_record(
         write_npy_f32(
             &dir.join(&entry.depth),
             &[d.height as usize, d.width as usize],
-            &d.data,
+            &d.to_f32(),
         )?;
         let f = &v.features;
         write_npy_f16(
@@ -235,7 +235,7 @@ fn load_view(
         depth: Some(DepthImage {
             width: w,
             height: h,
-            data: depth,
+            data: crate::scene::DepthData::F32(depth),
         }),
         depth_weight: e.depth_weight,
         color_weight: e.color_weight,
@@ -303,9 +303,11 @@ mod tests {
             depth: DepthImage {
                 width: w,
                 height: h,
-                data: (0..n)
-                    .map(|k| if k % 5 == 0 { 0.0 } else { 0.37 * k as f32 })
-                    .collect(),
+                data: crate::scene::DepthData::F32(
+                    (0..n)
+                        .map(|k| if k % 5 == 0 { 0.0 } else { 0.37 * k as f32 })
+                        .collect(),
+                ),
             },
             features: FeatureMap {
                 width: w / 2,

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use model::geometry::{Camera, Intrinsics, Pose};
+use model::geometry::{Camera, Intrinsics, Pose, Vec3};
 
 use crate::error::DatasetError;
 use crate::options::LoaderOptions;
@@ -170,43 +170,31 @@ pub(crate) fn load_without_features(
         &options.selection,
         keep.len(),
         (cam.w, cam.h),
-        true,
+        4,
         false,
     )?;
     let intrinsics = base.scaled(tw, th);
-    let mut frames = Vec::with_capacity(keep.len());
+    use rayon::prelude::*;
+    let progress = crate::progress::Progress::new(keep.len(), "loading frames");
+    let loaded: Vec<(Frame, Vec<Vec3>)> = keep
+        .par_iter()
+        .map(|&i| {
+            let frame = load_frame(dir, i, &images[i], &cam, (tw, th), intrinsics, poses[i]);
+            progress.tick();
+            let frame = frame?;
+            let mut points = vec![frame.camera.pose.center()];
+            if let Some(depth) = &frame.depth {
+                points.extend(backproject(&frame.camera, depth, options.box_pixel_step));
+            }
+            Ok((frame, points))
+        })
+        .collect::<Result<_, DatasetError>>()?;
+    progress.finish();
+    let mut frames = Vec::with_capacity(loaded.len());
     let mut box_points = Vec::new();
-    for &i in &keep {
-        let img_path = &images[i];
-        let size = imageio::dimensions(img_path)?;
-        if size != (cam.w, cam.h) {
-            return Err(DatasetError::invalid(
-                img_path,
-                format!(
-                    "image is {}x{} but cam_params.json says {}x{}",
-                    size.0, size.1, cam.w, cam.h
-                ),
-            ));
-        }
-        let rgb = imageio::load_rgb(img_path, None, Some((tw, th)))?;
-        let depth_path = dir.join("results").join(format!("depth{i:06}.png"));
-        let depth = load_depth(&depth_path, &cam, (tw, th))?;
-        let camera = Camera {
-            intrinsics,
-            pose: poses[i],
-        };
-        box_points.push(camera.pose.center());
-        box_points.extend(backproject(&camera, &depth, options.box_pixel_step));
-        frames.push(Frame {
-            name: format!("frame{i:06}"),
-            camera,
-            rgb,
-            depth: Some(depth),
-            depth_weight: 1.0,
-            color_weight: 1.0,
-            labels: None,
-            mask: None,
-        });
+    for (frame, points) in loaded {
+        frames.push(frame);
+        box_points.extend(points);
     }
     let scene_box = box_of(dir, box_points, options.box_margin)?;
     Ok(Scene {
@@ -224,6 +212,41 @@ pub(crate) fn load_without_features(
             path: dir.to_path_buf(),
         },
         world: None,
+    })
+}
+
+/// Frame `i` (colour `img_path`) loaded at `(tw, th)`.
+fn load_frame(
+    dir: &Path,
+    i: usize,
+    img_path: &Path,
+    cam: &CamParams,
+    (tw, th): (u32, u32),
+    intrinsics: Intrinsics,
+    pose: Pose,
+) -> Result<Frame, DatasetError> {
+    let size = imageio::dimensions(img_path)?;
+    if size != (cam.w, cam.h) {
+        return Err(DatasetError::invalid(
+            img_path,
+            format!(
+                "image is {}x{} but cam_params.json says {}x{}",
+                size.0, size.1, cam.w, cam.h
+            ),
+        ));
+    }
+    let rgb = imageio::load_rgb(img_path, None, Some((tw, th)))?;
+    let depth_path = dir.join("results").join(format!("depth{i:06}.png"));
+    let depth = load_depth(&depth_path, cam, (tw, th))?;
+    Ok(Frame {
+        name: format!("frame{i:06}"),
+        camera: Camera { intrinsics, pose },
+        rgb,
+        depth: Some(depth),
+        depth_weight: 1.0,
+        color_weight: 1.0,
+        labels: None,
+        mask: None,
     })
 }
 

@@ -49,14 +49,14 @@ fn replica_room0_at_640x360() {
     assert!((k.fx - 320.0).abs() < 1e-9 && (k.fy - 600.0 * 360.0 / 680.0).abs() < 1e-9);
     assert!((k.cx - 319.5).abs() < 1e-9 && (k.cy - 179.5).abs() < 1e-9);
     let d = s.frames[0].depth.as_ref().expect("depth");
-    let valid: Vec<f32> = d.data.iter().copied().filter(|&v| v > 0.0).collect();
+    let valid: Vec<f32> = d.to_f32().into_iter().filter(|&v| v > 0.0).collect();
     let (lo, hi) = valid
         .iter()
         .fold((f32::MAX, 0f32), |(a, b), &v| (a.min(v), b.max(v)));
     println!(
         "replica: frame 0 depth range {lo:.4} .. {hi:.4} m ({} valid of {})",
         valid.len(),
-        d.data.len()
+        d.len()
     );
     assert!(lo > 0.1 && hi < 15.0 && hi > lo);
     for f in &s.frames {
@@ -317,7 +317,9 @@ fn eight_bit_photographs_read_back_the_decoders_floats() {
             .filter(|p| {
                 p.extension()
                     .is_some_and(|x| ["jpg", "JPG", "png"].contains(&x.to_str().unwrap_or("")))
-                    && !p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("depth"))
+                    && !p
+                        .file_name()
+                        .is_some_and(|n| n.to_string_lossy().starts_with("depth"))
             })
             .collect();
         files.sort();

@@ -54,7 +54,7 @@ fn frame(i: usize, k: Intrinsics) -> Frame {
         depth: Some(DepthImage {
             width: w,
             height: h,
-            data: depth,
+            data: datasets::DepthData::F32(depth),
         }),
         depth_weight: 1.0,
         color_weight: 1.0,
@@ -176,7 +176,7 @@ fn a_capture_round_trips_through_writer_and_loader() {
         }
         let (da, db) = (a.depth.as_ref().expect("d"), b.depth.as_ref().expect("d"));
         assert_eq!((da.width, da.height), (db.width, db.height));
-        for (x, y) in da.data.iter().zip(&db.data) {
+        for (x, y) in da.to_f32().iter().zip(&db.to_f32()) {
             assert!((x - y).abs() <= 0.5e-3 + 1e-6, "depth {x} vs {y}");
             assert_eq!(*x == 0.0, *y == 0.0);
         }

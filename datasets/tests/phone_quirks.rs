@@ -285,7 +285,11 @@ fn scanner_app_mesh_texture_named_textured_output_jpg_colours_the_points() {
     for f in &scene.frames {
         let d = f.depth.as_ref().expect("ray-cast depth");
         assert!((d.get(W / 2, H / 2) - 3.0).abs() < 1e-4, "{}", f.name);
-        assert!(d.data.iter().all(|&z| z == 0.0 || (z - 3.0).abs() < 1e-4));
+        assert!(
+            d.to_f32()
+                .iter()
+                .all(|&z| z == 0.0 || (z - 3.0).abs() < 1e-4)
+        );
     }
     // The same through `load_disk`.
     let disk = load_disk(&dir, &scanner_loader()).expect("loads");

@@ -36,7 +36,7 @@ fn frame(i: usize, w: u32, h: u32, depth: bool) -> Frame {
         depth: depth.then_some(DepthImage {
             width: w,
             height: h,
-            data: d,
+            data: datasets::DepthData::F32(d),
         }),
         depth_weight: 0.5 + i as f32,
         color_weight: 1.0,

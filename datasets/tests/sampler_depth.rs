@@ -21,7 +21,7 @@ fn frame(i: usize, targets: &[(u32, u32, f32)]) -> Frame {
         depth: Some(DepthImage {
             width: w,
             height: h,
-            data: depth,
+            data: datasets::DepthData::F32(depth),
         }),
         depth_weight: 1.0,
         ..common::grey_frame(i, w, h, Some(mask))

@@ -71,7 +71,7 @@ const LOST: &str =
 fn agreement(got: &DepthImage, want: &DepthImage, tol: f32) -> (f64, f64, f32) {
     let mut errors = Vec::new();
     let mut reference = 0usize;
-    for (a, b) in got.data.iter().zip(&want.data) {
+    for (a, b) in got.to_f32().iter().zip(&want.to_f32()) {
         if *b > 0.0 {
             reference += 1;
             if *a > 0.0 {
@@ -269,7 +269,7 @@ fn lost_poses_are_skipped_and_bad_exports_refused() {
     assert_eq!(scene.frames[1].camera.pose.translation, [2.0, 0.0, 0.0]);
     // Depth at half size with the same view covers every colour pixel.
     let d = scene.frames[0].depth.as_ref().expect("depth");
-    assert!(d.data.iter().all(|&v| (v - 1.234).abs() < 1e-6));
+    assert!(d.to_f32().iter().all(|&v| (v - 1.234).abs() < 1e-6));
 
     let msg = refused(|d| {
         write_depth(&d.join("depth/0.png"), (32, 32), vec![1; 32 * 32]);

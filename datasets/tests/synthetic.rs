@@ -40,7 +40,7 @@ fn ci_preset_shapes_and_source() {
         assert!(f.rgb.to_f32().iter().all(|v| (0.0..=1.0).contains(v)));
         let d = f.depth.as_ref().unwrap();
         assert!(
-            d.data.iter().all(|&z| z > 0.05 && z < 10.0),
+            d.to_f32().iter().all(|&z| z > 0.05 && z < 10.0),
             "every pixel sees a surface"
         );
         assert!(

@@ -68,7 +68,7 @@ fn ground_truth_renders_of_a_captured_camera_are_the_captured_frame_and_features
             frame.depth.as_ref(),
             "depth of frame {i}"
         );
-        assert!(view.depth.data.iter().all(|&d| d > 0.0));
+        assert!(view.depth.to_f32().iter().all(|&d| d > 0.0));
         assert_eq!(view.features, set.maps[i], "features of frame {i}");
     }
 }

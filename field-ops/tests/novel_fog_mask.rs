@@ -16,9 +16,11 @@ fn fogged_scene() -> (Scene, usize) {
     let depth = DepthImage {
         width: w,
         height: h,
-        data: (0..w * h)
-            .map(|i| if i % w < w / 2 { 0.0 } else { 1.5 })
-            .collect(),
+        data: datasets::DepthData::F32(
+            (0..w * h)
+                .map(|i| if i % w < w / 2 { 0.0 } else { 1.5 })
+                .collect(),
+        ),
     };
     let maps = &mut scene.features.as_mut().expect("maps").maps;
     let cleared = mask_fog_cells(&mut maps[0], &depth);
@@ -65,9 +67,11 @@ fn fog_cells_are_cleared_at_the_map_resolution() {
     let depth = |opaque_cols: u32| DepthImage {
         width: 96,
         height: 54,
-        data: (0..96 * 54)
-            .map(|i| if i % 96 < opaque_cols { 1.0 } else { 0.0 })
-            .collect(),
+        data: datasets::DepthData::F32(
+            (0..96 * 54)
+                .map(|i| if i % 96 < opaque_cols { 1.0 } else { 0.0 })
+                .collect(),
+        ),
     };
     assert_eq!(mask_fog_cells(&mut one, &depth(96 - 2)), 0);
     assert_eq!(mask_fog_cells(&mut one, &depth(96 - 3)), 13);

@@ -29,10 +29,11 @@ fn visible_points_match_pixel_labels_and_occluded_points_are_rejected() {
     for frame in &scene.frames {
         let depth = frame.depth.as_ref().expect("depth");
         let pix_labels = frame.labels.as_ref().expect("labels");
+        let values = depth.to_f32();
         let d = DepthRef {
             width: depth.width,
             height: depth.height,
-            data: &depth.data,
+            data: &values,
         };
         let cam = &frame.camera;
         let (w, h) = (cam.intrinsics.width as f64, cam.intrinsics.height as f64);
@@ -111,10 +112,11 @@ fn without_depth_hidden_points_are_accepted() {
     let opts = ProjectOptions::default();
     let frame = &scene.frames[0];
     let depth = frame.depth.as_ref().expect("depth");
+    let values = depth.to_f32();
     let d = DepthRef {
         width: depth.width,
         height: depth.height,
-        data: &depth.data,
+        data: &values,
     };
     let with: usize = points
         .positions
@@ -157,7 +159,7 @@ fn at_high_resolution_every_visible_point_lands_on_its_own_label() {
         let d = DepthRef {
             width: view.depth.width,
             height: view.depth.height,
-            data: &view.depth.data,
+            data: &view.depth.to_f32(),
         };
         let c = camera.pose.center();
         for (p, &l) in points.positions.iter().zip(labels) {

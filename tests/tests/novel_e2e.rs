@@ -61,13 +61,13 @@ fn novel_views_are_recorded_resumed_bit_identically_and_evaluated() {
         let depth = frame.depth.as_ref().unwrap();
         assert!(
             depth
-                .data
+                .to_f32()
                 .iter()
                 .all(|d| d.is_finite() && (0.0..=diagonal).contains(d)),
             "{}",
             frame.name
         );
-        trusted += depth.data.iter().filter(|d| **d > 0.0).count();
+        trusted += depth.to_f32().iter().filter(|d| **d > 0.0).count();
         assert_eq!(map.dim, dim);
         let e = record.views.iter().find(|e| e.name == frame.name).unwrap();
         let t = e.target.expect("guided views have targets");

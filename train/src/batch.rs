@@ -439,7 +439,7 @@ mod tests {
         // Sparse depth: only every 97th pixel keeps its target.
         for f in &mut scene.frames {
             let d = f.depth.as_mut().expect("synthetic depth");
-            for (i, v) in d.data.iter_mut().enumerate() {
+            for (i, v) in d.values_mut().iter_mut().enumerate() {
                 if i % 97 != 0 {
                     *v = 0.0;
                 }

@@ -59,7 +59,9 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
     if format == Format::Record3d
         && cli.stride.is_none()
         && cli.sharpest_of.is_none()
-        && let Some(video) = datasets::phone::record3d::default_stride(&path)?
+        // An export the stride cannot be read from is refused by the
+        // loader, with its own message.
+        && let Ok(Some(video)) = datasets::phone::record3d::default_stride(&path)
     {
         loader.selection_mut().stride = video.stride;
         let kept = video

@@ -151,7 +151,7 @@ pub fn confidence_level(frame: usize, x: u32, y: u32, depth: f32) -> u8 {
 /// Depth as 16-bit millimetres (0 = none).
 pub fn millimetres(depth: &DepthImage) -> Vec<u16> {
     depth
-        .data
+        .to_f32()
         .iter()
         .map(|&d| (d as f64 * 1000.0).round().clamp(0.0, 65535.0) as u16)
         .collect()

@@ -118,22 +118,27 @@ pub fn load_blender(dir: &Path, options: &BlenderOptions) -> Result<Scene, Datas
     let unit_scale = depth_unit_scale(&tpath, &t)?;
     // Numbered before the selection: errors and unnamed frames keep the
     // file's index.
-    let frames = options
-        .selection
-        .select_sharpest(
-            t.frames.iter().enumerate().collect(),
-            |(_, f)| match resolve_image(root, &f.file_path) {
-                Some(p) => crate::sharpness::file_sharpness(&p),
-                None => Ok(0.0),
-            },
-        )?;
+    let frames =
+        options
+            .selection
+            .select_sharpest(
+                t.frames.iter().enumerate().collect(),
+                |(_, f)| match resolve_image(root, &f.file_path) {
+                    Some(p) => crate::sharpness::file_sharpness(&p),
+                    None => Ok(0.0),
+                },
+            )?;
     if let Some(image) = frames
         .first()
         .and_then(|(_, f)| resolve_image(root, &f.file_path))
     {
         let (w, h) = imageio::dimensions(&image)?;
         let d = options.downscale;
-        let depth = frames.iter().any(|(_, f)| f.depth_file_path.is_some());
+        let depth = if frames.iter().any(|(_, f)| f.depth_file_path.is_some()) {
+            4
+        } else {
+            0
+        };
         crate::footprint::check_fits(
             dir,
             &options.selection,

@@ -78,7 +78,7 @@ fn read_raw_depth(path: &Path) -> Result<((u32, u32), Vec<f64>), DatasetError> {
     let raw = imageio::load_depth16(path, 1.0, None)?;
     Ok((
         (raw.width, raw.height),
-        raw.data.into_iter().map(f64::from).collect(),
+        raw.to_f32().into_iter().map(f64::from).collect(),
     ))
 }
 
@@ -109,7 +109,7 @@ pub(super) fn load_depth(
     Ok(DepthImage {
         width: target.0,
         height: target.1,
-        data: resample_nearest(&metres, size, target),
+        data: crate::scene::DepthData::F32(resample_nearest(&metres, size, target)),
     })
 }
 

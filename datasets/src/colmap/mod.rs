@@ -207,7 +207,7 @@ fn load_frame(
         let width = view.intrinsics.width;
         let d = sparse_depth::sparse_depth_target(view.image, &pose, points, width, size);
         // An image that observes no point has no depth at all.
-        d.data.iter().any(|&v| v > 0.0).then_some(d)
+        (0..d.len()).any(|i| d.value(i) > 0.0).then_some(d)
     } else {
         None
     };
@@ -281,14 +281,26 @@ pub(crate) fn load_without_features(
     if let Some(first) = kept.first() {
         let image = dir.join(&options.images).join(&first.image.name);
         if let Ok(size) = imageio::dimensions(&image) {
-            let depth = options.depth || options.sparse_depth;
+            let depth = if options.depth || options.sparse_depth {
+                4
+            } else {
+                0
+            };
             crate::footprint::check_fits(dir, &options.selection, kept.len(), size, depth)?;
         }
     }
-    let frames = kept
-        .into_iter()
-        .map(|v| load_frame(dir, &model, v, options, &to_scene, &by_id))
-        .collect::<Result<Vec<_>, _>>()?;
+    let progress = crate::progress::Progress::new(kept.len(), "loading frames");
+    let frames = {
+        use rayon::prelude::*;
+        kept.par_iter()
+            .map(|v| {
+                let frame = load_frame(dir, &model, v, options, &to_scene, &by_id);
+                progress.tick();
+                frame
+            })
+            .collect::<Result<Vec<_>, _>>()?
+    };
+    progress.finish();
     let mapped_cameras: Vec<Camera> = cameras
         .iter()
         .map(|c| Camera {

@@ -72,7 +72,7 @@ pub fn sparse_depth_target(
     DepthImage {
         width,
         height,
-        data,
+        data: crate::scene::DepthData::F32(data),
     }
 }
 
@@ -133,6 +133,6 @@ mod tests {
         let mut want = vec![0.0; 32];
         // Points 1 and 2 share pixel (1, 0); point 2 is nearer.
         want[1] = 3.0;
-        assert_eq!(d.data, want);
+        assert_eq!(d.to_f32(), want);
     }
 }

@@ -190,7 +190,7 @@ impl Raycaster {
         DepthImage {
             width,
             height,
-            data,
+            data: crate::scene::DepthData::F32(data),
         }
     }
 }

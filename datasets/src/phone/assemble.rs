@@ -77,7 +77,7 @@ fn sensor_depth(
         .map(|c| c.load(size))
         .transpose()?;
     let min = options.min_depth_confidence.level();
-    for (i, d) in raw.data.iter_mut().enumerate() {
+    for (i, d) in raw.values_mut().iter_mut().enumerate() {
         dropped.all += 1;
         if *d <= 0.0 {
             continue;
@@ -148,7 +148,7 @@ pub fn assemble(
         &options.selection,
         kept.len(),
         first_size,
-        has_depth,
+        if has_depth { 2 } else { 0 },
         true,
     )?;
     if let Some(line) = &chosen {
@@ -254,7 +254,9 @@ fn select(
         } else {
             "the variance of the Laplacian"
         };
-        let kept = listed.div_ceil(k).min(selection.max_frames.unwrap_or(usize::MAX));
+        let kept = listed
+            .div_ceil(k)
+            .min(selection.max_frames.unwrap_or(usize::MAX));
         notes.push(format!(
             "kept the sharpest frame of each {k} ({kept} of {listed}, by {by})"
         ));
@@ -360,7 +362,9 @@ fn load_frame(
         )?),
         (None, Some(r)) => Some(r.depth_image(&camera)),
         (None, None) => None,
-    };
+    }
+    // Half floats keep the LiDAR's centimetres and halve the memory.
+    .map(DepthImage::to_half);
     Ok((
         Frame {
             name: cf.name.clone(),

@@ -184,7 +184,7 @@ impl DepthSource {
                 decode::f32_depth(&data.read_lzfse()?, *size, &data.describe())?
             }
         };
-        for d in &mut depth.data {
+        for d in depth.values_mut() {
             if !(d.is_finite() && *d > 0.0) {
                 *d = 0.0;
             }

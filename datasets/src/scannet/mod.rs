@@ -213,14 +213,7 @@ pub fn load_scannet_with_report(
     let keep = options
         .selection
         .select_sharpest(posed, |p| crate::sharpness::file_sharpness(&p.path))?;
-    crate::footprint::plan_size(
-        dir,
-        &options.selection,
-        keep.len(),
-        camera.size,
-        true,
-        false,
-    )?;
+    crate::footprint::plan_size(dir, &options.selection, keep.len(), camera.size, 4, false)?;
     let mut depth_camera = DepthCamera::new(dir);
     let frames = keep
         .into_iter()

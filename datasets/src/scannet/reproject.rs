@@ -64,10 +64,11 @@ pub fn reproject_depth(
     DepthImage {
         width: w,
         height: h,
-        data: out
-            .into_iter()
-            .map(|d| if d.is_finite() { d } else { 0.0 })
-            .collect(),
+        data: crate::scene::DepthData::F32(
+            out.into_iter()
+                .map(|d| if d.is_finite() { d } else { 0.0 })
+                .collect(),
+        ),
     }
 }
 
@@ -104,7 +105,7 @@ mod tests {
         let depth = DepthImage {
             width: 2,
             height: 2,
-            data: vec![1.0, 2.0, 3.0, 0.0],
+            data: crate::scene::DepthData::F32(vec![1.0, 2.0, 3.0, 0.0]),
         };
         let out = reproject_depth(&depth, &dk, &ck);
         #[rustfmt::skip]
@@ -114,7 +115,7 @@ mod tests {
             3.0, 3.0, 0.0, 0.0,
             3.0, 3.0, 0.0, 0.0,
         ];
-        assert_eq!(out.data, want);
+        assert_eq!(out.to_f32(), want);
         // A colour camera with twice the field of view: the depth covers its
         // central half only, and each colour pixel centre lies in exactly
         // one depth footprint (half-open: a centre on an edge belongs to the
@@ -123,7 +124,7 @@ mod tests {
         let fine = DepthImage {
             width: 4,
             height: 4,
-            data: (0..16).map(|i| 1.0 + i as f32).collect(),
+            data: crate::scene::DepthData::F32((0..16).map(|i| 1.0 + i as f32).collect()),
         };
         let out = reproject_depth(&fine, &k(4, 4, 1.0, 1.5, 1.5), &wide);
         #[rustfmt::skip]
@@ -133,6 +134,6 @@ mod tests {
             0.0, 14.0, 16.0, 0.0,
             0.0, 0.0, 0.0, 0.0,
         ];
-        assert_eq!(out.data, want);
+        assert_eq!(out.to_f32(), want);
     }
 }

@@ -144,7 +144,7 @@ pub fn render_view(room: &Room, palette: &[[f64; 3]], camera: &Camera) -> Render
         depth: DepthImage {
             width: w,
             height: h,
-            data: depth,
+            data: crate::scene::DepthData::F32(depth),
         },
         labels,
     }

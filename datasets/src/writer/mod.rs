@@ -199,7 +199,7 @@ pub fn write_rgb(path: &Path, image: &RgbImage, format: ImageFormat) -> Result<(
 /// depths beyond 10 m are clipped).
 pub fn write_depth(path: &Path, depth: &DepthImage) -> Result<(), DatasetError> {
     let values: Vec<u16> = depth
-        .data
+        .to_f32()
         .iter()
         .map(|&d| (d as f64 * DEPTH_SCALE).round().clamp(0.0, u16::MAX as f64) as u16)
         .collect();

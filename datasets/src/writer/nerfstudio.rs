@@ -139,7 +139,7 @@ fn write_frame(
 /// 65.535 m clipped; invalid depths 0).
 pub fn write_depth_mm(path: &Path, depth: &DepthImage) -> Result<(), DatasetError> {
     let values: Vec<u16> = depth
-        .data
+        .to_f32()
         .iter()
         .map(|&d| {
             let mm = d as f64 / NERFSTUDIO_DEPTH_UNIT;

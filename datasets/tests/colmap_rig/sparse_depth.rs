@@ -70,7 +70,7 @@ fn sparse_depth_targets_are_the_points_z_depths_at_their_features() {
                 *cell = z * s;
             }
         }
-        for (j, (&got, &w)) in depth.data.iter().zip(&want).enumerate() {
+        for (j, (&got, &w)) in depth.to_f32().iter().zip(&want).enumerate() {
             assert!(
                 (got as f64 - w).abs() <= 1e-5 * w.max(1.0),
                 "camera {i} pixel {j}: {got} vs {w}"

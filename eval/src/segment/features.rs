@@ -50,11 +50,12 @@ pub fn projected_features(
             return Err(OpsError::Invalid("the model renders no features".into()));
         }
         let a = acc.get_or_insert_with(|| FeatureAccumulator::new(points.len(), r.feature_dim));
-        let depth = match view.depth {
-            Some(d) => DepthRef {
+        let values = view.depth.map(|d| d.to_f32());
+        let depth = match view.depth.zip(values.as_deref()) {
+            Some((d, data)) => DepthRef {
                 width: d.width,
                 height: d.height,
-                data: &d.data,
+                data,
             },
             None => DepthRef {
                 width: rw,
@@ -101,10 +102,11 @@ pub fn projected_2d_features(
     let mut acc = FeatureAccumulator::new(points.len(), dim);
     for (m, view) in maps.iter().zip(views) {
         let k = &view.camera.intrinsics;
-        let depth = view.depth.map(|d| DepthRef {
+        let values = view.depth.map(|d| d.to_f32());
+        let depth = view.depth.zip(values.as_deref()).map(|(d, data)| DepthRef {
             width: d.width,
             height: d.height,
-            data: &d.data,
+            data,
         });
         acc.add_view(points, &view.camera, depth, opts, |h, out| {
             let f = m.lookup(h.u, h.v, k.width, k.height);

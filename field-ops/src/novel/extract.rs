@@ -228,7 +228,7 @@ pub fn mask_fog_cells(map: &mut FeatureMap, depth: &DepthImage) -> usize {
         for x in 0..w {
             let c = cy * mw + (x * mw / w).min(mw - 1);
             total[c] += 1;
-            opaque[c] += u32::from(depth.data[y * w + x] > 0.0);
+            opaque[c] += u32::from(depth.value(y * w + x) > 0.0);
         }
     }
     let dim = map.dim;
@@ -262,18 +262,19 @@ fn field_render(
     let depth = DepthImage {
         width: view.width,
         height: view.height,
-        data: view
-            .depth
-            .iter()
-            .zip(&view.acc)
-            .map(|(&d, &a)| {
-                if a >= config.min_acc && d.is_finite() && d > 0.0 {
-                    d
-                } else {
-                    0.0
-                }
-            })
-            .collect(),
+        data: datasets::DepthData::F32(
+            view.depth
+                .iter()
+                .zip(&view.acc)
+                .map(|(&d, &a)| {
+                    if a >= config.min_acc && d.is_finite() && d > 0.0 {
+                        d
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+        ),
     };
     (rgb, depth)
 }

@@ -197,11 +197,16 @@ pub fn uncertainty_map(
         let rgb = &frame.rgb;
         let has_rgb =
             rgb.width > 0 && rgb.height > 0 && rgb.len() >= 3 * (rgb.width * rgb.height) as usize;
-        let depth = frame.depth.as_ref().map(|d| DepthRef {
-            width: d.width,
-            height: d.height,
-            data: &d.data,
-        });
+        let depth_values = frame.depth.as_ref().map(|d| d.to_f32());
+        let depth = frame
+            .depth
+            .as_ref()
+            .zip(depth_values.as_deref())
+            .map(|(d, data)| DepthRef {
+                width: d.width,
+                height: d.height,
+                data,
+            });
         for (i, &p) in points.iter().enumerate() {
             let Some(hit) = visible_pixel(&frame.camera, p, depth, &opts.project) else {
                 continue;

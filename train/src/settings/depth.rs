@@ -84,7 +84,7 @@ pub fn choose(
         .frames
         .iter()
         .filter_map(|f| f.depth.as_ref())
-        .map(|d| d.data.iter().filter(|&&v| v > 0.0).count())
+        .map(|d| (0..d.len()).filter(|&i| d.value(i) > 0.0).count())
         .filter(|&n| n > 0)
         .collect();
     let asked = arg == Some(SparseDepthArg::On);

@@ -110,7 +110,7 @@ fn corrected_keyframes_are_preferred_and_read_exactly() {
         (1024, 768, 700.5, 702.25, 511.5, 383.75)
     );
     let d = f.depth.as_ref().unwrap().load().unwrap();
-    assert_eq!((d.width, d.height, d.data[0]), (4, 3, 1.5));
+    assert_eq!((d.width, d.height, d.value(0)), (4, 3, 1.5));
     assert!(capture.frames[2].depth.is_none() && capture.mesh.is_none());
     // The keyframes directory itself, and the raw keyframes without the
     // corrected ones.

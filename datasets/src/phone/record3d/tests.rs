@@ -155,7 +155,7 @@ fn loaded(capture: &Capture) -> Loaded {
             let d = f.depth.as_ref().unwrap().load().unwrap();
             assert_eq!((d.width, d.height), (DW, DH));
             let c = f.confidence.as_ref().unwrap().load((DW, DH)).unwrap();
-            let bits = d.data.iter().map(|v| v.to_bits()).collect();
+            let bits = d.to_f32().iter().map(|v| v.to_bits()).collect();
             (f.pose, f.intrinsics, bits, c)
         })
         .collect()
@@ -188,7 +188,7 @@ fn exr_jpg_and_r3d_read_the_same() {
     let mut expected = depth(1);
     expected[1..4].fill(0.0);
     let d = zip.frames[1].depth.as_ref().unwrap().load().unwrap();
-    assert_eq!(d.data, expected);
+    assert_eq!(d.to_f32(), expected);
     assert_eq!(
         zip.frames[1]
             .confidence

@@ -112,7 +112,7 @@ pub fn f32_depth(
     Ok(DepthImage {
         width,
         height,
-        data,
+        data: crate::scene::DepthData::F32(data),
     })
 }
 
@@ -187,7 +187,7 @@ pub fn exr_depth(path: &Path) -> Result<DepthImage, DatasetError> {
     Ok(DepthImage {
         width: w,
         height: h,
-        data,
+        data: crate::scene::DepthData::F32(data),
     })
 }
 
@@ -244,11 +244,11 @@ mod tests {
                 AnyChannel::new("R", f32s([1.0, 2.0])),
             ],
         );
-        assert_eq!(exr_depth(&p).unwrap().data, [1.0, 2.0]);
+        assert_eq!(exr_depth(&p).unwrap().to_f32(), [1.0, 2.0]);
         let half = FlatSamples::F16(vec![f16::from_f32(0.5), f16::from_f32(2.25)]);
         write_exr(&p, vec![AnyChannel::new("Y", half)]);
         let d = exr_depth(&p).unwrap();
-        assert_eq!((d.width, d.height, d.data), (2, 1, vec![0.5, 2.25]));
+        assert_eq!((d.width, d.height, d.to_f32()), (2, 1, vec![0.5, 2.25]));
         write_exr(
             &p,
             vec![
