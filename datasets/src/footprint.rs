@@ -4,9 +4,11 @@
 //!
 //! A loaded frame holds its colour as 8-bit RGB (3 bytes a pixel) and its
 //! depth, where it has any, as 32-bit floats (4 bytes a pixel) or, for a
-//! phone's LiDAR depth, half floats (2 bytes) at the training size. Decoding holds a few images at their own size at once
-//! (one per thread), and the scene's point cloud keeps one depth pixel in
-//! 64 of every frame.
+//! phone's LiDAR depth, half floats (2 bytes) at the training size.
+//! Decoding holds a few images at their own size at once (one per
+//! thread), and the scene's point cloud keeps one depth pixel in 64 of
+//! every frame (and, while the scene box is fitted to it, copies of its
+//! positions).
 
 use std::path::Path;
 
@@ -36,6 +38,9 @@ pub const BASE_BYTES: u64 = 600 << 20;
 /// The share of the machine's available memory a capture may take when no
 /// limit is given.
 pub const AVAILABLE_SHARE: f64 = 0.8;
+
+/// Bytes a point of the depth cloud takes while a capture loads.
+const POINT_BYTES: u64 = 27 + 96;
 
 /// What a capture's frames need in memory.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,11 +72,12 @@ impl Footprint {
         let per_pixel = 3 + depth_bytes;
         let frame_bytes = frames as u64 * pixels(size) * per_pixel;
         // A decoded image at its own size, 8-bit and as floats while it is
-        // resampled, per thread; a point (position and colour, 27 bytes)
-        // per 64 depth pixels.
+        // resampled, per thread; a point per 64 depth pixels, held with its
+        // colour (27 bytes) and in the four copies of its position the
+        // scene box is fitted from (96).
         let decoding = threads.max(1) as u64 * pixels(own) * (3 + 12);
         let points = if depth_bytes > 0 {
-            frames as u64 * pixels(size) / 64 * 27
+            frames as u64 * pixels(size) / 64 * POINT_BYTES
         } else {
             0
         };
@@ -362,7 +368,7 @@ mod tests {
         assert_eq!(f.frame_bytes, 10 * 100 * 50 * 7);
         assert_eq!(
             f.working_bytes,
-            2 * 200 * 100 * 15 + 10 * 100 * 50 / 64 * 27
+            2 * 200 * 100 * 15 + 10 * 100 * 50 / 64 * 123
         );
         assert_eq!(f.total(), f.frame_bytes + f.working_bytes + BASE_BYTES);
         let half = Footprint::new(10, (200, 100), (100, 50), 2, 2);
