@@ -12,7 +12,7 @@ pub struct Progress(Option<ProgressBar>);
 
 impl Progress {
     /// A bar for `total` steps of `what` (none for fewer than
-    /// [`MIN_STEPS`]).
+    /// sixteen).
     pub fn new(total: usize, what: &str) -> Self {
         if total < MIN_STEPS {
             return Self(None);

@@ -238,16 +238,12 @@ fn load_frame(
     let rgb = imageio::load_rgb(img_path, None, Some((tw, th)))?;
     let depth_path = dir.join("results").join(format!("depth{i:06}.png"));
     let depth = load_depth(&depth_path, cam, (tw, th))?;
-    Ok(Frame {
-        name: format!("frame{i:06}"),
-        camera: Camera { intrinsics, pose },
+    Ok(Frame::captured(
+        format!("frame{i:06}"),
+        Camera { intrinsics, pose },
         rgb,
-        depth: Some(depth),
-        depth_weight: 1.0,
-        color_weight: 1.0,
-        labels: None,
-        mask: None,
-    })
+        Some(depth),
+    ))
 }
 
 /// Loads one depth map, checking its size against the camera parameters.

@@ -234,6 +234,26 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// A captured frame: its colour and depth weigh 1 in the losses, it
+    /// has no class labels and every pixel may be a target.
+    pub fn captured(
+        name: String,
+        camera: Camera,
+        rgb: RgbImage,
+        depth: Option<DepthImage>,
+    ) -> Self {
+        Self {
+            name,
+            camera,
+            rgb,
+            depth,
+            depth_weight: 1.0,
+            color_weight: 1.0,
+            labels: None,
+            mask: None,
+        }
+    }
+
     /// Whether pixel `(x, y)` may be a training target: its [`Frame::mask`]
     /// allows it (every pixel does without a mask).
     pub fn is_target_pixel(&self, x: u32, y: u32) -> bool {

@@ -236,7 +236,6 @@ fn frame_selection(cli: &Cli) -> FrameSelection {
             .resolution
             .map(|r| (r.width, r.height))
             .or(defaults.resolution),
-        ..FrameSelection::default()
     }
 }
 

@@ -227,31 +227,20 @@ fn a_capture_over_the_memory_limit_is_refused_before_loading() {
         .and_then(|t| t.split(';').next())
         .expect("a number of frames that fits");
     let fitted = tmp.path().join("fitted");
-    let config = tmp.path().join("tiny.json");
-    std::fs::write(&config, TINY).expect("config");
-    let out = train(&[
-        "--data",
-        s(&data),
-        "--config",
-        s(&config),
-        "--stride",
-        "1",
-        "--resolution",
-        "1920x1440",
-        "--max-memory",
-        "760M",
-        "--max-frames",
-        fits,
-        "--iters",
-        "1",
-        "--no-final-render",
-        "--out",
-        s(&fitted),
-    ]);
-    assert!(
-        out.status.success(),
-        "--max-frames {fits}: {}",
-        text(&out).1
+    one_iteration(
+        tmp.path(),
+        &data,
+        &fitted,
+        &[
+            "--stride",
+            "1",
+            "--resolution",
+            "1920x1440",
+            "--max-memory",
+            "760M",
+            "--max-frames",
+            fits,
+        ],
     );
     for (args, words) in [
         (vec!["--max-memory", "0"], vec!["--max-memory", "positive"]),

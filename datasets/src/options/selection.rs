@@ -34,7 +34,7 @@ pub struct FrameSelection {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sharpest_of: Option<usize>,
     /// The most memory the loaded frames may need, in bytes (`None`: the
-    /// machine's, [`crate::footprint::machine_memory`]). A capture that
+    /// machine's, [`crate::footprint::memory_limit`]). A capture that
     /// would need more is refused before its images are decoded.
     #[serde(skip)]
     pub max_memory: Option<u64>,

@@ -365,17 +365,9 @@ fn load_frame(
     }
     // Half floats keep the LiDAR's centimetres and halve the memory.
     .map(DepthImage::to_half);
+    let rgb = cf.image.load_rgb((tw, th))?;
     Ok((
-        Frame {
-            name: cf.name.clone(),
-            camera,
-            rgb: cf.image.load_rgb((tw, th))?,
-            depth,
-            depth_weight: 1.0,
-            color_weight: 1.0,
-            labels: None,
-            mask: None,
-        },
+        Frame::captured(cf.name.clone(), camera, rgb, depth),
         dropped,
     ))
 }

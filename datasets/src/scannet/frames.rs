@@ -157,17 +157,13 @@ pub(super) fn load_frame(
     let rgb = imageio::load_rgb(&img_path, None, Some(resolution))?;
     let (raw, dk) = depth_camera.read(dir, i, &img_path)?;
     let depth = reproject_depth(&raw, &dk, &colour.target);
-    Ok(Frame {
-        name: format!("frame{i:06}"),
-        camera: Camera {
+    Ok(Frame::captured(
+        format!("frame{i:06}"),
+        Camera {
             intrinsics: colour.target,
             pose,
         },
         rgb,
-        depth: Some(depth),
-        depth_weight: 1.0,
-        color_weight: 1.0,
-        labels: None,
-        mask: None,
-    })
+        Some(depth),
+    ))
 }
