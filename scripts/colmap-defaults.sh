@@ -9,7 +9,10 @@
 #
 #   bash scripts/colmap-defaults.sh OUT [SECONDS] [CAPTURES]
 #
-# CAPTURES (default "statue cup fern") chooses among the three.
+# CAPTURES (default "statue cup fern") chooses among the three, and
+# SETTINGS="rays hash ..." in the environment among the settings (default
+# all: rays, hash, appearance, sparse_depth, field). Rows are appended to
+# the CSV, so a table can be made over several invocations.
 # OUT/colmap_defaults.csv holds a row per run: capture, setting, value,
 # held-out PSNR, iterations, and the same of the run with the defaults it
 # is compared with. Runs one after another (each is timed): nothing else
@@ -66,7 +69,7 @@ train() {
   [ -n "$core" ] && pin=(env RAYON_NUM_THREADS=1 taskset -c "$core")
   rm -rf "$out/runs/$name"
   "${pin[@]}" "$bin/train" "${length[@]}" --seed 0 --quiet --out "$out/runs/$name" "$@" \
-    >"$out/runs/$name.log" 2>&1
+    >"$out/runs/$name.log" 2>&1 </dev/null
 }
 
 # The held-out PSNR over every pixel and the iterations of a run.
@@ -84,6 +87,9 @@ for c in $captures; do
   [ -n "${PAIRED:-}" ] || train "$c-defaults" "" --data "$dir"
   while IFS= read -r flip; do
     setting=${flip%%:*}
+    if [ -n "${SETTINGS:-}" ] && [[ " $SETTINGS " != *" $setting "* ]]; then
+      continue
+    fi
     read -r -a flags <<<"${flip#*:}"
     if [ -n "${PAIRED:-}" ]; then
       train "$c-defaults-$setting" 0 --data "$dir" &
