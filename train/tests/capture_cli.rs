@@ -7,7 +7,7 @@ use std::process::Output;
 
 mod common;
 
-use common::{TINY, s, train};
+use common::{s, train, train_tiny};
 
 const IMAGES: usize = 4;
 
@@ -66,24 +66,13 @@ fn capture(root: &Path, text: &[String; 3]) -> PathBuf {
 
 /// Trains two iterations on `data` into `out` with the tiny model.
 fn run(tmp: &Path, data: &Path, out: &Path, extra: &[&str]) -> Output {
-    let config = tmp.join("tiny.json");
-    std::fs::write(&config, TINY).expect("config");
-    let mut args = vec![
-        "--data",
-        s(data),
-        "--config",
-        s(&config),
-        "--iters",
+    train_tiny(
+        tmp,
+        data,
+        out,
         "2",
-        "--holdout-every",
-        "4",
-        "--no-final-render",
-        "--quiet",
-        "--out",
-        s(out),
-    ];
-    args.extend_from_slice(extra);
-    train(&args)
+        &[&["--holdout-every", "4"], extra].concat(),
+    )
 }
 
 /// Asserts a clean refusal naming every `words`, with nothing written.

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-use common::{TINY, assert_refused, s, text, train};
+use common::{assert_refused, s, text, train_tiny};
 use datasets::writer::{Record3dExport, sharp_frames, write_record3d};
 use datasets::{SceneMeta, SceneSource};
 
@@ -47,24 +47,9 @@ fn export(
 /// Trains one iteration of the tiny model on `data` into `run` with
 /// `extra` flags; returns stderr, asserting success.
 fn one_iteration(root: &Path, data: &Path, run: &Path, extra: &[&str]) -> String {
-    let config = root.join("tiny.json");
-    std::fs::write(&config, TINY).expect("config");
-    let mut args = vec![
-        "--data",
-        s(data),
-        "--config",
-        s(&config),
-        "--iters",
-        "1",
-        "--no-final-render",
-        "--quiet",
-        "--out",
-        s(run),
-    ];
-    args.extend_from_slice(extra);
-    let out = train(&args);
+    let out = train_tiny(root, data, run, "1", extra);
     let (_, err) = text(&out);
-    assert!(out.status.success(), "{args:?}: {err}");
+    assert!(out.status.success(), "{extra:?}: {err}");
     err
 }
 

@@ -4,11 +4,11 @@
 //! file and the problem, before the run directory is created.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
 
-use common::{TINY, s};
+use common::train_tiny;
 
 const FRAMES: usize = 4;
 
@@ -102,27 +102,13 @@ fn export(root: &Path) -> PathBuf {
 }
 
 fn run(tmp: &Path, data: &Path, out: &Path, extra: &[&str]) -> Output {
-    let config = tmp.join("tiny.json");
-    std::fs::write(&config, TINY).expect("config");
-    let mut args = vec![
-        "--data",
-        s(data),
-        "--config",
-        s(&config),
-        "--iters",
+    train_tiny(
+        tmp,
+        data,
+        out,
         "2",
-        "--holdout-every",
-        "4",
-        "--no-final-render",
-        "--quiet",
-        "--out",
-        s(out),
-    ];
-    args.extend_from_slice(extra);
-    Command::new(env!("CARGO_BIN_EXE_train"))
-        .args(&args)
-        .output()
-        .expect("the train binary runs")
+        &[&["--holdout-every", "4"], extra].concat(),
+    )
 }
 
 /// Asserts a clean refusal naming every `words`, with nothing written.

@@ -21,6 +21,28 @@ pub fn train(args: &[&str]) -> Output {
         .expect("the train binary runs")
 }
 
+/// Trains `iters` iterations of the tiny model ([`TINY`], written into
+/// `dir`) on `data` into `out`, without the final render, with `extra`
+/// flags.
+pub fn train_tiny(dir: &Path, data: &Path, out: &Path, iters: &str, extra: &[&str]) -> Output {
+    let config = dir.join("tiny.json");
+    std::fs::write(&config, TINY).expect("config");
+    let mut args = vec![
+        "--data",
+        s(data),
+        "--config",
+        s(&config),
+        "--iters",
+        iters,
+        "--no-final-render",
+        "--quiet",
+        "--out",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    train(&args)
+}
+
 /// What a run printed: (stdout, stderr).
 pub fn text(out: &Output) -> (String, String) {
     (
