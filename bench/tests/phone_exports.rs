@@ -244,7 +244,7 @@ fn mesh_depth_stands_in_for_missing_depth_maps() {
             want.frames[i].depth.as_ref().expect("depth"),
         );
         let (mut close, mut both) = (0usize, 0usize);
-        for (a, b) in g.to_f32().iter().zip(&w.to_f32()) {
+        for (a, b) in g.to_f32().iter().zip(w.to_f32().iter()) {
             if *a > 0.0 && *b > 0.0 {
                 both += 1;
                 close += usize::from((a - b).abs() < 0.02);

@@ -145,6 +145,17 @@ pub fn with_long_side(own: (u32, u32), long: u32) -> (u32, u32) {
     (scale(w), scale(h))
 }
 
+/// The largest size with `own`'s aspect and a long side of at most `from`,
+/// in steps of 8 pixels down to [`MIN_LONG_SIDE`], that `fits` (the
+/// smallest when none does).
+fn largest_fitting(own: (u32, u32), from: u32, fits: impl Fn((u32, u32)) -> bool) -> (u32, u32) {
+    let mut side = from;
+    while side > MIN_LONG_SIDE && !fits(with_long_side(own, side)) {
+        side -= 8;
+    }
+    with_long_side(own, side.max(MIN_LONG_SIDE))
+}
+
 /// The size frames of own size `own` are trained at when none is asked
 /// for, with why when it is not their own: a long side above
 /// [`LARGE_LONG_SIDE`] becomes [`DEFAULT_LONG_SIDE`], and `frames` frames
@@ -166,11 +177,7 @@ pub fn default_size(
     }
     let bytes = |s| Footprint::new(frames, own, s, depth_bytes, 1).frame_bytes;
     if bytes(size) > FRAME_BUDGET {
-        let mut side = size.0.max(size.1);
-        while side > MIN_LONG_SIDE && bytes(with_long_side(own, side)) > FRAME_BUDGET {
-            side -= 8;
-        }
-        size = with_long_side(own, side.max(MIN_LONG_SIDE));
+        size = largest_fitting(own, size.0.max(size.1), |s| bytes(s) <= FRAME_BUDGET);
         why.push(format!(
             "{frames} frames keep within {} at this size",
             gigabytes(FRAME_BUDGET)
@@ -251,24 +258,14 @@ fn too_large(
     threads: usize,
     resamples: bool,
 ) -> String {
-    let fits = |f: &Footprint| f.total() <= limit;
+    let at = |s| Footprint::new(need.frames, own, s, need.depth_bytes, threads);
     let mut ways = Vec::new();
     if resamples {
-        let mut side = need.size.0.max(need.size.1);
-        while side > MIN_LONG_SIDE
-            && !fits(&Footprint::new(
-                need.frames,
-                own,
-                with_long_side(own, side),
-                need.depth_bytes,
-                threads,
-            ))
-        {
-            side -= 8;
-        }
-        let s = with_long_side(own, side);
-        let f = Footprint::new(need.frames, own, s, need.depth_bytes, threads);
-        if fits(&f) {
+        let s = largest_fitting(own, need.size.0.max(need.size.1), |s| {
+            at(s).total() <= limit
+        });
+        let f = at(s);
+        if f.total() <= limit {
             ways.push(format!(
                 "--resolution {}x{} (about {})",
                 s.0,

@@ -346,7 +346,7 @@ mod tests {
             assert_eq!(frame.depth.as_ref().expect("depth"), &v.depth);
             assert_eq!(frame.depth_weight, 0.25);
             assert_eq!(frame.color_weight, v.color_weight);
-            for (a, b) in frame.rgb.to_f32().iter().zip(&v.rgb.to_f32()) {
+            for (a, b) in frame.rgb.to_f32().iter().zip(v.rgb.to_f32().iter()) {
                 assert!((a - b).abs() <= 0.5 / 255.0 + 1e-6, "{a} vs {b}");
             }
             assert_eq!((map.width, map.height, map.dim), (4, 3, 3));

@@ -3,6 +3,29 @@
 //! and the work has more than a few steps.
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+
+use crate::error::DatasetError;
+
+/// `f` of every item, computed in parallel and returned in order, with a
+/// bar of `what` while it runs; the first error found is returned.
+pub fn par_map<T: Sync, R: Send>(
+    items: &[T],
+    what: &str,
+    f: impl Fn(&T) -> Result<R, DatasetError> + Sync,
+) -> Result<Vec<R>, DatasetError> {
+    let bar = Progress::new(items.len(), what);
+    let out = items
+        .par_iter()
+        .map(|item| {
+            let r = f(item);
+            bar.tick();
+            r
+        })
+        .collect();
+    bar.finish();
+    out
+}
 
 /// Fewer steps than this draw no bar.
 const MIN_STEPS: usize = 16;

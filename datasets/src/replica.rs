@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use model::geometry::{Camera, Intrinsics, Pose, Vec3};
+use model::geometry::{Camera, Intrinsics, Pose};
 
 use crate::error::DatasetError;
 use crate::options::LoaderOptions;
@@ -174,22 +174,14 @@ pub(crate) fn load_without_features(
         false,
     )?;
     let intrinsics = base.scaled(tw, th);
-    use rayon::prelude::*;
-    let progress = crate::progress::Progress::new(keep.len(), "loading frames");
-    let loaded: Vec<(Frame, Vec<Vec3>)> = keep
-        .par_iter()
-        .map(|&i| {
-            let frame = load_frame(dir, i, &images[i], &cam, (tw, th), intrinsics, poses[i]);
-            progress.tick();
-            let frame = frame?;
-            let mut points = vec![frame.camera.pose.center()];
-            if let Some(depth) = &frame.depth {
-                points.extend(backproject(&frame.camera, depth, options.box_pixel_step));
-            }
-            Ok((frame, points))
-        })
-        .collect::<Result<_, DatasetError>>()?;
-    progress.finish();
+    let loaded = crate::progress::par_map(&keep, "loading frames", |&i| {
+        let frame = load_frame(dir, i, &images[i], &cam, (tw, th), intrinsics, poses[i])?;
+        let mut points = vec![frame.camera.pose.center()];
+        if let Some(depth) = &frame.depth {
+            points.extend(backproject(&frame.camera, depth, options.box_pixel_step));
+        }
+        Ok((frame, points))
+    })?;
     let mut frames = Vec::with_capacity(loaded.len());
     let mut box_points = Vec::new();
     for (frame, points) in loaded {

@@ -1,5 +1,7 @@
 //! The common scene type every loader returns, and the frames it holds.
 
+use std::borrow::Cow;
+
 use model::geometry::{Camera, SceneBox};
 
 use crate::grid::nearest_pixel;
@@ -68,18 +70,20 @@ impl RgbImage {
         }
     }
 
-    /// Every value in `[0, 1]`, row-major `[height, width, 3]`.
-    pub fn to_f32(&self) -> Vec<f32> {
+    /// Every value in `[0, 1]`, row-major `[height, width, 3]` (borrowed
+    /// when they are floats already).
+    pub fn to_f32(&self) -> Cow<'_, [f32]> {
         match &self.data {
             RgbData::U8(v) => v.iter().map(|&b| f32::from(b) / 255.0).collect(),
-            RgbData::F32(v) => v.clone(),
+            RgbData::F32(v) => Cow::Borrowed(v),
         }
     }
 
-    /// Every value as a byte (`round(255 v)`, clamped), row-major.
-    pub fn to_u8(&self) -> Vec<u8> {
+    /// Every value as a byte (`round(255 v)`, clamped), row-major
+    /// (borrowed when they are bytes already).
+    pub fn to_u8(&self) -> Cow<'_, [u8]> {
         match &self.data {
-            RgbData::U8(v) => v.clone(),
+            RgbData::U8(v) => Cow::Borrowed(v),
             RgbData::F32(v) => v
                 .iter()
                 .map(|&x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
@@ -98,7 +102,10 @@ impl RgbImage {
     /// Colour of pixel `(x, y)`.
     pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
         let i = 3 * (y as usize * self.width as usize + x as usize);
-        [self.value(i), self.value(i + 1), self.value(i + 2)]
+        match &self.data {
+            RgbData::U8(v) => [v[i], v[i + 1], v[i + 2]].map(|b| f32::from(b) / 255.0),
+            RgbData::F32(v) => [v[i], v[i + 1], v[i + 2]],
+        }
     }
 
     /// Colour at image point `(u, v)` of an `image_width x image_height`
@@ -114,7 +121,7 @@ impl RgbImage {
 /// pixels without a valid measurement. Stored as 32-bit floats, or as
 /// half floats where the loader compacts it ([`DepthImage::to_half`]: a
 /// phone's LiDAR depth, whose centimetre accuracy half floats keep to
-/// within 4 mm up to 8 m).
+/// within 2 mm up to 8 m).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthImage {
     /// Width in pixels.
@@ -170,10 +177,11 @@ impl DepthImage {
         self.value(y as usize * self.width as usize + x as usize)
     }
 
-    /// Every value as a 32-bit float, row-major.
-    pub fn to_f32(&self) -> Vec<f32> {
+    /// Every value as a 32-bit float, row-major (borrowed when they are
+    /// 32-bit already).
+    pub fn to_f32(&self) -> Cow<'_, [f32]> {
         match &self.data {
-            DepthData::F32(v) => v.clone(),
+            DepthData::F32(v) => Cow::Borrowed(v),
             DepthData::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
         }
     }

@@ -49,7 +49,7 @@ fn replica_room0_at_640x360() {
     assert!((k.fx - 320.0).abs() < 1e-9 && (k.fy - 600.0 * 360.0 / 680.0).abs() < 1e-9);
     assert!((k.cx - 319.5).abs() < 1e-9 && (k.cy - 179.5).abs() < 1e-9);
     let d = s.frames[0].depth.as_ref().expect("depth");
-    let valid: Vec<f32> = d.to_f32().into_iter().filter(|&v| v > 0.0).collect();
+    let valid: Vec<f32> = d.to_f32().iter().copied().filter(|&v| v > 0.0).collect();
     let (lo, hi) = valid
         .iter()
         .fold((f32::MAX, 0f32), |(a, b), &v| (a.min(v), b.max(v)));

@@ -171,12 +171,12 @@ fn a_capture_round_trips_through_writer_and_loader() {
         assert_eq!(ka.distortion, kb.distortion);
         let (ma, mb) = (a.camera.pose.to_matrix(), b.camera.pose.to_matrix());
         assert!(close(ma.as_flattened(), mb.as_flattened(), 1e-12));
-        for (x, y) in a.rgb.to_f32().iter().zip(&b.rgb.to_f32()) {
+        for (x, y) in a.rgb.to_f32().iter().zip(b.rgb.to_f32().iter()) {
             assert!((x - y).abs() <= 0.5 / 255.0 + 1e-6, "colour {x} vs {y}");
         }
         let (da, db) = (a.depth.as_ref().expect("d"), b.depth.as_ref().expect("d"));
         assert_eq!((da.width, da.height), (db.width, db.height));
-        for (x, y) in da.to_f32().iter().zip(&db.to_f32()) {
+        for (x, y) in da.to_f32().iter().zip(db.to_f32().iter()) {
             assert!((x - y).abs() <= 0.5e-3 + 1e-6, "depth {x} vs {y}");
             assert_eq!(*x == 0.0, *y == 0.0);
         }

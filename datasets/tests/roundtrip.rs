@@ -46,7 +46,7 @@ fn check_roundtrip(format: ImageFormat, colour_tolerance: f32, mean_tolerance: f
             assert!((x - y).abs() < 1e-9, "intrinsics {x} vs {y}");
         }
         let (da, db) = (a.depth.as_ref().unwrap(), b.depth.as_ref().unwrap());
-        for (x, y) in da.to_f32().iter().zip(&db.to_f32()) {
+        for (x, y) in da.to_f32().iter().zip(db.to_f32().iter()) {
             assert!(
                 ((x - y).abs() as f64) <= 0.5 / DEPTH_SCALE + 1e-6,
                 "depth {x} vs {y}"
@@ -54,7 +54,7 @@ fn check_roundtrip(format: ImageFormat, colour_tolerance: f32, mean_tolerance: f
         }
         let mut max = 0f32;
         let mut sum = 0f32;
-        for (x, y) in a.rgb.to_f32().iter().zip(&b.rgb.to_f32()) {
+        for (x, y) in a.rgb.to_f32().iter().zip(b.rgb.to_f32().iter()) {
             max = max.max((x - y).abs());
             sum += (x - y).abs();
         }

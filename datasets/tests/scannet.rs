@@ -71,7 +71,7 @@ const LOST: &str =
 fn agreement(got: &DepthImage, want: &DepthImage, tol: f32) -> (f64, f64, f32) {
     let mut errors = Vec::new();
     let mut reference = 0usize;
-    for (a, b) in got.to_f32().iter().zip(&want.to_f32()) {
+    for (a, b) in got.to_f32().iter().zip(want.to_f32().iter()) {
         if *b > 0.0 {
             reference += 1;
             if *a > 0.0 {

@@ -228,7 +228,7 @@ fn extractor_depends_only_on_the_colour_image() {
         assert!((n - 1.0).abs() < 0.01, "unit norm, got {n}");
     }
     // A local change only changes the map near it (reduced resolution + 3x3 blur).
-    let mut values = img.to_f32();
+    let mut values = img.to_f32().into_owned();
     for y in 40..48 {
         for x in 80..88 {
             let o = 3 * (y * 96 + x);
@@ -253,7 +253,7 @@ fn extractor_depends_only_on_the_colour_image() {
         "{changed:?}"
     );
     // Bad input is an error, not a panic.
-    let mut values = img.to_f32();
+    let mut values = img.to_f32().into_owned();
     values.pop();
     let bad = datasets::RgbImage::from_f32(img.width, img.height, values);
     assert!(ex.extract(&bad).is_err());

@@ -89,7 +89,8 @@ pub fn resized_photograph(photo: &RgbImage, width: u32, height: u32) -> RgbImage
     if (photo.width, photo.height) == (width, height) {
         return photo.clone();
     }
-    let Some(img) = Rgb32FImage::from_raw(photo.width, photo.height, photo.to_f32()) else {
+    let Some(img) = Rgb32FImage::from_raw(photo.width, photo.height, photo.to_f32().into_owned())
+    else {
         return photo.clone();
     };
     let out = image::imageops::resize(&img, width, height, FilterType::Triangle);
@@ -216,7 +217,7 @@ mod tests {
         let small = resized_photograph(&p, 4, 2);
         assert_eq!((small.width, small.height, small.len()), (4, 2, 24));
         let small = small.to_f32();
-        for v in &small {
+        for v in small.iter() {
             assert!((v - 0.5).abs() < 0.2, "{v}");
         }
         let mean = small.iter().sum::<f32>() / 24.0;

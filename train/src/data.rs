@@ -64,10 +64,7 @@ pub fn source_from_cli(cli: &Cli) -> Result<SceneSource, TrainError> {
         && let Ok(Some(video)) = datasets::phone::record3d::default_stride(&path)
     {
         loader.selection_mut().stride = video.stride;
-        let kept = video
-            .frames
-            .div_ceil(video.stride)
-            .min(cli.max_frames.unwrap_or(usize::MAX));
+        let kept = loader.selection().select(0..video.frames).len();
         eprintln!(
             "frames: every {} of the {} frames ({kept} kept, {:.1} a second of the {} fps \
              video; auto: about {} a second of a Record3D video, at least {}; --stride 1 keeps \

@@ -183,19 +183,17 @@ fn a_capture_over_the_memory_limit_is_refused_before_loading() {
     let tmp = tempfile::tempdir().expect("tmp");
     let data = export(tmp.path(), "large", 6, (1920, 1440), 60.0, None);
     let run = tmp.path().join("run");
+    // Every frame at full size, under a limit they do not fit in.
+    let over = [
+        "--stride",
+        "1",
+        "--resolution",
+        "1920x1440",
+        "--max-memory",
+        "760M",
+    ];
     let err = assert_refused(
-        &[
-            "--data",
-            s(&data),
-            "--stride",
-            "1",
-            "--resolution",
-            "1920x1440",
-            "--max-memory",
-            "760M",
-            "--out",
-            s(&run),
-        ],
+        &[&["--data", s(&data), "--out", s(&run)], &over[..]].concat(),
         &[
             "6 frames at 1920x1440 would need about",
             "more than the 0.80 GB allowed (--max-memory)",
@@ -216,16 +214,7 @@ fn a_capture_over_the_memory_limit_is_refused_before_loading() {
         tmp.path(),
         &data,
         &fitted,
-        &[
-            "--stride",
-            "1",
-            "--resolution",
-            "1920x1440",
-            "--max-memory",
-            "760M",
-            "--max-frames",
-            fits,
-        ],
+        &[&over[..], &["--max-frames", fits]].concat(),
     );
     for (args, words) in [
         (vec!["--max-memory", "0"], vec!["--max-memory", "positive"]),

@@ -36,7 +36,7 @@ fn metadata(frames: &ReplicaFrames) -> String {
 fn maps(frames: &ReplicaFrames, i: usize) -> Result<(Vec<f32>, Vec<u8>)> {
     let depth = frames.depth(i)?;
     let levels = confidence(i, &depth);
-    Ok((depth.to_f32(), levels))
+    Ok((depth.to_f32().into_owned(), levels))
 }
 
 fn lzfse(bytes: &[u8]) -> Result<Vec<u8>> {

@@ -78,7 +78,7 @@ fn read_raw_depth(path: &Path) -> Result<((u32, u32), Vec<f64>), DatasetError> {
     let raw = imageio::load_depth16(path, 1.0, None)?;
     Ok((
         (raw.width, raw.height),
-        raw.to_f32().into_iter().map(f64::from).collect(),
+        raw.to_f32().iter().map(|&v| f64::from(v)).collect(),
     ))
 }
 

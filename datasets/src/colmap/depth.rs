@@ -161,7 +161,7 @@ mod tests {
         std::fs::write(&p, encode(2, 1, &[2.0, f32::NAN])).expect("write");
         let raw = read_depth_map(&p).expect("valid");
         let d = depth_target(&p, &raw, (4, 2), 0.5).expect("same aspect");
-        assert_eq!(d.to_f32(), [1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0]);
+        assert_eq!(*d.to_f32(), [1.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0]);
         assert!(depth_target(&p, &raw, (4, 8), 1.0).is_err());
         let cut = encode(2, 2, &[1.0, 2.0, 3.0]);
         std::fs::write(&p, &cut[..cut.len() - 1]).expect("write");

@@ -289,18 +289,9 @@ pub(crate) fn load_without_features(
             crate::footprint::check_fits(dir, &options.selection, kept.len(), size, depth)?;
         }
     }
-    let progress = crate::progress::Progress::new(kept.len(), "loading frames");
-    let frames = {
-        use rayon::prelude::*;
-        kept.par_iter()
-            .map(|v| {
-                let frame = load_frame(dir, &model, v, options, &to_scene, &by_id);
-                progress.tick();
-                frame
-            })
-            .collect::<Result<Vec<_>, _>>()?
-    };
-    progress.finish();
+    let frames = crate::progress::par_map(&kept, "loading frames", |v| {
+        load_frame(dir, &model, v, options, &to_scene, &by_id)
+    })?;
     let mapped_cameras: Vec<Camera> = cameras
         .iter()
         .map(|c| Camera {

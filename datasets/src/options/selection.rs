@@ -108,18 +108,18 @@ impl FrameSelection {
     /// The frames kept of `frames` when they may be chosen by sharpness:
     /// with [`Self::sharpest_of`], the one of each window of that many
     /// consecutive frames whose `score` is highest (the first on a tie;
-    /// scores are computed in parallel), then at most `max_frames`;
-    /// otherwise [`Self::select`]. `score` errors are returned.
+    /// scores are computed in parallel, with a progress bar), then at most
+    /// `max_frames`; otherwise [`Self::select`]. `score` errors are
+    /// returned.
     pub fn select_sharpest<T: Send + Sync>(
         &self,
         frames: Vec<T>,
         score: impl Fn(&T) -> Result<f64, DatasetError> + Sync,
     ) -> Result<Vec<T>, DatasetError> {
-        use rayon::prelude::*;
         let Some(k) = self.sharpest_of.filter(|&k| k > 1) else {
             return Ok(self.select(frames));
         };
-        let scores: Vec<f64> = frames.par_iter().map(&score).collect::<Result<_, _>>()?;
+        let scores = crate::progress::par_map(&frames, "scoring sharpness", score)?;
         let best: Vec<usize> = scores
             .chunks(k)
             .enumerate()

@@ -247,38 +247,23 @@ fn select(
     notes: &mut Vec<String>,
 ) -> Result<Vec<CaptureFrame>, DatasetError> {
     let listed = frames.len();
-    let scores = frames.iter().all(|f| f.blur_score.is_some());
+    let by_blur_score = frames.iter().all(|f| f.blur_score.is_some());
+    let kept = selection.select_sharpest(frames, |f| match f.blur_score {
+        Some(s) if by_blur_score => Ok(s),
+        _ => f.image.sharpness(),
+    })?;
     if let Some(k) = selection.sharpest_of.filter(|&k| k > 1) {
-        let by = if scores {
+        let by = if by_blur_score {
             "the export's blur scores"
         } else {
             "the variance of the Laplacian"
         };
-        let kept = listed
-            .div_ceil(k)
-            .min(selection.max_frames.unwrap_or(usize::MAX));
         notes.push(format!(
-            "kept the sharpest frame of each {k} ({kept} of {listed}, by {by})"
+            "kept the sharpest frame of each {k} ({} of {listed}, by {by})",
+            kept.len()
         ));
     }
-    let progress = crate::progress::Progress::new(
-        if selection.sharpest_of.is_some_and(|k| k > 1) {
-            frames.len()
-        } else {
-            0
-        },
-        "scoring sharpness",
-    );
-    let kept = selection.select_sharpest(frames, |f| {
-        let score = match f.blur_score {
-            Some(s) if scores => Ok(s),
-            _ => f.image.sharpness(),
-        };
-        progress.tick();
-        score
-    });
-    progress.finish();
-    kept
+    Ok(kept)
 }
 
 /// The kept frames, loaded at `size` (`first_size` the images' own size):
@@ -291,18 +276,10 @@ fn load_frames(
     options: &PhoneOptions,
     notes: &mut Vec<String>,
 ) -> Result<Vec<Frame>, DatasetError> {
-    use rayon::prelude::*;
     let any_depth = kept.iter().any(|f| f.depth.is_some());
-    let progress = crate::progress::Progress::new(kept.len(), "loading frames");
-    let loaded: Vec<(Frame, Dropped)> = kept
-        .par_iter()
-        .map(|cf| {
-            let loaded = load_frame(cf, first_size, (tw, th), raycaster, options);
-            progress.tick();
-            loaded
-        })
-        .collect::<Result<_, _>>()?;
-    progress.finish();
+    let loaded = crate::progress::par_map(kept, "loading frames", |cf| {
+        load_frame(cf, first_size, (tw, th), raycaster, options)
+    })?;
     let mut dropped = Dropped::default();
     let frames = loaded
         .into_iter()

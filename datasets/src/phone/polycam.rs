@@ -114,9 +114,19 @@ fn pixels(map: &Map<String, Value>, key: &str, path: &Path) -> Result<u32, Datas
     }
 }
 
-/// One camera JSON: the camera-to-world (row-major, last row [0, 0, 0, 1])
-/// and the intrinsics at its `width` x `height`.
-pub fn read_camera(path: &Path) -> Result<([[f64; 4]; 4], Intrinsics), DatasetError> {
+/// What a camera JSON holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Camera-to-world, row-major, last row [0, 0, 0, 1].
+    pub pose: [[f64; 4]; 4],
+    /// The intrinsics at its `width` x `height`.
+    pub intrinsics: Intrinsics,
+    /// `blur_score` (higher is sharper), when it has a finite one.
+    pub blur_score: Option<f64>,
+}
+
+/// One camera JSON.
+pub fn read_camera(path: &Path) -> Result<Camera, DatasetError> {
     let text = std::fs::read_to_string(path).map_err(|e| DatasetError::io(path, e))?;
     let json: Value = serde_json::from_str(&text)
         .map_err(|e| DatasetError::invalid(path, format!("not a camera JSON: {e}")))?;
@@ -149,14 +159,14 @@ pub fn read_camera(path: &Path) -> Result<([[f64; 4]; 4], Intrinsics), DatasetEr
         cy,
         distortion: Distortion::NONE,
     };
-    Ok((pose, intrinsics))
-}
-
-/// The camera JSON's `blur_score`, when it has a finite one.
-fn read_blur_score(path: &Path) -> Option<f64> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let json: Value = serde_json::from_str(&text).ok()?;
-    json.get("blur_score")?.as_f64().filter(|v| v.is_finite())
+    Ok(Camera {
+        pose,
+        intrinsics,
+        blur_score: map
+            .get("blur_score")
+            .and_then(Value::as_f64)
+            .filter(|v| v.is_finite()),
+    })
 }
 
 /// Reads the frames of a Polycam raw-data export.
@@ -200,11 +210,15 @@ pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
                 ),
             ));
         }
-        let (pose, intrinsics) = read_camera(&camera)?;
+        let Camera {
+            pose,
+            intrinsics,
+            blur_score,
+        } = read_camera(&camera)?;
         let depth = keyframes.join("depth").join(format!("{stamp}.png"));
         let confidence = keyframes.join("confidence").join(format!("{stamp}.png"));
         capture.frames.push(CaptureFrame {
-            blur_score: read_blur_score(&camera),
+            blur_score,
             name: format!("frame_{stamp}"),
             image: ImageSource::File(image),
             pose,

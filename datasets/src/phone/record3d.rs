@@ -223,17 +223,10 @@ pub const MIN_VIDEO_FRAMES: usize = 20;
 /// The stride that keeps about [`VIDEO_FRAMES_PER_SECOND`] frames a
 /// second of the export at `path`, from its metadata's `fps`, but at least
 /// [`MIN_VIDEO_FRAMES`]; `None` when it states no rate or every frame is
-/// kept anyway.
+/// kept anyway. An export without readable metadata is the reader's error.
 pub fn default_stride(path: &Path) -> Result<Option<VideoStride>, DatasetError> {
     let (store, layout) = open(path)?;
-    let Some(meta_name) = [layout.metadata, "metadata.json", "metadata"]
-        .into_iter()
-        .find(|n| store.exists(n))
-    else {
-        return Ok(None);
-    };
-    let meta = Metadata::parse(&store.read(meta_name)?, &store.describe(meta_name))?;
-    let Some(fps) = meta.fps else {
+    let Some(fps) = read_metadata(&store, layout)?.fps else {
         return Ok(None);
     };
     let frames = store.numbered(layout.images, layout.image_exts)?.len();
@@ -247,11 +240,9 @@ pub fn default_stride(path: &Path) -> Result<Option<VideoStride>, DatasetError> 
     }))
 }
 
-/// Reads the frames of a Record3D export: an EXR + JPG directory, a `.r3d`
-/// file, or a directory of a `.r3d` file's contents.
-pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
-    let (store, layout) = open(path)?;
-    let meta_name = [layout.metadata, "metadata.json", "metadata"]
+/// The export's metadata (under the layout's name, or the other layout's).
+fn read_metadata(store: &Store, layout: &Layout) -> Result<Metadata, DatasetError> {
+    let name = [layout.metadata, "metadata.json", "metadata"]
         .into_iter()
         .find(|n| store.exists(n))
         .ok_or_else(|| {
@@ -260,8 +251,15 @@ pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
                 "missing: Record3D's metadata (intrinsics and poses) is not there",
             )
         })?;
-    let meta_path = store.describe(meta_name);
-    let meta = Metadata::parse(&store.read(meta_name)?, &meta_path)?;
+    Metadata::parse(&store.read(name)?, &store.describe(name))
+}
+
+/// Reads the frames of a Record3D export: an EXR + JPG directory, a `.r3d`
+/// file, or a directory of a `.r3d` file's contents.
+pub fn read_capture(path: &Path) -> Result<Capture, DatasetError> {
+    let (store, layout) = open(path)?;
+    let meta = read_metadata(&store, layout)?;
+    let meta_path = meta.path.clone();
     let images = store.numbered(layout.images, layout.image_exts)?;
     if images.is_empty() {
         return Err(DatasetError::invalid(

@@ -61,7 +61,7 @@ impl HeldOut {
 
     /// The final figures of `model`: with `render`, the views in full
     /// (their pictures, strips and contact sheet written into `renders`;
-    /// as many as [`full_render_views`] allows), on interior pixels, on
+    /// as many as [`spread_within`] allows within [`FULL_RENDER_PIXELS`]), on interior pixels, on
     /// every pixel and per view; else on the pixel sample only.
     pub(super) fn last(
         &self,
@@ -73,16 +73,25 @@ impl HeldOut {
         let valid = model.valid();
         let start = std::time::Instant::now();
         let (interior, whole, views, rays) = if render {
-            let rendered = full_render_views(scene, &self.frames);
-            if rendered.len() < self.frames.len() {
+            let pixels: Vec<usize> = self
+                .frames
+                .iter()
+                .map(|&f| {
+                    let k = &scene.frames[f].camera.intrinsics;
+                    k.width as usize * k.height as usize
+                })
+                .collect();
+            let chosen = spread_within(&pixels, FULL_RENDER_PIXELS);
+            if chosen.len() < self.frames.len() {
                 eprintln!(
                     "held-out views rendered in full: {} of {}, evenly spaced (at most {} \
                      million pixels; the periodic figures cover all of them)",
-                    rendered.len(),
+                    chosen.len(),
                     self.frames.len(),
                     FULL_RENDER_PIXELS / 1_000_000
                 );
             }
+            let rendered: Vec<usize> = chosen.iter().map(|&i| self.frames[i]).collect();
             let m = evaluate_views(
                 &valid,
                 scene,
@@ -91,13 +100,7 @@ impl HeldOut {
                 self.render_chunk,
                 renders,
             )?;
-            let rays: usize = rendered
-                .iter()
-                .map(|&f| {
-                    let k = &scene.frames[f].camera.intrinsics;
-                    k.width as usize * k.height as usize
-                })
-                .sum();
+            let rays: usize = chosen.iter().map(|&i| pixels[i]).sum();
             (m.interior, Some(m.whole), m.views, rays)
         } else {
             let m = evaluate_pixels(&valid, scene, &self.pixels, self.render_chunk);
@@ -115,25 +118,18 @@ impl HeldOut {
 /// The most pixels the final render of the held-out views covers: a
 /// capture of hundreds of held-out frames would otherwise take longer to
 /// render than to train.
-pub const FULL_RENDER_PIXELS: usize = 4_000_000;
+pub const FULL_RENDER_PIXELS: usize = 6_000_000;
 
-/// The held-out `frames` rendered in full at the end: all of them when
-/// their pixels are at most [`FULL_RENDER_PIXELS`], else as many as fit
-/// (at least one), evenly spaced.
-pub fn full_render_views(scene: &Scene, frames: &[usize]) -> Vec<usize> {
-    let pixels = |f: usize| {
-        let k = &scene.frames[f].camera.intrinsics;
-        k.width as usize * k.height as usize
-    };
-    let total: usize = frames.iter().map(|&f| pixels(f)).sum();
-    if total <= FULL_RENDER_PIXELS || frames.is_empty() {
-        return frames.to_vec();
+/// The views (indices into `pixels`, each view's pixels) rendered in full:
+/// all of them when their pixels add up to at most `budget`, else as many
+/// views of the mean size as fit (at least one), evenly spaced.
+pub fn spread_within(pixels: &[usize], budget: usize) -> Vec<usize> {
+    let (n, total) = (pixels.len(), pixels.iter().sum::<usize>());
+    if total <= budget {
+        return (0..n).collect();
     }
-    let per_view = total.div_ceil(frames.len()).max(1);
-    let count = (FULL_RENDER_PIXELS / per_view).clamp(1, frames.len());
-    (0..count)
-        .map(|i| frames[i * frames.len() / count])
-        .collect()
+    let count = (budget / total.div_ceil(n)).clamp(1, n);
+    (0..count).map(|i| i * n / count).collect()
 }
 
 /// The final figures of a session.
@@ -148,4 +144,28 @@ pub(super) struct FinalEval {
     /// Rays rendered per second (the rendering, the metrics and, for the
     /// full views, writing their PNGs).
     pub rays_per_second: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spread_within;
+
+    #[test]
+    fn views_within_the_budget_are_all_rendered_and_the_rest_spread_evenly() {
+        assert_eq!(spread_within(&[10; 3], 30), vec![0, 1, 2]);
+        assert_eq!(spread_within(&[], 30), Vec::<usize>::new());
+        // Ten views of 10 pixels in 45: four, a quarter of the way apart.
+        assert_eq!(spread_within(&[10; 10], 45), vec![0, 2, 5, 7]);
+        // A single view over the budget is still rendered.
+        assert_eq!(spread_within(&[100, 100], 30), vec![0]);
+        // The chosen views fit (views of one size).
+        for n in 1..40 {
+            let chosen = spread_within(&vec![7; n], 50);
+            assert!(
+                chosen.len() * 7 <= 50 || chosen.len() == 1,
+                "{n}: {chosen:?}"
+            );
+            assert!(chosen.windows(2).all(|w| w[0] < w[1]), "{n}: {chosen:?}");
+        }
+    }
 }

@@ -109,6 +109,7 @@ fn corrected_keyframes_are_preferred_and_read_exactly() {
         (k.width, k.height, k.fx, k.fy, k.cx, k.cy),
         (1024, 768, 700.5, 702.25, 511.5, 383.75)
     );
+    assert_eq!(f.blur_score, Some(12.5));
     let d = f.depth.as_ref().unwrap().load().unwrap();
     assert_eq!((d.width, d.height, d.value(0)), (4, 3, 1.5));
     assert!(capture.frames[2].depth.is_none() && capture.mesh.is_none());

@@ -244,11 +244,14 @@ mod tests {
                 AnyChannel::new("R", f32s([1.0, 2.0])),
             ],
         );
-        assert_eq!(exr_depth(&p).unwrap().to_f32(), [1.0, 2.0]);
+        assert_eq!(*exr_depth(&p).unwrap().to_f32(), [1.0, 2.0]);
         let half = FlatSamples::F16(vec![f16::from_f32(0.5), f16::from_f32(2.25)]);
         write_exr(&p, vec![AnyChannel::new("Y", half)]);
         let d = exr_depth(&p).unwrap();
-        assert_eq!((d.width, d.height, d.to_f32()), (2, 1, vec![0.5, 2.25]));
+        assert_eq!(
+            (d.width, d.height, d.to_f32().to_vec()),
+            (2, 1, vec![0.5, 2.25])
+        );
         write_exr(
             &p,
             vec![
