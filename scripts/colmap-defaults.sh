@@ -1,44 +1,54 @@
 #!/usr/bin/env bash
 # The defaults of real photographed captures, each flipped on its own,
 # measured on three captures: the statue and the cup (COLMAP, photographed
-# objects) and fern (LLFF, forward-facing). For each capture, a run with
+# objects) and fern (LLFF, forward-facing). For each capture, runs with
 # the defaults and one per setting turned the other way: 256 rays a batch,
 # the hash encoding, appearance codes, sparse depth (COLMAP only) and the
-# field (box or unbounded). Each run trains SECONDS (default 600) and is
-# scored by held-out PSNR over every pixel (`summary.json`).
+# field (box or unbounded). Each run trains SECONDS (default 600).
 #
 #   bash scripts/colmap-defaults.sh OUT [SECONDS] [CAPTURES]
 #
 # CAPTURES (default "statue cup fern") chooses among the three, and
 # SETTINGS="rays hash ..." in the environment among the settings (default
-# all: rays, hash, appearance, sparse_depth, field). Rows are appended to
-# the CSV, so a table can be made over several invocations.
-# OUT/colmap_defaults.csv holds a row per run: capture, setting, value,
-# held-out PSNR, iterations, and the same of the run with the defaults it
-# is compared with. Runs one after another (each is timed): nothing else
-# should load the machine.
+# all: rays, hash, appearance, sparse_depth, field).
 #
-# With PAIRED=1 each flipped run is trained at the same time as a run of
-# the defaults, each on a core of its own (taskset, one thread each): a
-# change in the machine's speed falls on both runs of a pair alike, and
-# the defaults' runs show how much a run differs from itself. Needs two
-# idle cores. QUICK=1 trains 20 iterations a run instead, without the
-# final render (a rehearsal: its PSNR is the interior pixel sample's).
+# Two ways to use the machine:
+# - default: one run at a time on every core, one run of the defaults per
+#   capture;
+# - SIDE_BY_SIDE=1: two runs at a time, each on a core of its own
+#   (taskset, one thread each), and two runs of the defaults per capture,
+#   trained side by side: how much they differ is how much a run differs
+#   from itself. Takes half the time on a 2-core machine.
+#
+# Scoring: held-out PSNR over every pixel of the final render
+# (`summary.json`'s `heldout_whole`), or with SAMPLE=N over N held-out
+# pixels drawn once (the same for every run of a capture) from the
+# interior of the held-out views, with no final render and no periodic
+# evaluation in between (a full render of the cup's held-out views takes
+# longer than the training).
+#
+# OUT/colmap_defaults.csv: a row per flipped run (capture, setting, value,
+# held-out PSNR, iterations, the mean PSNR and iterations of the defaults'
+# runs, the difference); OUT/colmap_defaults_runs.csv: a row per run;
+# OUT/colmap_defaults.png: the differences as bars (`capture_defaults_plot`).
+# QUICK=1 trains 20 iterations a run (a rehearsal). Nothing else should
+# load the machine.
 set -euo pipefail
 out=${1:?usage: bash scripts/colmap-defaults.sh OUT [SECONDS] [CAPTURES]}
 budget=${2:-600}
 captures=${3:-statue cup fern}
 data=${OPENNERF_DATA:-../shared/data}
-if [ -n "${QUICK:-}" ]; then
-  length=(--iters 20 --no-final-render)
-else
-  length=(--time-budget "$budget")
+length=(--time-budget "$budget")
+[ -n "${QUICK:-}" ] && length=(--iters 20)
+scoring=()
+if [ -n "${SAMPLE:-}" ]; then
+  mkdir -p "$out"
+  echo "{\"logging\": {\"eval_pixels\": $SAMPLE, \"eval_every\": 0}}" >"$out/sample.json"
+  scoring=(--no-final-render --config "$out/sample.json")
 fi
 . "$(dirname "$0")/frozen-bins.sh"
 freeze_bins "$out"
 mkdir -p "$out/runs"
-csv=$out/colmap_defaults.csv
-[ -f "$csv" ] || echo "capture,setting,value,psnr,iterations,defaults_psnr,defaults_iterations,difference_db" >"$csv"
 
 # The capture directory and the flags that flip each setting from its
 # default there (a photographed object: unbounded, codes, hash grid,
@@ -61,48 +71,83 @@ flips() {
   esac
 }
 
-# train NAME CORE FLAGS...: one run into OUT/runs/NAME (CORE empty: all cores).
-train() {
-  local name=$1 core=$2
-  shift 2
-  local pin=()
-  [ -n "$core" ] && pin=(env RAYON_NUM_THREADS=1 taskset -c "$core")
-  rm -rf "$out/runs/$name"
-  "${pin[@]}" "$bin/train" "${length[@]}" --seed 0 --quiet --out "$out/runs/$name" "$@" \
-    >"$out/runs/$name.log" 2>&1 </dev/null
-}
-
-# The held-out PSNR over every pixel and the iterations of a run.
-score() {
-  python3 - "$out/runs/$1/summary.json" <<'EOF'
-import json, sys
-s = json.load(open(sys.argv[1]))
-whole = s.get("heldout_whole") or s["heldout_interior"]
-print(f"{whole['psnr']:.3f},{s['iterations']}")
-EOF
-}
-
+# The runs, a line each: "NAME CAPTURE SETTING FLAGS..." (SETTING "-" for
+# the defaults).
+jobs=()
 for c in $captures; do
-  dir=$(capture_dir "$c")
-  [ -n "${PAIRED:-}" ] || train "$c-defaults" "" --data "$dir"
+  capture_dir "$c" >/dev/null
+  jobs+=("$c-defaults $c -")
+  [ -n "${SIDE_BY_SIDE:-}" ] && jobs+=("$c-defaults-again $c -")
   while IFS= read -r flip; do
     setting=${flip%%:*}
     if [ -n "${SETTINGS:-}" ] && [[ " $SETTINGS " != *" $setting "* ]]; then
       continue
     fi
-    read -r -a flags <<<"${flip#*:}"
-    if [ -n "${PAIRED:-}" ]; then
-      train "$c-defaults-$setting" 0 --data "$dir" &
-      train "$c-$setting" 1 --data "$dir" "${flags[@]}"
-      wait
-      base=$(score "$c-defaults-$setting")
-    else
-      train "$c-$setting" "" --data "$dir" "${flags[@]}"
-      base=$(score "$c-defaults")
-    fi
-    got=$(score "$c-$setting")
-    diff=$(python3 -c "print(f'{${got%%,*} - ${base%%,*}:+.3f}')")
-    echo "$c,$setting,${flags[*]},$got,$base,$diff" | tee -a "$csv"
+    jobs+=("$c-$setting $c $setting ${flip#*:}")
   done < <(flips "$c")
 done
-echo "wrote $csv"
+
+# run JOB CORE: one run into OUT/runs/NAME (CORE empty: every core).
+run() {
+  local name capture setting flags pin=()
+  read -r name capture setting flags <<<"$1"
+  [ -n "$2" ] && pin=(env RAYON_NUM_THREADS=1 taskset -c "$2")
+  rm -rf "$out/runs/$name"
+  # shellcheck disable=SC2086
+  "${pin[@]}" "$bin/train" "${length[@]}" "${scoring[@]}" --seed 0 --quiet \
+    --data "$(capture_dir "$capture")" --out "$out/runs/$name" $flags \
+    >"$out/runs/$name.log" 2>&1 </dev/null
+  echo "done: $name"
+}
+
+if [ -n "${SIDE_BY_SIDE:-}" ]; then
+  # Two workers, a core each, taking the runs in turn.
+  for core in 0 1; do
+    (
+      for ((i = core; i < ${#jobs[@]}; i += 2)); do run "${jobs[$i]}" "$core"; done
+    ) &
+  done
+  wait
+else
+  for job in "${jobs[@]}"; do run "$job" ""; done
+fi
+
+# The tables.
+printf '%s\n' "${jobs[@]}" >"$out/jobs.txt"
+python3 - "$out" <<'PY'
+import csv, json, sys
+from collections import defaultdict
+out = sys.argv[1]
+rows, defaults = [], defaultdict(list)
+for line in open(f"{out}/jobs.txt"):
+    name, capture, setting, *flags = line.split()
+    s = json.load(open(f"{out}/runs/{name}/summary.json"))
+    whole = s.get("heldout_whole") or s["heldout_interior"]
+    run = dict(run=name, capture=capture, setting=setting, value=" ".join(flags),
+               psnr=round(whole["psnr"], 3), iterations=s["iterations"],
+               pixels=whole.get("pixels", ""))
+    rows.append(run)
+    if setting == "-":
+        defaults[capture].append(run)
+with open(f"{out}/colmap_defaults_runs.csv", "w", newline="") as f:
+    w = csv.DictWriter(f, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+with open(f"{out}/colmap_defaults.csv", "w", newline="") as f:
+    w = csv.writer(f)
+    w.writerow(["capture", "setting", "value", "psnr", "iterations", "defaults_psnr",
+                "defaults_iterations", "defaults_spread_db", "difference_db"])
+    for r in rows:
+        if r["setting"] == "-":
+            continue
+        d = defaults[r["capture"]]
+        psnr = sum(x["psnr"] for x in d) / len(d)
+        its = sum(x["iterations"] for x in d) / len(d)
+        spread = max(x["psnr"] for x in d) - min(x["psnr"] for x in d)
+        row = [r["capture"], r["setting"], r["value"], r["psnr"], r["iterations"],
+               f"{psnr:.3f}", f"{its:.0f}", f"{spread:.3f}", f"{r['psnr'] - psnr:+.3f}"]
+        w.writerow(row)
+        print(",".join(map(str, row)))
+print(f"wrote {out}/colmap_defaults.csv and {out}/colmap_defaults_runs.csv")
+PY
+cargo run -p bench --release -q --example capture_defaults_plot -- "$out"

@@ -148,11 +148,12 @@ pub struct Cli {
     pub colmap_depth: bool,
     /// COLMAP: the sparse points as depth targets, each point's z-depth at
     /// the pixels of the features that observe it (as DS-NeRF supervises
-    /// few views); a quarter of each batch (`sampler.depth_rays`, 16 of a
-    /// COLMAP capture's default 64 rays) is drawn from those pixels.
-    /// `auto` (the default): on for COLMAP captures with sparse points,
-    /// unless --colmap-depth gives dense depth (docs/measurements/unbounded.md); `on`
-    /// elsewhere is an error. `train` prints its choice.
+    /// few views); a quarter of each batch (`sampler.depth_rays`, 64 of
+    /// the default 256 rays) is drawn from those pixels.
+    /// `auto` (the default): off, measured on real captures
+    /// (docs/measurements/real-capture-defaults.md); `on` where the model
+    /// has no sparse points or with --colmap-depth is an error. `train`
+    /// prints its choice.
     #[arg(long, value_enum)]
     pub sparse_depth: Option<crate::settings::args::SparseDepthArg>,
     /// Scenes on disk: grow the scene box by this fraction of its largest
@@ -182,9 +183,8 @@ pub struct Cli {
     /// Override: total training iterations (the schedule's length).
     #[arg(long)]
     pub iters: Option<usize>,
-    /// Override: rays per batch [default: 256; 128 for a forward-facing
-    /// capture, 64 for a photographed object walked around, which `train`
-    /// says when it starts: docs/reference/capture-defaults.md].
+    /// Override: rays per batch [default: 256, on every kind of capture;
+    /// a `--preset` on a room: 128 (docs/reference/capture-defaults.md)].
     #[arg(long)]
     pub rays: Option<usize>,
     /// Override: samples per ray and level [default: 48; a forward-facing

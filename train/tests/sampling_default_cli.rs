@@ -1,8 +1,8 @@
 //! The per-capture sampling default through the `train` binary: an LLFF
-//! capture trains with 16 samples per ray and level and 128 rays a batch
-//! (and says so) unless `--samples` / `--rays`, a `--config` file or a
-//! `--preset` says otherwise; a COLMAP capture trains with 64 rays a
-//! batch and the built-in samples; other scenes keep the built-in sizes.
+//! capture trains with 16 samples per ray and level and the built-in 256
+//! rays a batch (and says so) unless `--samples` / `--rays`, a `--config`
+//! file or a `--preset` says otherwise, with the hash encoding; a COLMAP
+//! capture and other scenes keep the built-in sizes.
 
 use std::path::Path;
 
@@ -51,11 +51,17 @@ fn an_llff_capture_trains_with_its_sampling_default_unless_told_otherwise() {
 
     let out = dir.path().join("default");
     let err = one_iteration(&out, &data);
-    assert_eq!(sizes(&out), (16, 128));
+    assert_eq!(sizes(&out), (16, 256));
     assert!(
         err.contains(
-            "sampling: 16 samples per ray and level, 128 rays a batch (auto: a forward-facing capture"
+            "sampling: 16 samples per ray and level, the built-in rays a batch (auto: a \
+             forward-facing capture"
         ),
+        "{err}"
+    );
+    assert!(
+        err.contains("hash grid: 16 levels of 2^15 rows")
+            && err.contains("(auto: a forward-facing capture: the hash encoding lifted"),
         "{err}"
     );
 
@@ -73,7 +79,7 @@ fn an_llff_capture_trains_with_its_sampling_default_unless_told_otherwise() {
     std::fs::write(&file, r#"{"model": {"num_samples": 20}}"#).expect("write");
     let out = dir.path().join("config");
     let err = one_iteration(&out, &[&data[..], &["--config", s(&file)]].concat());
-    assert_eq!(sizes(&out), (20, 128));
+    assert_eq!(sizes(&out), (20, 256));
     assert!(!err.contains("sampling:"), "{err}");
 
     // A preset sets its own sizes, and the default says nothing.
@@ -93,7 +99,7 @@ fn other_scenes_keep_the_built_in_sizes() {
 }
 
 #[test]
-fn a_colmap_capture_trains_with_64_rays_a_batch_unless_told_otherwise() {
+fn a_colmap_capture_trains_with_the_built_in_sizes_unless_told_otherwise() {
     let Some(statue) = datasets::shared_dataset("colmap_statue") else {
         return;
     };
@@ -102,14 +108,11 @@ fn a_colmap_capture_trains_with_64_rays_a_batch_unless_told_otherwise() {
 
     let out = dir.path().join("default");
     let err = one_iteration(&out, &data);
-    assert_eq!(sizes(&out), (48, 64));
-    assert!(
-        err.contains("sampling: 64 rays a batch (auto: a photographed object walked around"),
-        "{err}"
-    );
+    assert_eq!(sizes(&out), (48, 256));
+    assert!(!err.contains("sampling:"), "{err}");
 
     let out = dir.path().join("flags");
-    let err = one_iteration(&out, &[&data[..], &["--rays", "256"]].concat());
-    assert_eq!(sizes(&out), (48, 256));
+    let err = one_iteration(&out, &[&data[..], &["--rays", "64"]].concat());
+    assert_eq!(sizes(&out), (48, 64));
     assert!(!err.contains("sampling:"), "{err}");
 }

@@ -103,9 +103,9 @@ pub enum HashGridArg {
 /// Whether the sparse points are depth targets (`--sparse-depth`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum SparseDepthArg {
-    /// `on` for COLMAP captures whose model has sparse points (unless
-    /// `--colmap-depth` gives dense depth), where it was measured to lift
-    /// the held-out views (docs/measurements/unbounded.md); `off` elsewhere.
+    /// `off`: on real captures at 600 s the sparse points' depth lifted
+    /// one of the two COLMAP captures measured and lowered the other
+    /// (docs/measurements/real-capture-defaults.md).
     #[default]
     Auto,
     /// No depth from the sparse points.

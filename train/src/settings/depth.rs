@@ -1,6 +1,7 @@
 //! Whether a COLMAP capture's sparse points supervise the field's depth
-//! (`--sparse-depth`, see `datasets::colmap::sparse_depth`): where the
-//! loaded scene has them, a quarter of each batch is drawn from them.
+//! (`--sparse-depth`, see `datasets::colmap::sparse_depth`): under `on`, a
+//! quarter of each batch is drawn from them; `auto` leaves them out, as
+//! measured on real captures (docs/measurements/real-capture-defaults.md).
 
 use datasets::options::LoaderOptions;
 use datasets::{Scene, SceneSource};
@@ -13,17 +14,20 @@ use crate::error::TrainError;
 /// target: 64 of 256 rays, the measured setting (docs/measurements/unbounded.md).
 pub const SPARSE_DEPTH_SHARE: usize = 4;
 
+/// Why `auto` leaves the sparse points out.
+pub const AUTO_OFF_WHY: &str = "auto: at 600 s they lifted one of the two COLMAP captures \
+     measured and lowered the other (docs/measurements/real-capture-defaults.md)";
+
 /// Whether the loader makes sparse depth targets: a COLMAP capture under
-/// `auto` or `on`, unless its dense depth maps are the targets. Errors
-/// for `on` with `--colmap-depth`.
+/// `on` (`auto` and `off` leave them out). Errors for `on` with
+/// `--colmap-depth`.
 pub fn loader_flag(arg: Option<SparseDepthArg>, colmap_depth: bool) -> Result<bool, TrainError> {
     match arg.unwrap_or_default() {
         SparseDepthArg::On if colmap_depth => Err(TrainError::Config(
             "--sparse-depth on and --colmap-depth both give depth targets; choose one".into(),
         )),
         SparseDepthArg::On => Ok(true),
-        SparseDepthArg::Auto => Ok(!colmap_depth),
-        SparseDepthArg::Off => Ok(false),
+        SparseDepthArg::Auto | SparseDepthArg::Off => Ok(false),
     }
 }
 
@@ -35,8 +39,6 @@ pub struct SparseDepthChoice {
     pub pixels: usize,
     /// Frames with at least one.
     pub frames: usize,
-    /// Whether the flag was `on` (else `auto`).
-    pub asked: bool,
     /// Rays of each batch drawn from those pixels.
     pub rays: usize,
     /// Rays of each batch.
@@ -46,23 +48,17 @@ pub struct SparseDepthChoice {
 impl SparseDepthChoice {
     /// The one-line message `train` prints.
     pub fn message(&self) -> String {
-        let why = if self.asked {
-            "--sparse-depth on"
-        } else {
-            "auto: a COLMAP capture with sparse points, where they were measured to lift the \
-             held-out views (docs/measurements/unbounded.md)"
-        };
         format!(
             "depth: the sparse points give depth targets at {} pixels of {} photographs; {} of \
              the {} rays of each batch are drawn from those of the training photographs \
-             (sampler.depth_rays) ({why})",
+             (sampler.depth_rays) (--sparse-depth on)",
             self.pixels, self.frames, self.rays, self.batch
         )
     }
 }
 
 /// What the loaded `scene` gives to batches of `rays`: `None` when its
-/// loader made no sparse depth (another format, `off`, dense depth).
+/// loader made no sparse depth (another format, `auto`, `off`, dense depth).
 /// `depth_rays` of them are drawn from the targets when given (a
 /// `--config` file's), else a quarter ([`SPARSE_DEPTH_SHARE`], at least
 /// one when the batch has two rays or more). Errors
@@ -87,9 +83,8 @@ pub fn choose(
         .map(|d| (0..d.len()).filter(|&i| d.value(i) > 0.0).count())
         .filter(|&n| n > 0)
         .collect();
-    let asked = arg == Some(SparseDepthArg::On);
     if counts.is_empty() {
-        return if asked {
+        return if arg == Some(SparseDepthArg::On) {
             Err(TrainError::Config(format!(
                 "--sparse-depth on: no image of {} observes a sparse point (its points3D is \
                  empty or no feature is linked to a point); leave --sparse-depth out",
@@ -112,7 +107,6 @@ pub fn choose(
     Ok(Some(SparseDepthChoice {
         pixels: counts.iter().sum(),
         frames: counts.len(),
-        asked,
         rays,
         batch,
     }))
@@ -120,17 +114,28 @@ pub fn choose(
 
 /// Draws part of each batch of `config` from the sparse depth targets
 /// when `scene` has them (see [`choose`]), and returns the line that says
-/// so.
+/// so; under `auto`, on a COLMAP capture without dense depth, the line
+/// that says they are left out.
 pub fn apply(
     arg: Option<SparseDepthArg>,
     scene: &Scene,
     config: &mut TrainConfig,
 ) -> Result<Option<String>, TrainError> {
     let sampler = &mut config.sampler;
-    let sparse = choose(arg, scene, sampler.rays_per_batch, sampler.depth_rays)?;
-    Ok(sparse.map(|s| {
+    if let Some(s) = choose(arg, scene, sampler.rays_per_batch, sampler.depth_rays)? {
         sampler.depth_rays = s.rays;
-        s.message()
+        return Ok(Some(s.message()));
+    }
+    let colmap_without_depth = matches!(
+        scene.source.base(),
+        SceneSource::Disk { loader: LoaderOptions::Colmap(o), .. } if !o.depth
+    );
+    let auto = matches!(arg, None | Some(SparseDepthArg::Auto));
+    Ok((auto && colmap_without_depth).then(|| {
+        format!(
+            "depth: none from the sparse points ({AUTO_OFF_WHY}; --sparse-depth on draws a \
+             quarter of each batch from them)"
+        )
     }))
 }
 
@@ -145,7 +150,11 @@ mod tests {
             loader_flag(Some(SparseDepthArg::On), false).ok(),
             Some(true)
         );
-        assert_eq!(loader_flag(None, false).ok(), Some(true));
+        assert_eq!(loader_flag(None, false).ok(), Some(false));
+        assert_eq!(
+            loader_flag(Some(SparseDepthArg::Auto), false).ok(),
+            Some(false)
+        );
         assert_eq!(
             loader_flag(Some(SparseDepthArg::Auto), true).ok(),
             Some(false)

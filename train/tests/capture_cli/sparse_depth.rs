@@ -1,6 +1,6 @@
-//! `--sparse-depth`: the sparse points as depth targets, chosen by `auto`
-//! where the model links features to points, and refused where it cannot
-//! apply.
+//! `--sparse-depth`: the sparse points as depth targets under `on` where
+//! the model links features to points, left out by `auto`, and refused
+//! where they cannot apply.
 
 use super::*;
 
@@ -48,17 +48,17 @@ fn depth_rays(run: &Path) -> u64 {
 }
 
 #[test]
-fn auto_supervises_depth_where_features_see_points_and_says_so() {
+fn on_supervises_depth_where_features_see_points_and_auto_leaves_them_out() {
     let tmp = tempfile::tempdir().expect("tmp");
     let data = capture(tmp.path(), &model_with_features());
     let out = tmp.path().join("run");
-    let o = run(tmp.path(), &data, &out, &[]);
+    let o = run(tmp.path(), &data, &out, &["--sparse-depth", "on"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(
         err.contains("depth: the sparse points give depth targets at")
             && err.contains("pixels of 4 photographs; 8 of the 32 rays of each batch")
-            && err.contains("(auto: a COLMAP capture with sparse points"),
+            && err.contains("(--sparse-depth on)"),
         "{err}"
     );
     // A quarter of the tiny configuration's 32 rays.
@@ -71,19 +71,44 @@ fn auto_supervises_depth_where_features_see_points_and_says_so() {
     assert!(scene.frames.iter().all(|f| f.depth.is_some()));
     // A batch of three rays: one of them.
     let small = tmp.path().join("small");
-    let o = run(tmp.path(), &data, &small, &["--rays", "3"]);
+    let o = run(
+        tmp.path(),
+        &data,
+        &small,
+        &["--sparse-depth", "on", "--rays", "3"],
+    );
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("1 of the 3 rays of each batch"), "{err}");
     assert_eq!(depth_rays(&small), 1);
-    // Off: no targets, no depth rays, nothing said.
+    // Auto (the default): no targets, no depth rays, and a line that says
+    // why and how to turn them on.
+    let auto = tmp.path().join("auto");
+    let o = run(tmp.path(), &data, &auto, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("sparse points give depth"), "{err}");
+    assert!(
+        err.contains("depth: none from the sparse points (auto:")
+            && err.contains("--sparse-depth on draws a quarter of each batch"),
+        "{err}"
+    );
+    assert_eq!(depth_rays(&auto), 0);
+    let meta: datasets::SceneMeta =
+        serde_json::from_slice(&std::fs::read(auto.join("scene.json")).expect("scene.json"))
+            .expect("scene.json parses");
+    let scene = datasets::load_scene(&meta.source).expect("scene rebuilds");
+    assert!(scene.frames.iter().all(|f| f.depth.is_none()));
+    // Off: no targets, no depth rays, no line about them.
     let off = tmp.path().join("off");
     let o = run(tmp.path(), &data, &off, &["--sparse-depth", "off"]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(!err.contains("sparse points give depth"), "{err}");
+    assert!(!err.contains("depth: none from the sparse points"), "{err}");
     assert_eq!(depth_rays(&off), 0);
-    // A model whose images link no feature to a point: auto is silent.
+    // A model whose images link no feature to a point: auto gives no
+    // targets.
     let bare = capture(&tmp.path().join("bare"), &model_text());
     let plain = tmp.path().join("plain");
     let o = run(tmp.path(), &bare, &plain, &[]);
