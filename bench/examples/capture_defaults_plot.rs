@@ -11,6 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
+use bench::csv_table::CsvTable;
 use field_ops::plot::draw_png;
 use plotters::prelude::*;
 
@@ -41,41 +42,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 }
 
 fn read(csv: &Path) -> Result<Vec<Flip>, String> {
-    let err = |e: String| format!("{}: {e}", csv.display());
-    let text = std::fs::read_to_string(csv).map_err(|e| err(e.to_string()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines
-        .next()
-        .ok_or_else(|| err("empty".into()))?
-        .split(',')
-        .collect();
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .ok_or_else(|| err(format!("no column {name}")))
-    };
-    let (capture, setting, value) = (col("capture")?, col("setting")?, col("value")?);
-    let (difference, spread) = (col("difference_db")?, col("defaults_spread_db")?);
-    let mut flips = Vec::new();
-    for (i, line) in lines.enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let text = |c: usize| f.get(c).copied().unwrap_or_default().to_string();
-        let num = |c: usize| -> Result<f64, String> {
-            f.get(c)
-                .and_then(|v| v.trim_start_matches('+').parse().ok())
-                .ok_or_else(|| err(format!("line {}: no number in column {c}", i + 2)))
-        };
-        flips.push(Flip {
-            capture: text(capture),
-            setting: text(setting),
-            value: text(value),
-            difference: num(difference)?,
-            spread: num(spread)?,
-        });
-    }
+    let t = CsvTable::read(csv)?;
+    let (capture, setting, value) = (
+        t.column("capture")?,
+        t.column("setting")?,
+        t.column("value")?,
+    );
+    let (difference, spread) = (t.column("difference_db")?, t.column("defaults_spread_db")?);
+    let flips = (0..t.len())
+        .map(|r| {
+            Ok(Flip {
+                capture: t.text(r, capture).to_string(),
+                setting: t.text(r, setting).to_string(),
+                value: t.text(r, value).to_string(),
+                difference: t.number(r, difference)?,
+                spread: t.number(r, spread)?,
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
     if flips.is_empty() {
-        return Err(err("no runs".into()));
+        return Err(format!("{}: no runs", csv.display()));
     }
     Ok(flips)
 }

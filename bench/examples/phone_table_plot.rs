@@ -13,6 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
+use bench::csv_table::CsvTable;
 use field_ops::plot::{Canvas, draw_png};
 use plotters::prelude::*;
 
@@ -45,31 +46,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// The `(psnr, miou)` columns of `csv` (`phone_runs.csv` or
 /// `phone_pairs.csv`) per loader, loaders in their order of appearance.
 fn read(csv: &Path, psnr: &str, miou: &str) -> Result<Runs, String> {
-    let err = |e: String| format!("{}: {e}", csv.display());
-    let text = std::fs::read_to_string(csv).map_err(|e| err(e.to_string()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines
-        .next()
-        .ok_or_else(|| err("empty".into()))?
-        .split(',')
-        .collect();
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .ok_or_else(|| err(format!("no column {name}")))
-    };
-    let (loader, psnr, miou) = (col("loader")?, col(psnr)?, col(miou)?);
+    let t = CsvTable::read(csv)?;
+    let (loader, psnr, miou) = (t.column("loader")?, t.column(psnr)?, t.column(miou)?);
     let mut runs: Runs = Vec::new();
-    for (i, line) in lines.enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let num = |c: usize| -> Result<f64, String> {
-            f.get(c)
-                .and_then(|v| v.parse().ok())
-                .ok_or_else(|| err(format!("line {}: no number in column {c}", i + 2)))
-        };
-        let name = f.get(loader).copied().unwrap_or_default().to_string();
-        let point = (num(psnr)?, num(miou)?);
+    for r in 0..t.len() {
+        let name = t.text(r, loader).to_string();
+        let point = (t.number(r, psnr)?, t.number(r, miou)?);
         match runs.iter_mut().find(|(n, _)| *n == name) {
             Some((_, v)) => v.push(point),
             None => runs.push((name, vec![point])),

@@ -8,5 +8,6 @@
 //! experiments behind the README's findings.
 #![warn(missing_docs)]
 
+pub mod csv_table;
 pub mod phone_export;
 pub mod sweep;
