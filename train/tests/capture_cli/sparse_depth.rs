@@ -47,6 +47,14 @@ fn depth_rays(run: &Path) -> u64 {
         .expect("depth_rays")
 }
 
+/// The scene a run's `scene.json` rebuilds.
+fn rebuilt_scene(run: &Path) -> datasets::Scene {
+    let meta: datasets::SceneMeta =
+        serde_json::from_slice(&std::fs::read(run.join("scene.json")).expect("scene.json"))
+            .expect("scene.json parses");
+    datasets::load_scene(&meta.source).expect("scene rebuilds")
+}
+
 #[test]
 fn on_supervises_depth_where_features_see_points_and_auto_leaves_them_out() {
     let tmp = tempfile::tempdir().expect("tmp");
@@ -64,10 +72,7 @@ fn on_supervises_depth_where_features_see_points_and_auto_leaves_them_out() {
     // A quarter of the tiny configuration's 32 rays.
     assert_eq!(depth_rays(&out), 8);
     // The rebuilt scene has the targets: the run records the choice.
-    let meta: datasets::SceneMeta =
-        serde_json::from_slice(&std::fs::read(out.join("scene.json")).expect("scene.json"))
-            .expect("scene.json parses");
-    let scene = datasets::load_scene(&meta.source).expect("scene rebuilds");
+    let scene = rebuilt_scene(&out);
     assert!(scene.frames.iter().all(|f| f.depth.is_some()));
     // A batch of three rays: one of them.
     let small = tmp.path().join("small");
@@ -94,10 +99,7 @@ fn on_supervises_depth_where_features_see_points_and_auto_leaves_them_out() {
         "{err}"
     );
     assert_eq!(depth_rays(&auto), 0);
-    let meta: datasets::SceneMeta =
-        serde_json::from_slice(&std::fs::read(auto.join("scene.json")).expect("scene.json"))
-            .expect("scene.json parses");
-    let scene = datasets::load_scene(&meta.source).expect("scene rebuilds");
+    let scene = rebuilt_scene(&auto);
     assert!(scene.frames.iter().all(|f| f.depth.is_none()));
     // Off: no targets, no depth rays, no line about them.
     let off = tmp.path().join("off");
