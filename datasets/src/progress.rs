@@ -8,14 +8,16 @@ use rayon::prelude::*;
 use crate::error::DatasetError;
 
 /// `f` of every item, computed in parallel and returned in order, with a
-/// bar of `what` while it runs; the first error found is returned.
+/// bar of `what` while it runs. On failure the error of the first failing
+/// item in order is returned, whichever thread found an error first, so a
+/// bad capture always names the same file.
 pub fn par_map<T: Sync, R: Send>(
     items: &[T],
     what: &str,
     f: impl Fn(&T) -> Result<R, DatasetError> + Sync,
 ) -> Result<Vec<R>, DatasetError> {
     let bar = Progress::new(items.len(), what);
-    let out = items
+    let out: Vec<Result<R, DatasetError>> = items
         .par_iter()
         .map(|item| {
             let r = f(item);
@@ -24,7 +26,7 @@ pub fn par_map<T: Sync, R: Send>(
         })
         .collect();
     bar.finish();
-    out
+    out.into_iter().collect()
 }
 
 /// Fewer steps than this draw no bar.
@@ -62,5 +64,32 @@ impl Progress {
         if let Some(bar) = &self.0 {
             bar.finish_and_clear();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+    use std::time::Duration;
+
+    #[test]
+    fn the_first_failing_item_in_order_is_the_error() {
+        let items: Vec<usize> = (0..64).collect();
+        let out = par_map(&items, "test", |&i| {
+            if i == 3 {
+                // The first failure in order is the slowest to be found.
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            if i % 4 == 3 {
+                Err(DatasetError::invalid(PathBuf::from(format!("{i}")), "bad"))
+            } else {
+                Ok(i * 2)
+            }
+        });
+        let msg = out.err().map(|e| e.to_string()).unwrap_or_default();
+        assert!(msg.starts_with("3:"), "{msg}");
+        let ok = par_map(&items, "test", |&i| Ok::<_, DatasetError>(i * 2));
+        assert_eq!(ok.ok(), Some(items.iter().map(|i| i * 2).collect()));
     }
 }
