@@ -21,6 +21,9 @@ pub enum ReadReason {
     HashCorners,
     /// A proposal round's resampling on the host (the CPU backends' form).
     ProposalRound,
+    /// The fine level's blur-resample on the host (the CPU backends'
+    /// form).
+    FineResample,
     /// The occupancy grid's refresh from the field's density.
     OccupancyUpdate,
     /// The values a training step measured (loss terms, gradient norm),
@@ -33,9 +36,10 @@ pub enum ReadReason {
 
 impl ReadReason {
     /// Every reason, in counting order.
-    pub const ALL: [ReadReason; 5] = [
+    pub const ALL: [ReadReason; 6] = [
         ReadReason::HashCorners,
         ReadReason::ProposalRound,
+        ReadReason::FineResample,
         ReadReason::OccupancyUpdate,
         ReadReason::StepValues,
         ReadReason::Inference,
@@ -44,7 +48,10 @@ impl ReadReason {
     /// Whether a training step reads for this reason only as the CPU
     /// backends' faster form of work a GPU does with tensor ops.
     pub fn is_cpu_form(self) -> bool {
-        matches!(self, ReadReason::HashCorners | ReadReason::ProposalRound)
+        matches!(
+            self,
+            ReadReason::HashCorners | ReadReason::ProposalRound | ReadReason::FineResample
+        )
     }
 
     fn index(self) -> usize {

@@ -280,6 +280,11 @@ fn a_training_step_reads_nothing_back_for_every_combination() {
                     "{what}: hash corners on the host"
                 );
                 assert_eq!(round_reads, parts.proposal, "{what}: rounds on the host");
+                let fine_reads = reads.iter().any(|r| r.0 == ReadReason::FineResample);
+                assert_eq!(
+                    fine_reads, !parts.proposal,
+                    "{what}: the fine level's resampling on the host"
+                );
             }
             close(report.loss, flex.loss, &format!("{what}: loss"));
             close(report.rgb_mse, flex.rgb_mse, &format!("{what}: colour"));

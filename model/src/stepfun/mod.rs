@@ -6,9 +6,10 @@
 //! ([`mod@anneal`]), and the measures the proposal and distortion losses
 //! take ([`measure`]).
 //!
-//! Where a step function is processed ray by ray on the proposal sampler's
-//! path, its host form (`*_host`, linear-time loops) sits beside the tensor
-//! form; [`crate::proposal::rounds`] chooses between them per backend.
+//! Where a step function is processed ray by ray (the fine level's
+//! resampling, the proposal rounds), its host form (`*_host`, linear-time
+//! loops) sits beside the tensor form; [`pdf::resample_t_vals`] and
+//! [`crate::proposal::rounds`] choose between them per backend.
 
 pub mod anneal;
 pub mod dilate;
@@ -21,7 +22,8 @@ pub use anneal::{anneal_exponent, anneal_weights, anneal_weights_host};
 pub use dilate::{max_dilate_weights, max_dilate_weights_host};
 pub use measure::{INTERLEVEL_EPS, distortion_loss, interlevel_loss, outer_measure};
 pub use pdf::{
-    blur_weights, pdf_quantiles, resample_t_vals, sample_pdf, sample_pdf_at, sample_pdf_host,
+    blur_weights, blur_weights_host, pdf_quantiles, resample_t_vals, resample_t_vals_on_device,
+    resample_t_vals_on_host, sample_pdf, sample_pdf_at, sample_pdf_host,
 };
 
 /// Interval starts and ends of `[rays, n + 1]` posts, `[rays, n]` each.

@@ -2,7 +2,7 @@
 //! Mip-NeRF's blurred weights, the quantiles, inverse-CDF sampling as tensor
 //! ops ([`sample_pdf`], [`sample_pdf_at`]) and on the host
 //! ([`sample_pdf_host`]), and the fine level's blur-resample
-//! ([`resample_t_vals`]).
+//! ([`resample_t_vals`]), on the host on the CPU backends.
 //!
 //! The tensor form compares every quantile with every CDF end (`[rays,
 //! n + 1, k]` masks). The host form runs in `O(n + k)` per ray: the
@@ -12,9 +12,10 @@
 //!
 //! All outputs are detached: the sample positions are never differentiated.
 
-use burn::tensor::{Distribution, Tensor};
+use burn::tensor::{Distribution, Tensor, TensorData};
 
 use super::linspace_row;
+use crate::host_work::{ReadReason, read_back};
 
 /// Mip-NeRF's blurred weights: pad with the edge values, 2-tap max, 2-tap
 /// mean, plus `padding`. Keeps the shape.
@@ -203,9 +204,31 @@ pub fn sample_pdf_host(bins: &[f32], weights: &[f32], u: &[f32], rays: usize) ->
     out
 }
 
+/// Mip-NeRF's blurred weights ([`blur_weights`]) on the host, ray after
+/// ray.
+///
+/// # Shapes
+/// - `weights`: `rays * samples`, ray-major; output: the same.
+pub fn blur_weights_host(weights: &[f32], rays: usize, padding: f32) -> Vec<f32> {
+    let n = weights.len() / rays.max(1);
+    let mut out = Vec::with_capacity(weights.len());
+    for w in weights.chunks(n.max(1)) {
+        // The 2-tap max of the edge-padded row: `max(w[i - 1], w[i])` with
+        // `w[-1] = w[0]` and `w[n] = w[n - 1]`.
+        let max_at = |i: usize| w[i.saturating_sub(1).min(n - 1)].max(w[i.min(n - 1)]);
+        out.extend((0..n).map(|i| 0.5 * (max_at(i) + max_at(i + 1)) + padding));
+    }
+    out
+}
+
 /// The fine level's fence posts: blur-resample of the coarse `weights`
 /// (see [`blur_weights`]) and inverse-CDF sampling of `t_vals.len()` new
 /// posts, detached. The new posts replace the coarse ones (no merge).
+///
+/// On the CPU backends the work is done on the host
+/// ([`resample_t_vals_on_host`]: one pass a ray, where the tensor form
+/// compares every quantile with every CDF end), elsewhere with tensor ops
+/// ([`resample_t_vals_on_device`], nothing read back).
 ///
 /// # Shapes
 /// - `t_vals`: `[rays, samples + 1]`; `weights`: `[rays, samples]`.
@@ -216,7 +239,39 @@ pub fn resample_t_vals(
     resample_padding: f32,
     randomized: bool,
 ) -> Tensor<2> {
+    if crate::host_work::is_cpu_backend(&t_vals.device()) {
+        resample_t_vals_on_host(t_vals, weights, resample_padding, randomized)
+    } else {
+        resample_t_vals_on_device(t_vals, weights, resample_padding, randomized)
+    }
+}
+
+/// [`resample_t_vals`] with tensor ops (see there for the shapes).
+pub fn resample_t_vals_on_device(
+    t_vals: Tensor<2>,
+    weights: Tensor<2>,
+    resample_padding: f32,
+    randomized: bool,
+) -> Tensor<2> {
     let [_, posts] = t_vals.dims();
     let blurred = blur_weights(weights.detach(), resample_padding);
     sample_pdf(t_vals.detach(), blurred, posts, randomized)
+}
+
+/// [`resample_t_vals`] on the host: the posts and weights read back, the
+/// quantiles drawn from the device's generator as the tensor form draws
+/// them, the new posts uploaded (see there for the shapes).
+pub fn resample_t_vals_on_host(
+    t_vals: Tensor<2>,
+    weights: Tensor<2>,
+    resample_padding: f32,
+    randomized: bool,
+) -> Tensor<2> {
+    let device = t_vals.device();
+    let [rays, posts] = t_vals.dims();
+    let host = |t: Tensor<2>| read_back(ReadReason::FineResample, t);
+    let u = host(pdf_quantiles(rays, posts, randomized, &device));
+    let blurred = blur_weights_host(&host(weights), rays, resample_padding);
+    let drawn = sample_pdf_host(&host(t_vals), &blurred, &u, rays);
+    Tensor::from_data(TensorData::new(drawn, [rays, posts]), &device)
 }

@@ -4,7 +4,10 @@
 //! weightless rays and single intervals.
 
 use super::{anneal_weights, assert_close, devices, tensor, vec};
-use model::stepfun::{anneal_weights_host, pdf_quantiles, sample_pdf, sample_pdf_host};
+use model::stepfun::{
+    anneal_weights_host, blur_weights, blur_weights_host, pdf_quantiles, resample_t_vals_on_device,
+    resample_t_vals_on_host, sample_pdf, sample_pdf_host,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -195,6 +198,37 @@ fn a_round_resamples_alike_on_the_host_and_on_the_device() {
             let chosen = vec(resample(&round, s, w));
             let cpu = model::host_work::is_cpu_backend(&device);
             assert_eq!(chosen, if cpu { host } else { dense }, "{what}");
+        }
+    }
+}
+
+#[test]
+fn the_fine_resample_on_the_host_equals_the_tensor_form() {
+    let mut rng = ChaCha8Rng::seed_from_u64(33);
+    for (name, device) in devices(false) {
+        for n in [1, 2, 16, 48] {
+            let rays = 20;
+            let (t, w) = steps(&mut rng, rays, n);
+            let t_vals = tensor(t.clone(), [rays, n + 1], &device);
+            let weights = tensor(w.clone(), [rays, n], &device);
+            for padding in [0.0, 0.01] {
+                let host = vec(resample_t_vals_on_host(
+                    t_vals.clone(),
+                    weights.clone(),
+                    padding,
+                    false,
+                ));
+                let dense = vec(resample_t_vals_on_device(
+                    t_vals.clone(),
+                    weights.clone(),
+                    padding,
+                    false,
+                ));
+                let what = format!("{name}: n {n}, padding {padding}");
+                assert_close(&host, &dense, 2e-6, 1e-5, &what);
+                let blurred = vec(blur_weights(weights.clone(), padding));
+                assert_close(&blur_weights_host(&w, rays, padding), &blurred, 0.0, 0.0, &what);
+            }
         }
     }
 }
