@@ -1,5 +1,6 @@
 //! Which backends do the non-differentiable bookkeeping of a step (the hash
-//! encoding's corners, the proposal rounds' resampling) on the host, and the
+//! encoding's corners, the fine level's and the proposal rounds'
+//! resampling) on the host, and the
 //! one function every host read of a tensor goes through ([`read_back`]),
 //! which counts the reads of its thread by [`ReadReason`] ([`read_backs`]).
 //!
@@ -125,7 +126,8 @@ pub fn count_host_read(reason: ReadReason) {
 /// The values of `t` on the host, as `f32` (detached), counted under
 /// `reason`. On a GPU this waits for the device's queue to drain: the
 /// training step reads nothing (the loop reads its values when it logs),
-/// the hash encoding and the proposal rounds read only on the CPU backends
+/// the hash encoding, the fine level's resampling and the proposal rounds
+/// read only on the CPU backends
 /// ([`is_cpu_backend`]); inference's early ray termination reads its alive
 /// rays back once a segment of samples.
 pub fn read_back<const D: usize>(reason: ReadReason, t: Tensor<D>) -> Vec<f32> {

@@ -227,7 +227,13 @@ fn the_fine_resample_on_the_host_equals_the_tensor_form() {
                 let what = format!("{name}: n {n}, padding {padding}");
                 assert_close(&host, &dense, 2e-6, 1e-5, &what);
                 let blurred = vec(blur_weights(weights.clone(), padding));
-                assert_close(&blur_weights_host(&w, rays, padding), &blurred, 0.0, 0.0, &what);
+                assert_close(
+                    &blur_weights_host(&w, rays, padding),
+                    &blurred,
+                    0.0,
+                    0.0,
+                    &what,
+                );
             }
         }
     }
