@@ -416,7 +416,12 @@ fn optional_defaults(
             serde_json::to_value(model::AppearanceCodesConfig::new(0))?,
         ),
         ("hash", serde_json::to_value(model::HashGridConfig::new())?),
-        ("fast", serde_json::to_value(model::FastFieldConfig::new())?),
+        // The fast field `--field-model fast` builds, so that a file's
+        // keys change only themselves.
+        (
+            "fast",
+            serde_json::to_value(crate::settings::write::fast_field())?,
+        ),
     ];
     for (key, defaults) in parts {
         if patch["model"][key].is_object() && base["model"][key].is_null() {
@@ -461,6 +466,21 @@ fn head_config(out_dim: usize, width: usize) -> FeatureHeadConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_file_sizing_one_part_of_the_fast_field_keeps_the_rest_as_train_builds_it() {
+        let base = TrainConfig::default_run(0);
+        let patch = serde_json::json!({"model": {"fast": {"grid": {"max_resolution": 128}}}});
+        let merged = TrainConfig::merged(&base, patch).expect("merges");
+        let fast = merged.model.fast.expect("the fast field");
+        let built = crate::settings::write::fast_field();
+        assert_eq!(fast.grid.max_resolution, 128);
+        assert_eq!(fast.grid.log2_table, built.grid.log2_table);
+        assert_eq!(fast.grid.levels, built.grid.levels);
+        assert_eq!(fast.density_width, built.density_width);
+        // Not the library's defaults (2^19 rows).
+        assert_eq!(fast.grid.log2_table, 15);
+    }
 
     #[test]
     fn json_roundtrip_and_partial_files_take_defaults() {
