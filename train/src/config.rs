@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use datasets::sampler::SamplerConfig;
-use model::{FeatureHeadConfig, MipMlpConfig, OpenNerfConfig};
+use model::{FastFieldConfig, FeatureHeadConfig, HashGridConfig, MipMlpConfig, OpenNerfConfig};
 use serde::{Deserialize, Serialize};
 
 pub use field_ops::novel::{NovelMode, NovelViewConfig};
@@ -383,6 +383,15 @@ impl TrainConfig {
     }
 }
 
+/// The fast field `train` builds unless the `--config` file sizes it:
+/// nerfacto's MLPs and levels, with the tables and the finest level of the
+/// hash grid the Mip-NeRF field's grid was measured with on the CPU (2^15
+/// rows, 512 cells across): on the default run 2^19 rows and 2048 cells
+/// took twice the seconds a step (docs/measurements/fast-field.md).
+pub fn fast_field() -> FastFieldConfig {
+    FastFieldConfig::new().with_grid(HashGridConfig::new())
+}
+
 /// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
 /// `model.proposal` and its `hash`, `model.exposure`, `model.fast`, ...)
 /// that `base` leaves out, `base` first
@@ -415,13 +424,10 @@ fn optional_defaults(
             "appearance",
             serde_json::to_value(model::AppearanceCodesConfig::new(0))?,
         ),
-        ("hash", serde_json::to_value(model::HashGridConfig::new())?),
+        ("hash", serde_json::to_value(HashGridConfig::new())?),
         // The fast field `--field-model fast` builds, so that a file's
         // keys change only themselves.
-        (
-            "fast",
-            serde_json::to_value(crate::settings::write::fast_field())?,
-        ),
+        ("fast", serde_json::to_value(fast_field())?),
     ];
     for (key, defaults) in parts {
         if patch["model"][key].is_object() && base["model"][key].is_null() {
@@ -431,7 +437,7 @@ fn optional_defaults(
     // The proposal sampler's hash grid, within the proposal's keys.
     let proposal = &patch["model"]["proposal"];
     if proposal["hash"].is_object() && base["model"]["proposal"]["hash"].is_null() {
-        base["model"]["proposal"]["hash"] = serde_json::to_value(model::HashGridConfig::new())?;
+        base["model"]["proposal"]["hash"] = serde_json::to_value(HashGridConfig::new())?;
     }
     Ok(())
 }
@@ -473,7 +479,7 @@ mod tests {
         let patch = serde_json::json!({"model": {"fast": {"grid": {"max_resolution": 128}}}});
         let merged = TrainConfig::merged(&base, patch).expect("merges");
         let fast = merged.model.fast.expect("the fast field");
-        let built = crate::settings::write::fast_field();
+        let built = fast_field();
         assert_eq!(fast.grid.max_resolution, 128);
         assert_eq!(fast.grid.log2_table, built.grid.log2_table);
         assert_eq!(fast.grid.levels, built.grid.levels);

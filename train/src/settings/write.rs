@@ -4,8 +4,8 @@
 
 use datasets::Scene;
 use model::{
-    AppearanceCodesConfig, ExposureConfig, FastFieldConfig, HashGridConfig, OpenNerfConfig,
-    PoseCorrectionConfig, ProposalConfig, UnboundedConfig,
+    AppearanceCodesConfig, ExposureConfig, HashGridConfig, OpenNerfConfig, PoseCorrectionConfig,
+    ProposalConfig, UnboundedConfig,
 };
 
 use super::choices::{By, Choices};
@@ -23,14 +23,7 @@ pub fn contraction_radius(scene: &Scene) -> f32 {
     (corner[0] * corner[0] + corner[1] * corner[1] + corner[2] * corner[2]).sqrt() as f32
 }
 
-/// The fast field `train` builds unless the `--config` file sizes it:
-/// nerfacto's MLPs and levels, with the tables and the finest level of the
-/// hash grid the Mip-NeRF field's grid was measured with on the CPU (2^15
-/// rows, 512 cells across): on the default run 2^19 rows and 2048 cells
-/// took twice the seconds a step (docs/measurements/fast-field.md).
-pub fn fast_field() -> FastFieldConfig {
-    FastFieldConfig::new().with_grid(HashGridConfig::new())
-}
+pub use crate::config::fast_field;
 
 /// The proposal sampler of the fast field unless the `--config` file sets
 /// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
