@@ -55,7 +55,7 @@ fn step(t: &Tensor<2>, w: &Tensor<2>, host: bool) {
 /// Milliseconds a step of the tensor form and of the host form on
 /// `device`, alternating.
 fn measure(device: &Device, args: &Args) -> (f64, f64) {
-    let (rays, n) = (args.rays.max(1), args.samples.max(1));
+    let (rays, n) = (args.rays, args.samples);
     // Sorted posts in [0, 1] and weights with empty stretches.
     let t = Tensor::<2>::random([rays, n + 1], Distribution::Uniform(0.0, 1.0), device)
         .sort(1)
@@ -66,7 +66,7 @@ fn measure(device: &Device, args: &Args) -> (f64, f64) {
     step(&t, &w, false);
     step(&t, &w, true);
     let (mut tensor_s, mut host_s) = (0.0, 0.0);
-    for _ in 0..args.steps.max(1) {
+    for _ in 0..args.steps {
         let start = Instant::now();
         step(&t, &w, false);
         tensor_s += start.elapsed().as_secs_f64();
@@ -74,7 +74,7 @@ fn measure(device: &Device, args: &Args) -> (f64, f64) {
         step(&t, &w, true);
         host_s += start.elapsed().as_secs_f64();
     }
-    let per = 1e3 / args.steps.max(1) as f64;
+    let per = 1e3 / args.steps as f64;
     (tensor_s * per, host_s * per)
 }
 

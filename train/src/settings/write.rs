@@ -10,7 +10,7 @@ use model::{
 
 use super::choices::{By, Choices};
 use super::table::{Appearance, Extent, FieldModel, Sampler};
-use crate::config::TrainConfig;
+use crate::config::{TrainConfig, fast_field};
 use crate::error::TrainError;
 
 /// The radius, in the field's normalised units, of the ball an unbounded
@@ -22,8 +22,6 @@ pub fn contraction_radius(scene: &Scene) -> f32 {
     let corner = scene.scene_box.normalize_point(scene.scene_box.max);
     (corner[0] * corner[0] + corner[1] * corner[1] + corner[2] * corner[2]).sqrt() as f32
 }
-
-pub use crate::config::fast_field;
 
 /// The proposal sampler of the fast field unless the `--config` file sets
 /// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows

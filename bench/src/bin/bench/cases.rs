@@ -13,7 +13,8 @@ use model::{
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
-use train::settings::write::{fast_field, fast_proposal};
+use train::config::fast_field;
+use train::settings::write::fast_proposal;
 use train::step::{StepRates, train_step_from_deferred};
 
 use crate::Size;
