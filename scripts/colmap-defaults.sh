@@ -14,7 +14,8 @@
 # all: rays, hash, appearance, sparse_depth, field). The fast field is
 # measured only when SETTINGS names it: `fast` (`--field-model fast` at
 # the capture's own samples a ray, and on photographed objects at 16),
-# `fast_samples24` (at 24, photographed objects).
+# `fast_samples24` (at 24, photographed objects), `fast_proposal` (with
+# its hash-grid proposal networks, photographed objects).
 #
 # Two ways to use the machine:
 # - default: one run at a time on every core, one run of the defaults per
@@ -22,7 +23,8 @@
 # - SIDE_BY_SIDE=1: two runs at a time, each on a core of its own
 #   (taskset, one thread each), and two runs of the defaults per capture,
 #   trained side by side: how much they differ is how much a run differs
-#   from itself. Takes half the time on a 2-core machine.
+#   from itself. Takes half the time on a 2-core machine. REPEAT=0 keeps
+#   one run of the defaults (when an earlier run measured the spread).
 #
 # Scoring: held-out PSNR over every pixel of the final render
 # (`summary.json`'s `heldout_whole`), or with SAMPLE=N over N held-out
@@ -72,7 +74,8 @@ flips() {
       "field:--field unbounded" "fast:--field-model fast" ;;
     *) printf '%s\n' "rays:--rays 64" "hash:--hash-grid off" "appearance:--appearance none" \
       "sparse_depth:--sparse-depth on" "field:--field box" \
-      "fast:--field-model fast --samples 16" "fast_samples24:--field-model fast --samples 24" ;;
+      "fast:--field-model fast --samples 16" "fast_samples24:--field-model fast --samples 24" \
+      "fast_proposal:--field-model fast --sampler proposal" ;;
   esac
 }
 
@@ -82,7 +85,7 @@ jobs=()
 for c in $captures; do
   capture_dir "$c" >/dev/null
   jobs+=("$c-defaults $c -")
-  [ -n "${SIDE_BY_SIDE:-}" ] && jobs+=("$c-defaults-again $c -")
+  [ -n "${SIDE_BY_SIDE:-}" ] && [ "${REPEAT:-1}" != 0 ] && jobs+=("$c-defaults-again $c -")
   while IFS= read -r flip; do
     setting=${flip%%:*}
     if [ -n "${SETTINGS:-}" ] && [[ " $SETTINGS " != *" $setting "* ]]; then

@@ -18,6 +18,7 @@ use burn::tensor::activation::{relu, sigmoid};
 use burn::tensor::{Device, Tensor};
 
 use crate::field::{FieldOutputs, split_linear};
+use crate::hash_footprint::{isotropic_variance, level_weights, weigh_levels};
 use crate::hashgrid::{HashGrid, HashGridConfig};
 use crate::sh::sh_dim;
 
@@ -47,6 +48,17 @@ pub struct FastFieldConfig {
     /// Bands of the view direction's spherical-harmonics encoding (1..=4).
     #[config(default = 4)]
     pub sh_degree: usize,
+    /// Scale each hash level's features by how much of the sample's
+    /// Gaussian a cell of the level resolves ([`crate::hash_footprint`]):
+    /// wide samples (the coarse level's, far ones) read the coarse levels
+    /// only. Off (or `None`, as in runs written before this key): every
+    /// level at full weight, whatever the sample's size.
+    pub footprint_weights: Option<bool>,
+    /// Added to the density MLP's raw output before the exponential: a
+    /// negative shift starts the field nearly empty, so that the first
+    /// steps reach past the space right in front of each camera. `None`
+    /// (runs written before this key): 0.
+    pub density_shift: Option<f32>,
 }
 
 /// The raw output above which the density's exponential stops growing (and
@@ -103,6 +115,8 @@ impl FastFieldConfig {
             rgb: LinearConfig::new(color_width, 3).init(device),
             sh_degree: self.sh_degree.clamp(1, crate::sh::MAX_SH_DEGREE),
             appearance_dim,
+            footprint_weights: self.footprint_weights.unwrap_or(false),
+            density_shift: self.density_shift.unwrap_or(0.0),
         }
     }
 }
@@ -129,6 +143,10 @@ pub struct FastField {
     pub sh_degree: usize,
     /// Length of the appearance code the colour MLP takes (0: none).
     pub appearance_dim: usize,
+    /// Whether the levels are weighed by the sample's footprint.
+    pub footprint_weights: bool,
+    /// Added to the raw density before the exponential.
+    pub density_shift: f32,
 }
 
 impl FastField {
@@ -137,12 +155,23 @@ impl FastField {
         self.density_out.weight.dims()[1] - 1
     }
 
-    /// The hash encoding of sample positions (the field's input).
+    /// The hash encoding of the samples' Gaussians (the field's input): of
+    /// their means, each level weighed by the Gaussian's footprint where
+    /// the field asks for it.
     ///
     /// # Shapes
-    /// - `mean`: `[n, 3]`; output: `[n, levels * features]`.
-    pub fn encode(&self, mean: Tensor<2>) -> Tensor<2> {
-        self.grid.forward(mean.detach())
+    /// - `mean`, `cov_diag`: `[n, 3]`; output: `[n, levels * features]`.
+    pub fn encode(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
+        let encoded = self.grid.forward(mean.detach());
+        if !self.footprint_weights {
+            return encoded;
+        }
+        let weights = level_weights(
+            isotropic_variance(cov_diag.detach()),
+            &self.grid.resolutions,
+            self.grid.half_extent,
+        );
+        weigh_levels(encoded, weights)
     }
 
     /// Geometry feature and density from the hash encoding.
@@ -156,7 +185,7 @@ impl FastField {
         }
         let out = self.density_out.forward(h);
         let [n, width] = out.dims();
-        let density = exp_density(out.clone().narrow(1, 0, 1));
+        let density = exp_density(out.clone().narrow(1, 0, 1).add_scalar(self.density_shift));
         let geo = out.narrow(1, 1, width - 1);
         debug_assert_eq!(geo.dims()[0], n);
         (geo, density)

@@ -84,6 +84,7 @@ pub mod extent;
 pub mod fast_field;
 pub mod field;
 pub mod geometry;
+pub mod hash_footprint;
 pub mod hash_kernel;
 pub mod hashgrid;
 pub mod host_work;

@@ -224,7 +224,7 @@ impl OpenNerf {
     /// - `mean`, `cov_diag`: `[m, 3]`; output: `[m, input]`.
     pub fn encode_gaussians(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
         let mlp = match self.radiance() {
-            Radiance::Fast(fast) => return fast.encode(mean),
+            Radiance::Fast(fast) => return fast.encode(mean, cov_diag),
             Radiance::Mip(mlp) => mlp,
         };
         let ipe = integrated_pos_enc(mean.clone(), cov_diag, mlp.min_deg, mlp.max_deg);

@@ -98,6 +98,49 @@ fn the_density_is_an_exponential_capped_far_above_any_surface() {
     assert_close(&got, &want, 0.0, 1e-6, "exp density");
 }
 
+/// The density shift scales the field's density (and the proposal
+/// network's) by `exp(shift)` and leaves its geometry feature and colour
+/// alone.
+#[test]
+fn the_density_shift_scales_the_density_by_its_exponential() {
+    let device = Device::flex();
+    device.seed(9);
+    let plain = varied(&fast_config(8, true), &device);
+    let shift = -1.5f32;
+    let mut shifted = plain.clone();
+    shifted.fast.as_mut().expect("fast").density_shift = shift;
+    shifted.proposal.as_mut().expect("proposal").density_shift = shift;
+    let n = 12;
+    let means = tensor(
+        uniform(3 * n, 3, -3.0, 3.0)
+            .into_iter()
+            .map(|v| v as f32)
+            .collect(),
+        [n, 3],
+        &device,
+    );
+    let cov = Tensor::<2>::zeros([n, 3], &device).add_scalar(1e-4);
+    let scale = shift.exp();
+    let field = |m: &OpenNerf| {
+        let Radiance::Fast(fast) = m.radiance() else {
+            panic!("the fast field");
+        };
+        let (geo, density) = fast.trunk_density(fast.encode(means.clone(), cov.clone()));
+        (vec(geo), vec(density))
+    };
+    let (geo, density) = field(&plain);
+    let (geo_s, density_s) = field(&shifted);
+    assert_close(&geo_s, &geo, 0.0, 0.0, "geometry feature");
+    let want: Vec<f32> = density.iter().map(|d| d * scale).collect();
+    assert_close(&density_s, &want, 0.0, 1e-5, "field density");
+    let proposal = |m: &OpenNerf| {
+        let (_, mlp) = m.proposal_sampler().expect("proposal");
+        vec(mlp.density_at(means.clone(), cov.clone()))
+    };
+    let want: Vec<f32> = proposal(&plain).iter().map(|d| d * scale).collect();
+    assert_close(&proposal(&shifted), &want, 0.0, 1e-5, "proposal density");
+}
+
 fn fast_config(samples: usize, proposal: bool) -> OpenNerfConfig {
     let grid = HashGridConfig::new()
         .with_levels(4)
@@ -159,10 +202,20 @@ fn the_fast_field_replaces_the_mlp_and_its_head_reads_the_geometry_feature() {
 /// differences.
 #[test]
 fn gradients_match_finite_differences() {
+    for footprint in [false, true] {
+        gradients_match_finite_differences_with(footprint);
+    }
+}
+
+fn gradients_match_finite_differences_with(footprint: bool) {
     let base = Device::flex();
     let device: Device = base.clone().autodiff();
     device.seed(4);
-    let m = varied(&fast_config(8, false), &device);
+    let mut config = fast_config(8, false);
+    config.fast = config
+        .fast
+        .map(|f| f.with_footprint_weights(Some(footprint)));
+    let m = varied(&config, &device);
     let rays = camera_rays(6, 1);
     let loss = |m: &OpenNerf| -> Tensor<1> {
         // The coarse level: its posts are fixed, where the fine level's
@@ -217,7 +270,7 @@ fn gradients_match_finite_differences() {
             let g = analytic[k] as f64;
             assert!(
                 (fd - g).abs() < 0.03 * g.abs().max(1e-2),
-                "{name}[{k}]: finite difference {fd}, gradient {g}"
+                "footprint weights {footprint}, {name}[{k}]: finite difference {fd}, gradient {g}"
             );
         }
     }
@@ -342,4 +395,30 @@ fn the_mip_fields_weights_keep_their_names() {
     let holds = |name: &str| bytes.windows(name.len()).any(|w| w == name.as_bytes());
     assert!(holds("mlp.trunk.0.weight") && holds("mlp.rgb.bias"));
     assert!(!holds("fast.") && !holds("Some"));
+}
+
+/// A configuration written before the density shift and the footprint
+/// weights (a run trained without them) loads with neither, as it was
+/// trained.
+#[test]
+fn a_configuration_without_the_newer_keys_loads_as_it_was_trained() {
+    let mut config = fast_config(8, true);
+    config.fast = config.fast.map(|f| {
+        f.with_density_shift(Some(-1.0))
+            .with_footprint_weights(Some(true))
+    });
+    config.proposal = config.proposal.map(|p| p.with_density_shift(Some(-1.0)));
+    let mut old = serde_json::to_value(config).expect("json");
+    let fast = old["fast"].as_object_mut().expect("the fast field");
+    assert!(fast.remove("density_shift").is_some());
+    assert!(fast.remove("footprint_weights").is_some());
+    let proposal = old["proposal"].as_object_mut().expect("the proposal");
+    assert!(proposal.remove("density_shift").is_some());
+    let loaded: OpenNerfConfig = serde_json::from_value(old).expect("an old configuration");
+    let device = Device::flex();
+    let m = loaded.init(&device);
+    let fast = m.fast.as_ref().expect("the fast field");
+    assert_eq!((fast.density_shift, fast.footprint_weights), (0.0, false));
+    let (_, proposal) = m.proposal_sampler().expect("proposal");
+    assert_eq!(proposal.density_shift, 0.0);
 }

@@ -387,10 +387,19 @@ impl TrainConfig {
 /// nerfacto's MLPs and levels, with the tables and the finest level of the
 /// hash grid the Mip-NeRF field's grid was measured with on the CPU (2^15
 /// rows, 512 cells across): on the default run 2^19 rows and 2048 cells
-/// took twice the seconds a step (docs/measurements/fast-field.md).
+/// took twice the seconds a step. Its density starts at `exp(-1)` per
+/// normalised unit: unshifted, a photographed object's field filled the
+/// space in front of each camera and never formed the object
+/// (docs/measurements/fast-field.md).
 pub fn fast_field() -> FastFieldConfig {
-    FastFieldConfig::new().with_grid(HashGridConfig::new())
+    FastFieldConfig::new()
+        .with_grid(HashGridConfig::new())
+        .with_density_shift(Some(FAST_DENSITY_SHIFT))
 }
+
+/// The shift of the fast field's raw density (and of its proposal
+/// networks') that `train` builds.
+pub const FAST_DENSITY_SHIFT: f32 = -1.0;
 
 /// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
 /// `model.proposal` and its `hash`, `model.exposure`, `model.fast`, ...)

@@ -74,6 +74,9 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
     if let Some(p) = model.proposal.as_ref().and_then(|p| p.hash.as_ref()) {
         grid(p, "model.proposal.hash")?;
     }
+    if let Some(p) = &model.proposal {
+        density_shift(p.density_shift, "model.proposal.density_shift")?;
+    }
     let Some(fast) = &model.fast else {
         return Ok(());
     };
@@ -102,7 +105,18 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
             ));
         }
     }
-    Ok(())
+    density_shift(fast.density_shift, "model.fast.density_shift")
+}
+
+/// A density shift within the exponential's range: beyond +-15 every
+/// density the MLP can give is capped or next to nothing.
+fn density_shift(shift: Option<f32>, key: &str) -> Result<(), String> {
+    match shift {
+        Some(s) if !(-15.0..=15.0).contains(&s) => {
+            Err(format!("{key} must be in -15..=15, got {s}"))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Checks one hash grid's ranges, its keys under `prefix`.
@@ -222,12 +236,24 @@ mod tests {
                 FastFieldConfig::new().with_sh_degree(5),
                 "model.fast.sh_degree",
             ),
+            (
+                FastFieldConfig::new().with_density_shift(Some(-40.0)),
+                "model.fast.density_shift",
+            ),
+            (
+                FastFieldConfig::new().with_density_shift(Some(f32::NAN)),
+                "model.fast.density_shift",
+            ),
         ] {
             model.fast = Some(fast);
             let err = hash(&model).expect_err(key);
             assert!(err.contains(key), "{err}");
         }
         model.fast = Some(FastFieldConfig::new());
+        model.proposal = Some(ProposalConfig::new().with_density_shift(Some(16.0)));
+        let err = hash(&model).expect_err("proposal shift");
+        assert!(err.contains("model.proposal.density_shift"), "{err}");
+        model.proposal = None;
         model.hash = Some(HashGridConfig::new());
         let err = hash(&model).expect_err("two grids");
         assert!(err.contains("model.fast.grid"), "{err}");

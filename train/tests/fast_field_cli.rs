@@ -51,6 +51,11 @@ fn bad_field_model_values_and_settings_are_refused() {
         ),
         ("sh.json", r#"{"sh_degree": 9}"#, "model.fast.sh_degree"),
         (
+            "shift.json",
+            r#"{"density_shift": -100}"#,
+            "model.fast.density_shift",
+        ),
+        (
             "word.json",
             r#"{"color_width": "wide"}"#,
             "\"wide\", expected usize",
@@ -97,6 +102,10 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
     let saved = json(&fast.join("config.json"));
     assert_eq!(saved["model"]["fast"]["grid"]["log2_table"], 15);
     assert_eq!(saved["model"]["proposal"]["hash"]["levels"], 5);
+    // The density shifts `train` builds are saved, so that eval renders
+    // the field as it was trained.
+    assert_eq!(saved["model"]["fast"]["density_shift"], -1.0);
+    assert_eq!(saved["model"]["proposal"]["density_shift"], -1.0);
     let device = burn::tensor::Device::flex();
     let loaded = field_ops::run_dir::load_run(&fast, &device).expect("the run loads");
     assert!(loaded.model.mlp.is_none());
@@ -108,6 +117,7 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
         .as_ref()
         .expect("the proposal network");
     assert!(proposal.hash.is_some());
+    assert_eq!((field.density_shift, proposal.density_shift), (-1.0, -1.0));
 
     // A configuration's own sizes are kept, and `mip` overrides it.
     let mut asked: serde_json::Value = serde_json::from_str(TINY).expect("tiny json");

@@ -62,6 +62,9 @@ pub struct ProposalConfig {
     /// to 128-256 cells across), with an exponential density; `None`: the
     /// IPE and a softplus density.
     pub hash: Option<HashGridConfig>,
+    /// Added to the raw density of the hash form before its exponential
+    /// (see the fast field's `density_shift`; `None`: 0).
+    pub density_shift: Option<f32>,
 }
 
 impl ProposalConfig {
@@ -81,6 +84,7 @@ impl ProposalConfig {
             min_deg: self.min_deg,
             max_deg: self.max_deg,
             hash: self.hash.as_ref().map(|h| h.init(device)),
+            density_shift: self.density_shift.unwrap_or(0.0),
         }
     }
 
@@ -112,6 +116,8 @@ pub struct ProposalMlp {
     pub max_deg: usize,
     /// The hash encoding it takes in place of the IPE.
     pub hash: Option<HashGrid>,
+    /// Added to the hash form's raw density before its exponential.
+    pub density_shift: f32,
 }
 
 impl ProposalMlp {
@@ -127,7 +133,7 @@ impl ProposalMlp {
                 for layer in &self.layers {
                     h = relu(layer.forward(h));
                 }
-                exp_density(self.density.forward(h))
+                exp_density(self.density.forward(h).add_scalar(self.density_shift))
             }
             None => self.density(integrated_pos_enc(
                 mean,

@@ -10,7 +10,7 @@ use model::{
 
 use super::choices::{By, Choices};
 use super::table::{Appearance, Extent, FieldModel, Sampler};
-use crate::config::{TrainConfig, fast_field};
+use crate::config::{FAST_DENSITY_SHIFT, TrainConfig, fast_field};
 use crate::error::TrainError;
 
 /// The radius, in the field's normalised units, of the ball an unbounded
@@ -25,8 +25,8 @@ pub fn contraction_radius(scene: &Scene) -> f32 {
 
 /// The proposal sampler of the fast field unless the `--config` file sets
 /// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
-/// up to 128 cells across, one layer of 16), shared by two rounds of 64
-/// and 32 samples.
+/// up to 128 cells across, one layer of 16, its density shifted as the
+/// fast field's), shared by two rounds of 64 and 32 samples.
 pub fn fast_proposal() -> ProposalConfig {
     ProposalConfig::new()
         .with_samples(vec![64, 32])
@@ -37,6 +37,7 @@ pub fn fast_proposal() -> ProposalConfig {
                 .with_levels(5)
                 .with_max_resolution(128),
         ))
+        .with_density_shift(Some(FAST_DENSITY_SHIFT))
 }
 
 /// Writes `choices` into `config` for `scene`. The occupancy grid a preset
@@ -187,8 +188,9 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
             let g = &f.grid;
             format!(
                 "field model: fast, a hash grid of {} levels of 2^{} rows x {} features ({} to {} \
-                 cells across), a density MLP of {} x {} with a {}-wide geometry feature, a \
-                 colour MLP of {} x {} on {} spherical-harmonics bands ({reason})",
+                 cells across), a density MLP of {} x {} (density exp(raw {:+})) with a {}-wide \
+                 geometry feature, a colour MLP of {} x {} on {} spherical-harmonics bands \
+                 ({reason})",
                 g.levels,
                 g.log2_table,
                 g.features,
@@ -196,6 +198,7 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
                 g.max_resolution,
                 f.density_layers,
                 f.density_width,
+                f.density_shift.unwrap_or(0.0),
                 f.geo_features,
                 f.color_layers,
                 f.color_width,
