@@ -4,7 +4,10 @@
 use std::path::Path;
 
 use datasets::sampler::SamplerConfig;
-use model::{FastFieldConfig, FeatureHeadConfig, HashGridConfig, MipMlpConfig, OpenNerfConfig};
+use model::{
+    FastFieldConfig, FeatureHeadConfig, HashGridConfig, MipMlpConfig, OpenNerfConfig,
+    ProposalConfig,
+};
 use serde::{Deserialize, Serialize};
 
 pub use field_ops::novel::{NovelMode, NovelViewConfig};
@@ -400,6 +403,23 @@ pub fn fast_field() -> FastFieldConfig {
 /// The shift of the fast field's raw density (and of its proposal
 /// networks') that `train` builds.
 pub const FAST_DENSITY_SHIFT: f32 = -1.0;
+
+/// The proposal sampler of the fast field unless the `--config` file sets
+/// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
+/// up to 128 cells across, one layer of 16, its density shifted as the
+/// fast field's), shared by two rounds of 64 and 32 samples.
+pub fn fast_proposal() -> ProposalConfig {
+    ProposalConfig::new()
+        .with_samples(vec![64, 32])
+        .with_depth(1)
+        .with_width(16)
+        .with_hash(Some(
+            HashGridConfig::new()
+                .with_levels(5)
+                .with_max_resolution(128),
+        ))
+        .with_density_shift(Some(FAST_DENSITY_SHIFT))
+}
 
 /// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
 /// `model.proposal` and its `hash`, `model.exposure`, `model.fast`, ...)

@@ -95,6 +95,7 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
     );
     assert!(
         err.contains("field model: fast, a hash grid of 16 levels of 2^15 rows x 2 features")
+            && err.contains("a density MLP of 1 x 64 (density exp(raw - 1))")
             && err.contains("(--field-model fast)"),
         "{err}"
     );

@@ -10,7 +10,7 @@ use model::{
 
 use super::choices::{By, Choices};
 use super::table::{Appearance, Extent, FieldModel, Sampler};
-use crate::config::{FAST_DENSITY_SHIFT, TrainConfig, fast_field};
+use crate::config::{TrainConfig, fast_field, fast_proposal};
 use crate::error::TrainError;
 
 /// The radius, in the field's normalised units, of the ball an unbounded
@@ -21,23 +21,6 @@ use crate::error::TrainError;
 pub fn contraction_radius(scene: &Scene) -> f32 {
     let corner = scene.scene_box.normalize_point(scene.scene_box.max);
     (corner[0] * corner[0] + corner[1] * corner[1] + corner[2] * corner[2]).sqrt() as f32
-}
-
-/// The proposal sampler of the fast field unless the `--config` file sets
-/// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
-/// up to 128 cells across, one layer of 16, its density shifted as the
-/// fast field's), shared by two rounds of 64 and 32 samples.
-pub fn fast_proposal() -> ProposalConfig {
-    ProposalConfig::new()
-        .with_samples(vec![64, 32])
-        .with_depth(1)
-        .with_width(16)
-        .with_hash(Some(
-            HashGridConfig::new()
-                .with_levels(5)
-                .with_max_resolution(128),
-        ))
-        .with_density_shift(Some(FAST_DENSITY_SHIFT))
 }
 
 /// Writes `choices` into `config` for `scene`. The occupancy grid a preset
@@ -180,6 +163,17 @@ pub fn pose_line(choices: &Choices) -> String {
     }
 }
 
+/// The fast field's density activation as `train` prints it:
+/// `exp(raw - 1)` for a shift of -1, `exp(raw)` for none.
+fn density_formula(shift: f32) -> String {
+    if shift == 0.0 {
+        "exp(raw)".into()
+    } else {
+        let sign = if shift < 0.0 { '-' } else { '+' };
+        format!("exp(raw {sign} {})", shift.abs())
+    }
+}
+
 /// The field model line, with its sizes from `model`.
 pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
     let reason = choices.model.by.reason();
@@ -188,7 +182,7 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
             let g = &f.grid;
             format!(
                 "field model: fast, a hash grid of {} levels of 2^{} rows x {} features ({} to {} \
-                 cells across), a density MLP of {} x {} (density exp(raw {:+})) with a {}-wide \
+                 cells across), a density MLP of {} x {} (density {}) with a {}-wide \
                  geometry feature, a colour MLP of {} x {} on {} spherical-harmonics bands \
                  ({reason})",
                 g.levels,
@@ -198,7 +192,7 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
                 g.max_resolution,
                 f.density_layers,
                 f.density_width,
-                f.density_shift.unwrap_or(0.0),
+                density_formula(f.density_shift.unwrap_or(0.0)),
                 f.geo_features,
                 f.color_layers,
                 f.color_width,
@@ -238,6 +232,13 @@ mod tests {
     fn synthetic() -> Scene {
         use datasets::synthetic::{SceneSize, generate};
         generate(0, SceneSize::Ci).expect("the tiny scene")
+    }
+
+    #[test]
+    fn the_density_formula_reads_as_arithmetic() {
+        assert_eq!(density_formula(0.0), "exp(raw)");
+        assert_eq!(density_formula(-1.0), "exp(raw - 1)");
+        assert_eq!(density_formula(2.5), "exp(raw + 2.5)");
     }
 
     #[test]

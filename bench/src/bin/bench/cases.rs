@@ -13,8 +13,7 @@ use model::{
 };
 use train::batch::{BatchTensors, FeatureTargets};
 use train::config::LossConfig;
-use train::config::fast_field;
-use train::settings::write::fast_proposal;
+use train::config::{fast_field, fast_proposal};
 use train::step::{StepRates, train_step_from_deferred};
 
 use crate::Size;
