@@ -4,7 +4,9 @@
 //! feature and a spherical-harmonics encoding of the view direction. Per
 //! sample it costs about a hundredth of the Mip-NeRF trunk; the open-set
 //! head reads the detached geometry feature, as it reads the detached
-//! trunk of the Mip-NeRF MLP.
+//! trunk of the Mip-NeRF MLP, and, where the field has one, the encoding
+//! of a hash grid of its own that the feature loss alone trains (LERF's
+//! and nerfacto's semantic fields keep such a grid for their features).
 //!
 //! The first colour layer acts on a concatenation (geometry feature, view
 //! encoding and appearance code) and is stored as two linear maps whose
@@ -59,6 +61,12 @@ pub struct FastFieldConfig {
     /// steps reach past the space right in front of each camera. `None`
     /// (runs written before this key): 0.
     pub density_shift: Option<f32>,
+    /// A hash grid of the open-set head's own: the head reads its encoding
+    /// of the sample's position beside the detached geometry feature, and
+    /// the feature loss trains it (and only it: the density and colour
+    /// never read it). `None` (and runs written before this key): the head
+    /// reads the geometry feature alone.
+    pub feature_grid: Option<HashGridConfig>,
 }
 
 /// The raw output above which the density's exponential stops growing (and
@@ -117,6 +125,7 @@ impl FastFieldConfig {
             appearance_dim,
             footprint_weights: self.footprint_weights.unwrap_or(false),
             density_shift: self.density_shift.unwrap_or(0.0),
+            feature_grid: self.feature_grid.as_ref().map(|g| g.init(device)),
         }
     }
 }
@@ -147,58 +156,109 @@ pub struct FastField {
     pub footprint_weights: bool,
     /// Added to the raw density before the exponential.
     pub density_shift: f32,
+    /// The open-set head's own hash grid, if the field has one.
+    pub feature_grid: Option<HashGrid>,
 }
 
 impl FastField {
-    /// Width of the geometry feature (the open-set head's input).
+    /// Width of the geometry feature (the colour MLP's input).
     pub fn geo_features(&self) -> usize {
         self.density_out.weight.dims()[1] - 1
     }
 
-    /// The hash encoding of the samples' Gaussians (the field's input): of
-    /// their means, each level weighed by the Gaussian's footprint where
-    /// the field asks for it.
-    ///
-    /// # Shapes
-    /// - `mean`, `cov_diag`: `[n, 3]`; output: `[n, levels * features]`.
-    pub fn encode(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
-        let encoded = self.grid.forward(mean.detach());
-        if !self.footprint_weights {
-            return encoded;
-        }
-        let weights = level_weights(
-            isotropic_variance(cov_diag.detach()),
-            &self.grid.resolutions,
-            self.grid.half_extent,
-        );
-        weigh_levels(encoded, weights)
+    /// Width of the trunk feature [`FastField::trunk_density`] gives (the
+    /// open-set head's input): the geometry feature, then the feature
+    /// grid's encoding where the field has one.
+    pub fn trunk_width(&self) -> usize {
+        self.geo_features() + self.feature_grid.as_ref().map_or(0, HashGrid::output_dim)
     }
 
-    /// Geometry feature and density from the hash encoding.
+    /// The hash encoding of the samples' Gaussians (the field's input): of
+    /// their means, each level weighed by the Gaussian's footprint where
+    /// the field asks for it; then the feature grid's encoding of the
+    /// means, where the field has one.
     ///
     /// # Shapes
-    /// - `encoded`: `[n, levels * features]`; output: (`[n, geo]`, `[n, 1]`).
+    /// - `mean`, `cov_diag`: `[n, 3]`; output: `[n, levels * features]`
+    ///   (both grids' levels).
+    pub fn encode(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
+        let mean = mean.detach();
+        let mut encoded = self.grid.forward(mean.clone());
+        if self.footprint_weights {
+            let weights = level_weights(
+                isotropic_variance(cov_diag.detach()),
+                &self.grid.resolutions,
+                self.grid.half_extent,
+            );
+            encoded = weigh_levels(encoded, weights);
+        }
+        match &self.feature_grid {
+            Some(grid) => Tensor::cat(vec![encoded, grid.forward(mean)], 1),
+            None => encoded,
+        }
+    }
+
+    /// Trunk feature (the geometry feature, then the feature grid's
+    /// encoding where the field has one) and density from the encoding
+    /// ([`FastField::encode`]).
+    ///
+    /// # Shapes
+    /// - `encoded`: `[n, levels * features]`; output: (`[n,
+    ///   trunk_width]`, `[n, 1]`).
     pub fn trunk_density(&self, encoded: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
-        let mut h = encoded;
+        let field_dim = self.grid.output_dim();
+        let [_, encoded_dim] = encoded.dims();
+        let feature = (encoded_dim > field_dim).then(|| {
+            encoded
+                .clone()
+                .narrow(1, field_dim, encoded_dim - field_dim)
+        });
+        let mut h = encoded.narrow(1, 0, field_dim);
         for layer in &self.density_hidden {
             h = relu(layer.forward(h));
         }
         let out = self.density_out.forward(h);
-        let [n, width] = out.dims();
+        let [_, width] = out.dims();
         let density = exp_density(out.clone().narrow(1, 0, 1).add_scalar(self.density_shift));
         let geo = out.narrow(1, 1, width - 1);
-        debug_assert_eq!(geo.dims()[0], n);
-        (geo, density)
+        let trunk = match feature {
+            Some(feature) => Tensor::cat(vec![geo, feature], 1),
+            None => geo,
+        };
+        (trunk, density)
     }
 
-    /// View-dependent colour.
+    /// The open-set head's input from the trunk feature: the geometry
+    /// feature detached (the head does not shape the geometry), the
+    /// feature grid's encoding attached (the feature loss trains it).
     ///
     /// # Shapes
-    /// - `geo`: `[rays * samples, geo]`, ray-major.
+    /// - `trunk`: `[n, trunk_width]`; output: the same.
+    pub fn head_input(&self, trunk: Tensor<2>) -> Tensor<2> {
+        let geo = self.geo_features();
+        let [_, width] = trunk.dims();
+        if width == geo {
+            return trunk.detach();
+        }
+        let feature = trunk.clone().narrow(1, geo, width - geo);
+        Tensor::cat(vec![trunk.narrow(1, 0, geo).detach(), feature], 1)
+    }
+
+    /// View-dependent colour from the geometry feature (the trunk
+    /// feature's first `geo_features` columns).
+    ///
+    /// # Shapes
+    /// - `trunk`: `[rays * samples, trunk_width]`, ray-major.
     /// - `view_enc`: `[rays, sh_dim + appearance_dim]`.
     /// - output: `[rays * samples, 3]`, in `[0, 1]`.
-    pub fn color(&self, geo: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> Tensor<2> {
-        let [n, _] = geo.dims();
+    pub fn color(&self, trunk: Tensor<2>, view_enc: Tensor<2>, samples: usize) -> Tensor<2> {
+        let [n, width] = trunk.dims();
+        let geo_width = self.geo_features();
+        let geo = if width == geo_width {
+            trunk
+        } else {
+            trunk.narrow(1, 0, geo_width)
+        };
         let rays = n / samples.max(1);
         let g = self.color_geo.forward(geo);
         let [_, width] = g.dims();

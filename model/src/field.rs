@@ -269,7 +269,16 @@ impl FeatureHead {
     /// # Shapes
     /// - `trunk`: `[n, trunk_width]`; output: `[n, hidden_width]`.
     pub fn hidden(&self, trunk: Tensor<2>) -> Tensor<2> {
-        let mut h = trunk.detach();
+        self.hidden_of(trunk.detach())
+    }
+
+    /// Hidden activation of `input` as it is: the caller has detached what
+    /// the feature loss must not train ([`crate::nerf::Radiance::head_input`]).
+    ///
+    /// # Shapes
+    /// - `input`: `[n, trunk_width]`; output: `[n, hidden_width]`.
+    pub fn hidden_of(&self, input: Tensor<2>) -> Tensor<2> {
+        let mut h = input;
         for layer in &self.hidden {
             h = relu(layer.forward(h));
         }

@@ -105,31 +105,51 @@ pub struct GridSpec {
     pub half_extent: f32,
 }
 
+/// Points a parallel task of [`encode`] takes: 2048 points' output of 16
+/// levels of two features is 256 KB, and a level's table of 2^15 rows
+/// another 256 KB, which stay in a core's cache together while the task
+/// goes level by level.
+const ENCODE_CHUNK: usize = 2048;
+
 /// The encoding of `points` (`[n, 3]`, flat) from `table` (`[levels *
 /// rows, features]`, flat): `[n, levels * features]`, flat.
+///
+/// Chunks of points run in parallel (so a grid of few levels still keeps
+/// every core busy), and within a chunk the levels run one after another.
 pub fn encode(points: &[f32], table: &[f32], spec: &GridSpec, features: usize) -> Vec<f32> {
     let n = points.len() / 3;
     let f = features.max(1);
     let levels = spec.resolutions.len();
-    let per_level: Vec<Vec<f32>> = (0..levels)
-        .into_par_iter()
-        .map(|l| {
-            let res = spec.resolutions[l];
-            let level = &table[l * spec.rows * f..(l + 1) * spec.rows * f];
-            match f {
-                2 => encode_level::<2>(points, level, res, spec),
-                4 => encode_level::<4>(points, level, res, spec),
-                _ => encode_level_any(points, level, res, spec, f),
-            }
-        })
-        .collect();
-    let mut out = vec![0.0f32; n * levels * f];
-    for (l, level) in per_level.iter().enumerate() {
-        for (i, values) in level.chunks_exact(f).enumerate() {
-            out[(i * levels + l) * f..(i * levels + l + 1) * f].copy_from_slice(values);
-        }
+    let width = levels * f;
+    let mut out = vec![0.0f32; n * width];
+    if width == 0 {
+        return out;
     }
+    out.par_chunks_mut(ENCODE_CHUNK * width)
+        .zip(points.par_chunks(ENCODE_CHUNK * 3))
+        .for_each(|(out, points)| {
+            for (l, &res) in spec.resolutions.iter().enumerate() {
+                let level = &table[l * spec.rows * f..(l + 1) * spec.rows * f];
+                let at = Slot {
+                    offset: l * f,
+                    stride: width,
+                };
+                match f {
+                    2 => encode_level::<2>(points, level, res, spec, out, at),
+                    4 => encode_level::<4>(points, level, res, spec, out, at),
+                    _ => encode_level_any(points, level, res, spec, f, out, at),
+                }
+            }
+        });
     out
+}
+
+/// Where a level's features go in the rows of [`encode`]'s output: from
+/// `offset` in each row of `stride` numbers.
+#[derive(Clone, Copy)]
+struct Slot {
+    offset: usize,
+    stride: usize,
 }
 
 /// The gradient of [`encode`] with respect to the table, from the output's
@@ -185,27 +205,27 @@ fn scatter_level<'g, const F: usize>(
     }
 }
 
-/// One level's encoding of every point, `F` features a row: `[n, F]`.
+/// One level's encoding of every point, `F` features a row, written to
+/// its slot of each point's output row.
 fn encode_level<const F: usize>(
     points: &[f32],
     level: &[f32],
     res: u32,
     spec: &GridSpec,
-) -> Vec<f32> {
-    let n = points.len() / 3;
-    let mut out = vec![0.0f32; n * F];
-    for (p, acc) in points.chunks_exact(3).zip(out.chunks_exact_mut(F)) {
+    out: &mut [f32],
+    at: Slot,
+) {
+    for (p, row) in points.chunks_exact(3).zip(out.chunks_exact_mut(at.stride)) {
         let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
         let mut sum = [0.0f32; F];
-        for (&row, &w) in ids.iter().zip(&weights) {
-            let t = &level[row * F..row * F + F];
+        for (&r, &w) in ids.iter().zip(&weights) {
+            let t = &level[r * F..r * F + F];
             for k in 0..F {
                 sum[k] += w * t[k];
             }
         }
-        acc.copy_from_slice(&sum);
+        row[at.offset..at.offset + F].copy_from_slice(&sum);
     }
-    out
 }
 
 /// [`encode_level`] for any number of features.
@@ -215,18 +235,18 @@ fn encode_level_any(
     res: u32,
     spec: &GridSpec,
     f: usize,
-) -> Vec<f32> {
-    let n = points.len() / 3;
-    let mut out = vec![0.0f32; n * f];
-    for (p, acc) in points.chunks_exact(3).zip(out.chunks_exact_mut(f)) {
+    out: &mut [f32],
+    at: Slot,
+) {
+    for (p, row) in points.chunks_exact(3).zip(out.chunks_exact_mut(at.stride)) {
         let (ids, weights) = level_corners(unit_point(p, spec.half_extent), res, spec.rows);
-        for (&row, &w) in ids.iter().zip(&weights) {
-            for (a, &t) in acc.iter_mut().zip(&level[row * f..row * f + f]) {
+        let acc = &mut row[at.offset..at.offset + f];
+        for (&r, &w) in ids.iter().zip(&weights) {
+            for (a, &t) in acc.iter_mut().zip(&level[r * f..r * f + f]) {
                 *a += w * t;
             }
         }
     }
-    out
 }
 
 /// The hash encoding as one backend operation.

@@ -82,7 +82,7 @@ impl OpenNerfConfig {
         let (mlp, fast, trunk_width) = match &self.fast {
             Some(fast) => {
                 let field = fast.init(appearance_dim, device);
-                let width = field.geo_features();
+                let width = field.trunk_width();
                 (None, Some(field), width)
             }
             None => {
@@ -319,7 +319,20 @@ impl Radiance<'_> {
     pub fn trunk_width(self) -> usize {
         match self {
             Radiance::Mip(mlp) => mlp.bottleneck.weight.dims()[0],
-            Radiance::Fast(fast) => fast.geo_features(),
+            Radiance::Fast(fast) => fast.trunk_width(),
+        }
+    }
+
+    /// The open-set head's input from the trunk feature: the trunk
+    /// detached (the paper's head does not shape the field), but for the
+    /// fast field's feature grid, which the feature loss trains.
+    ///
+    /// # Shapes
+    /// - `trunk`: `[n, trunk_width]`; output: the same.
+    pub fn head_input(self, trunk: Tensor<2>) -> Tensor<2> {
+        match self {
+            Radiance::Mip(_) => trunk.detach(),
+            Radiance::Fast(fast) => fast.head_input(trunk),
         }
     }
 }

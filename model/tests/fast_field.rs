@@ -315,6 +315,81 @@ fn the_feature_loss_leaves_the_field_alone() {
     assert!(vec(head).iter().any(|&g| g != 0.0));
 }
 
+/// The field's configuration with a feature grid of 3 levels of 2
+/// features for the open-set head.
+fn with_feature_grid(mut config: OpenNerfConfig) -> OpenNerfConfig {
+    let grid = HashGridConfig::new()
+        .with_levels(3)
+        .with_log2_table(9)
+        .with_base_resolution(4)
+        .with_max_resolution(32);
+    config.fast = config.fast.map(|f| f.with_feature_grid(Some(grid)));
+    config
+}
+
+/// With a feature grid, the head reads it beside the geometry feature;
+/// the feature loss trains the feature grid and the head and leaves the
+/// field alone, and the colour loss leaves the feature grid alone; the
+/// inference pass renders the features the training pass does.
+#[test]
+fn a_feature_grid_is_the_heads_and_the_feature_losss_alone() {
+    let device: Device = Device::flex().autodiff();
+    device.seed(16);
+    let mut m = varied(&with_feature_grid(fast_config(8, false)), &device);
+    let fast = m.fast.as_mut().expect("fast");
+    let grid = fast.feature_grid.as_mut().expect("a feature grid");
+    let dims = grid.table.val().dims();
+    grid.table = Param::from_tensor(Tensor::random(
+        dims,
+        burn::tensor::Distribution::Uniform(-1.0, 1.0),
+        &device,
+    ));
+    let fast = m.fast.as_ref().expect("fast");
+    assert_eq!(fast.trunk_width(), 7 + 6);
+    assert_eq!(m.head.hidden[0].weight.dims(), [7 + 6, 8]);
+    let rays = camera_rays(5, 2);
+    let request = RenderRequest::train(&rays)
+        .with_randomized(false)
+        .with_features(FeatureMode::Composited);
+    let out = m.render(&request).fine;
+    let feature_grads = out.feature.expect("a feature").sum().backward();
+    let table = |grads: &burn::tensor::Gradients| {
+        fast.feature_grid
+            .as_ref()
+            .expect("a feature grid")
+            .table
+            .val()
+            .grad(grads)
+    };
+    // The two grids' encodings travel together, and the trunk feature holds
+    // both, so a loss may hand what it does not read a gradient of zeros.
+    let zero = |g: Option<Tensor<2>>| g.is_none_or(|g| vec(g).iter().all(|&v| v == 0.0));
+    let learned = table(&feature_grads).expect("the feature grid learns");
+    assert!(vec(learned).iter().any(|&g| g != 0.0));
+    assert!(zero(fast.grid.table.val().grad(&feature_grads)));
+    assert!(zero(fast.density_out.weight.val().grad(&feature_grads)));
+    let colour_grads = m.render(&request).fine.rgb.sum().backward();
+    assert!(zero(table(&colour_grads)));
+    assert!(!zero(fast.grid.table.val().grad(&colour_grads)));
+
+    let plain = m.valid();
+    let want = plain.render(&request).fine;
+    let off = Termination {
+        transmittance: 0.0,
+        segment: 3,
+    };
+    let got = plain
+        .render(
+            &RenderRequest::inference(&rays)
+                .with_features(FeatureMode::Composited)
+                .with_termination(off),
+        )
+        .expect("no observer");
+    let want_feature = vec(want.feature.expect("a feature"));
+    assert_close(&got.feature, &want_feature, 2e-5, 2e-5, "feature");
+    assert_close(&got.rgb, &vec(want.rgb), 2e-5, 2e-5, "colour");
+}
+
 /// The inference pass (the march, without termination) renders what the
 /// plain deterministic training pass does, with and without the hash
 /// proposal sampler, in every feature mode.
@@ -397,12 +472,13 @@ fn the_mip_fields_weights_keep_their_names() {
     assert!(!holds("fast.") && !holds("Some"));
 }
 
-/// A configuration written before the density shift and the footprint
-/// weights (a run trained without them) loads with neither, as it was
-/// trained.
+/// A configuration written before the density shift, the footprint
+/// weights and the feature grid (a run trained without them) loads with
+/// none of them, as it was trained.
 #[test]
 fn a_configuration_without_the_newer_keys_loads_as_it_was_trained() {
     let mut config = fast_config(8, true);
+    config = with_feature_grid(config);
     config.fast = config.fast.map(|f| {
         f.with_density_shift(Some(-1.0))
             .with_footprint_weights(Some(true))
@@ -412,6 +488,7 @@ fn a_configuration_without_the_newer_keys_loads_as_it_was_trained() {
     let fast = old["fast"].as_object_mut().expect("the fast field");
     assert!(fast.remove("density_shift").is_some());
     assert!(fast.remove("footprint_weights").is_some());
+    assert!(fast.remove("feature_grid").is_some());
     let proposal = old["proposal"].as_object_mut().expect("the proposal");
     assert!(proposal.remove("density_shift").is_some());
     let loaded: OpenNerfConfig = serde_json::from_value(old).expect("an old configuration");
@@ -419,6 +496,7 @@ fn a_configuration_without_the_newer_keys_loads_as_it_was_trained() {
     let m = loaded.init(&device);
     let fast = m.fast.as_ref().expect("the fast field");
     assert_eq!((fast.density_shift, fast.footprint_weights), (0.0, false));
+    assert!(fast.feature_grid.is_none());
     let (_, proposal) = m.proposal_sampler().expect("proposal");
     assert_eq!(proposal.density_shift, 0.0);
 }

@@ -266,7 +266,9 @@ fn a_field_with_the_encoding_renders_finite_values_and_learns_its_table() {
 /// (the scatter-adds sum in another order), on flex and ndarray.
 #[test]
 fn the_fused_encoding_and_its_gradient_are_the_tensor_forms() {
-    let n = 300;
+    // More points than two of the encoding's parallel tasks (2048 each)
+    // take, the last one short.
+    let n = 4500;
     let pts: Vec<f32> = uniform(3 * n, 4, -3.5, 3.5)
         .into_iter()
         .map(|v| v as f32)

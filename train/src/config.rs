@@ -4,14 +4,12 @@
 use std::path::Path;
 
 use datasets::sampler::SamplerConfig;
-use model::{
-    FastFieldConfig, FeatureHeadConfig, HashGridConfig, MipMlpConfig, OpenNerfConfig,
-    ProposalConfig,
-};
+use model::{FeatureHeadConfig, HashGridConfig, MipMlpConfig, OpenNerfConfig};
 use serde::{Deserialize, Serialize};
 
 pub use field_ops::novel::{NovelMode, NovelViewConfig};
 
+pub use crate::fast_config::{FAST_DENSITY_SHIFT, fast_feature_grid, fast_field, fast_proposal};
 pub use crate::loss_config::LossConfig;
 
 use crate::error::TrainError;
@@ -386,41 +384,6 @@ impl TrainConfig {
     }
 }
 
-/// The fast field `train` builds unless the `--config` file sizes it:
-/// nerfacto's MLPs and levels, with the tables and the finest level of the
-/// hash grid the Mip-NeRF field's grid was measured with on the CPU (2^15
-/// rows, 512 cells across): on the default run 2^19 rows and 2048 cells
-/// took twice the seconds a step. Its density starts at `exp(-1)` per
-/// normalised unit: unshifted, a photographed object's field filled the
-/// space in front of each camera and never formed the object
-/// (docs/measurements/fast-field.md).
-pub fn fast_field() -> FastFieldConfig {
-    FastFieldConfig::new()
-        .with_grid(HashGridConfig::new())
-        .with_density_shift(Some(FAST_DENSITY_SHIFT))
-}
-
-/// The shift of the fast field's raw density (and of its proposal
-/// networks') that `train` builds.
-pub const FAST_DENSITY_SHIFT: f32 = -1.0;
-
-/// The proposal sampler of the fast field unless the `--config` file sets
-/// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
-/// up to 128 cells across, one layer of 16, its density shifted as the
-/// fast field's), shared by two rounds of 64 and 32 samples.
-pub fn fast_proposal() -> ProposalConfig {
-    ProposalConfig::new()
-        .with_samples(vec![64, 32])
-        .with_depth(1)
-        .with_width(16)
-        .with_hash(Some(
-            HashGridConfig::new()
-                .with_levels(5)
-                .with_max_resolution(128),
-        ))
-        .with_density_shift(Some(FAST_DENSITY_SHIFT))
-}
-
 /// Where `patch` sets keys of the field's optional parts (`model.unbounded`,
 /// `model.proposal` and its `hash`, `model.exposure`, `model.fast`, ...)
 /// that `base` leaves out, `base` first
@@ -467,6 +430,11 @@ fn optional_defaults(
     let proposal = &patch["model"]["proposal"];
     if proposal["hash"].is_object() && base["model"]["proposal"]["hash"].is_null() {
         base["model"]["proposal"]["hash"] = serde_json::to_value(HashGridConfig::new())?;
+    }
+    // The fast field's feature grid, within the fast field's keys.
+    let fast = &patch["model"]["fast"];
+    if fast["feature_grid"].is_object() && base["model"]["fast"]["feature_grid"].is_null() {
+        base["model"]["fast"]["feature_grid"] = serde_json::to_value(fast_feature_grid())?;
     }
     Ok(())
 }

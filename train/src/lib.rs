@@ -21,6 +21,7 @@ pub mod curve;
 pub mod data;
 pub mod error;
 pub mod evaluate;
+pub mod fast_config;
 pub mod interrupt;
 pub mod loss_config;
 pub mod metrics_log;

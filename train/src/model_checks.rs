@@ -81,6 +81,9 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
         return Ok(());
     };
     grid(&fast.grid, "model.fast.grid")?;
+    if let Some(g) = &fast.feature_grid {
+        grid(g, "model.fast.feature_grid")?;
+    }
     if model.hash.is_some() {
         return Err(
             "model.hash is a hash grid beside the Mip-NeRF MLP's IPE; the fast field \

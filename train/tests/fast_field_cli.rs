@@ -56,6 +56,16 @@ fn bad_field_model_values_and_settings_are_refused() {
             "model.fast.density_shift",
         ),
         (
+            "feature.json",
+            r#"{"feature_grid": {"levels": 0}}"#,
+            "model.fast.feature_grid.levels",
+        ),
+        (
+            "feature_rows.json",
+            r#"{"feature_grid": {"log2_table": 40}}"#,
+            "model.fast.feature_grid.log2_table",
+        ),
+        (
             "word.json",
             r#"{"color_width": "wide"}"#,
             "\"wide\", expected usize",
@@ -123,7 +133,7 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
     // A configuration's own sizes are kept, and `mip` overrides it.
     let mut asked: serde_json::Value = serde_json::from_str(TINY).expect("tiny json");
     asked["model"]["fast"] = serde_json::json!({"grid": {"levels": 3, "log2_table": 8}});
-    let asked = asked.to_string();
+    let mut asked = asked.to_string();
     let by_config = tmp.path().join("by-config");
     let err = tiny_run(tmp.path(), &by_config, &asked, &[]);
     assert!(
@@ -131,6 +141,31 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
             && err.contains("auto: the configuration's model.fast"),
         "{err}"
     );
+    assert!(!err.contains("a hash grid of its own"), "{err}");
+
+    // A feature grid given by some of its keys takes the others from the
+    // fast field's feature grid, is printed, saved and loaded.
+    asked = {
+        let mut a: serde_json::Value = serde_json::from_str(&asked).expect("json");
+        a["model"]["fast"]["feature_grid"] = serde_json::json!({"levels": 2, "log2_table": 8});
+        a.to_string()
+    };
+    let featured = tmp.path().join("featured");
+    let err = tiny_run(tmp.path(), &featured, &asked, &[]);
+    assert!(
+        err.contains(
+            "the open-set head reads a hash grid of its own, 2 levels of 2^8 rows x 2 features \
+             (16 to 512 cells across)"
+        ),
+        "{err}"
+    );
+    let saved = json(&featured.join("config.json"));
+    assert_eq!(saved["model"]["fast"]["feature_grid"]["levels"], 2);
+    let loaded = field_ops::run_dir::load_run(&featured, &device).expect("the run loads");
+    let field = loaded.model.fast.as_ref().expect("the fast field");
+    let grid = field.feature_grid.as_ref().expect("the feature grid");
+    assert_eq!(grid.table.val().dims(), [2 << 8, 2]);
+    assert_eq!(loaded.model.head.hidden[0].weight.dims()[0], 15 + 4);
     let mip = tmp.path().join("mip");
     let err = tiny_run(tmp.path(), &mip, &asked, &["--field-model", "mip"]);
     assert!(

@@ -261,7 +261,8 @@ impl OpenNerf {
         let feature = match mode {
             FeatureMode::None => None,
             FeatureMode::PerSample => {
-                let f = self.head.forward(field.trunk);
+                let input = self.radiance().head_input(field.trunk);
+                let f = self.head.output.forward(self.head.hidden_of(input));
                 let [_, c] = f.dims();
                 Some(composite_features_mean(
                     comp.weights.clone(),
@@ -269,7 +270,8 @@ impl OpenNerf {
                 ))
             }
             FeatureMode::Composited => {
-                Some(self.composited_feature(field.trunk, comp.weights.clone(), n, s))
+                let input = self.radiance().head_input(field.trunk);
+                Some(self.composited_feature(input, comp.weights.clone(), n, s))
             }
         };
         LevelOutputs {
@@ -319,9 +321,10 @@ impl OpenNerf {
         self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
     }
 
-    /// Feature by averaging the head's hidden activations with the (detached)
-    /// weights, optionally over the top-k samples only, and applying the
-    /// linear output layer once per ray: `A (sum w h / sum w) + b` equals the
+    /// Feature by averaging the head's hidden activations of its input
+    /// ([`crate::nerf::Radiance::head_input`]) with the (detached) weights,
+    /// optionally over the top-k samples only, and applying the linear
+    /// output layer once per ray: `A (sum w h / sum w) + b` equals the
     /// weighted mean of the per-sample features `A h + b`.
     fn composited_feature(
         &self,
@@ -331,7 +334,6 @@ impl OpenNerf {
         s: usize,
     ) -> Tensor<2> {
         let weights = weights.detach();
-        let trunk = trunk.detach();
         let [_, width] = trunk.dims();
         let k = self.head_top_k;
         let (trunk, weights, s) = if k > 0 && k <= s {
@@ -342,7 +344,7 @@ impl OpenNerf {
         } else {
             (trunk, weights, s)
         };
-        let hidden = self.head.hidden(trunk);
+        let hidden = self.head.hidden_of(trunk);
         let [_, hd] = hidden.dims();
         let hmean = composite_features_mean(weights, hidden.reshape([n, s, hd]));
         self.head.output.forward(hmean)

@@ -174,6 +174,18 @@ fn density_formula(shift: f32) -> String {
     }
 }
 
+/// What the field model line says of the fast field's feature grid.
+fn feature_grid_phrase(grid: Option<&HashGridConfig>) -> String {
+    match grid {
+        None => String::new(),
+        Some(g) => format!(
+            "; the open-set head reads a hash grid of its own, {} levels of 2^{} rows x {} \
+             features ({} to {} cells across)",
+            g.levels, g.log2_table, g.features, g.base_resolution, g.max_resolution
+        ),
+    }
+}
+
 /// The field model line, with its sizes from `model`.
 pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
     let reason = choices.model.by.reason();
@@ -183,7 +195,7 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
             format!(
                 "field model: fast, a hash grid of {} levels of 2^{} rows x {} features ({} to {} \
                  cells across), a density MLP of {} x {} (density {}) with a {}-wide \
-                 geometry feature, a colour MLP of {} x {} on {} spherical-harmonics bands \
+                 geometry feature, a colour MLP of {} x {} on {} spherical-harmonics bands{} \
                  ({reason})",
                 g.levels,
                 g.log2_table,
@@ -196,7 +208,8 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
                 f.geo_features,
                 f.color_layers,
                 f.color_width,
-                f.sh_degree
+                f.sh_degree,
+                feature_grid_phrase(f.feature_grid.as_ref())
             )
         }
         None => format!(
