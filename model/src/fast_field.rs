@@ -208,12 +208,16 @@ impl FastField {
     pub fn trunk_density(&self, encoded: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
         let field_dim = self.grid.output_dim();
         let [_, encoded_dim] = encoded.dims();
-        let feature = (encoded_dim > field_dim).then(|| {
-            encoded
+        // Without a feature grid the encoding is the field grid's alone and
+        // goes to the density MLP as it is (no slicing op in the step).
+        let (mut h, feature) = if encoded_dim > field_dim {
+            let feature = encoded
                 .clone()
-                .narrow(1, field_dim, encoded_dim - field_dim)
-        });
-        let mut h = encoded.narrow(1, 0, field_dim);
+                .narrow(1, field_dim, encoded_dim - field_dim);
+            (encoded.narrow(1, 0, field_dim), Some(feature))
+        } else {
+            (encoded, None)
+        };
         for layer in &self.density_hidden {
             h = relu(layer.forward(h));
         }

@@ -174,16 +174,23 @@ fn density_formula(shift: f32) -> String {
     }
 }
 
+/// A fast-field hash grid's sizes as the field model line gives them:
+/// "16 levels of 2^15 rows x 2 features (16 to 512 cells across)".
+fn grid_sizes(g: &HashGridConfig) -> String {
+    format!(
+        "{} levels of 2^{} rows x {} features ({} to {} cells across)",
+        g.levels, g.log2_table, g.features, g.base_resolution, g.max_resolution
+    )
+}
+
 /// What the field model line says of the fast field's feature grid.
 fn feature_grid_phrase(grid: Option<&HashGridConfig>) -> String {
-    match grid {
-        None => String::new(),
-        Some(g) => format!(
-            "; the open-set head reads a hash grid of its own, {} levels of 2^{} rows x {} \
-             features ({} to {} cells across)",
-            g.levels, g.log2_table, g.features, g.base_resolution, g.max_resolution
-        ),
-    }
+    grid.map_or_else(String::new, |g| {
+        format!(
+            "; the open-set head reads a hash grid of its own, {}",
+            grid_sizes(g)
+        )
+    })
 }
 
 /// The field model line, with its sizes from `model`.
@@ -191,17 +198,11 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
     let reason = choices.model.by.reason();
     match &model.fast {
         Some(f) => {
-            let g = &f.grid;
             format!(
-                "field model: fast, a hash grid of {} levels of 2^{} rows x {} features ({} to {} \
-                 cells across), a density MLP of {} x {} (density {}) with a {}-wide \
-                 geometry feature, a colour MLP of {} x {} on {} spherical-harmonics bands{} \
-                 ({reason})",
-                g.levels,
-                g.log2_table,
-                g.features,
-                g.base_resolution,
-                g.max_resolution,
+                "field model: fast, a hash grid of {}, a density MLP of {} x {} (density {}) \
+                 with a {}-wide geometry feature, a colour MLP of {} x {} on {} \
+                 spherical-harmonics bands{} ({reason})",
+                grid_sizes(&f.grid),
                 f.density_layers,
                 f.density_width,
                 density_formula(f.density_shift.unwrap_or(0.0)),
