@@ -13,7 +13,7 @@ use std::borrow::Cow;
 use burn::tensor::Tensor;
 
 use crate::geometry::NormalizedRay;
-use crate::mip::{FrustumGaussians, cast_rays};
+use crate::mip::{FrustumGaussians, cast_rays, frustum_means};
 use crate::occupancy::OccupancyGrid;
 use crate::rays::Rays;
 use crate::sampling::stratified_t_vals;
@@ -111,6 +111,19 @@ impl Extent {
         match self {
             Extent::Unbounded(u) => u.frustums(t_vals, o, d, r),
             Extent::Box => cast_rays(t_vals, o, d, r),
+        }
+    }
+
+    /// The means of [`Extent::frustums`]' Gaussians alone, the same bits:
+    /// what a field that reads no covariance needs.
+    ///
+    /// # Shapes
+    /// - `t_vals`: `[n, samples + 1]`; output: `[n, samples, 3]`.
+    pub fn frustum_means(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<3> {
+        let (o, d) = (rays.origins.clone(), rays.directions.clone());
+        match self {
+            Extent::Unbounded(u) => u.frustum_means(t_vals, o, d),
+            Extent::Box => frustum_means(t_vals, o, d),
         }
     }
 

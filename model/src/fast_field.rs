@@ -182,16 +182,40 @@ impl FastField {
     /// - `mean`, `cov_diag`: `[n, 3]`; output: `[n, levels * features]`
     ///   (both grids' levels).
     pub fn encode(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
-        let mean = mean.detach();
-        let mut encoded = self.grid.forward(mean.clone());
-        if self.footprint_weights {
-            let weights = level_weights(
-                isotropic_variance(cov_diag.detach()),
-                &self.grid.resolutions,
-                self.grid.half_extent,
-            );
-            encoded = weigh_levels(encoded, weights);
+        if !self.footprint_weights {
+            return self.encode_means(mean);
         }
+        let mean = mean.detach();
+        let weights = level_weights(
+            isotropic_variance(cov_diag.detach()),
+            &self.grid.resolutions,
+            self.grid.half_extent,
+        );
+        let encoded = weigh_levels(self.grid.forward(mean.clone()), weights);
+        self.with_feature_grid(encoded, mean)
+    }
+
+    /// Whether [`FastField::encode`] reads the Gaussians' covariances (to
+    /// weigh the levels by their footprint); if not, [`FastField::encode_means`]
+    /// gives the same encoding from the means alone.
+    pub fn reads_covariance(&self) -> bool {
+        self.footprint_weights
+    }
+
+    /// The encoding of the means `mean` with every level at full weight:
+    /// [`FastField::encode`]'s where the field weighs no level by footprint.
+    ///
+    /// # Shapes
+    /// - `mean`: `[n, 3]`; output: `[n, levels * features]`.
+    pub fn encode_means(&self, mean: Tensor<2>) -> Tensor<2> {
+        let mean = mean.detach();
+        let encoded = self.grid.forward(mean.clone());
+        self.with_feature_grid(encoded, mean)
+    }
+
+    /// `encoded`, then the feature grid's encoding of `mean` where the
+    /// field has one.
+    fn with_feature_grid(&self, encoded: Tensor<2>, mean: Tensor<2>) -> Tensor<2> {
         match &self.feature_grid {
             Some(grid) => Tensor::cat(vec![encoded, grid.forward(mean)], 1),
             None => encoded,

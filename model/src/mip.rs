@@ -62,6 +62,38 @@ pub fn conical_frustum_to_gaussian(
     (t_mean, t_var, r_var)
 }
 
+/// The mean `t` of a conical frustum, as [`conical_frustum_to_gaussian`]
+/// gives it (the same operations, so the same bits), without its
+/// variances: what a field that reads only the Gaussians' means needs.
+///
+/// # Shapes
+/// - `t0`, `t1`: `[rays, samples]` interval ends; output: `[rays, samples]`.
+pub fn conical_frustum_mean(t0: Tensor<2>, t1: Tensor<2>) -> Tensor<2> {
+    let mu = t0.clone().add(t1.clone()).mul_scalar(0.5);
+    let hw = t1.sub(t0).mul_scalar(0.5);
+    let mu2 = mu.clone().square();
+    let hw2 = hw.square();
+    let denom = mu2.mul_scalar(3.0).add(hw2.clone()).clamp_min(1e-20);
+    mu.clone().add(mu.mul(hw2).mul_scalar(2.0).div(denom))
+}
+
+/// The means of the conical frustums between consecutive fence posts
+/// ([`cast_rays`]' means, without their covariances).
+///
+/// # Shapes
+/// - `t_vals`: `[rays, samples + 1]`; `origins`, `directions`: `[rays, 3]`;
+///   output: `[rays, samples, 3]`.
+pub fn frustum_means(t_vals: Tensor<2>, origins: Tensor<2>, directions: Tensor<2>) -> Tensor<3> {
+    let [_, posts] = t_vals.dims();
+    let t0 = t_vals.clone().slice_dim(1, 0..posts - 1);
+    let t1 = t_vals.slice_dim(1, 1..posts);
+    let t_mean = conical_frustum_mean(t0, t1);
+    directions
+        .unsqueeze_dim::<3>(1)
+        .mul(t_mean.unsqueeze_dim::<3>(2))
+        .add(origins.unsqueeze_dim::<3>(1))
+}
+
 /// Lifts the along-axis / across-axis statistics of a frustum into a 3D
 /// Gaussian with diagonal covariance around `t_mean * d` (the ray origin is
 /// added by the caller).

@@ -286,3 +286,44 @@ fn ipe_extreme_variances_at_max_degree() {
         assert!((tiny[3 * 15 + 1] as f64 - y.sin()).abs() < 2e-2, "{name}");
     }
 }
+
+/// The frustums' means alone (what a field that reads no covariance
+/// takes) are the means of the Gaussians with their covariances, bit for
+/// bit: in a box, and contracted in an unbounded scene, for rays inside
+/// the ball and rays reaching far past it.
+#[test]
+fn frustum_means_are_the_gaussians_means_bit_for_bit() {
+    use model::mip::frustum_means;
+    use model::unbounded::UnboundedConfig;
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    for (name, device) in devices(false) {
+        let rays = 5;
+        let posts = 9usize;
+        let origins: Vec<f32> = (0..rays * 3).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let dirs: Vec<f32> = (0..rays * 3).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let radii: Vec<f32> = (0..rays).map(|_| rng.random_range(1e-3..1e-2)).collect();
+        let t: Vec<f32> = (0..rays)
+            .flat_map(|_| (0..posts).map(|i| 0.05 * 1.8f32.powi(i as i32)))
+            .collect();
+        let (o, d) = (
+            tensor(origins, [rays, 3], &device),
+            tensor(dirs, [rays, 3], &device),
+        );
+        let (r, t) = (
+            tensor(radii, [rays, 1], &device),
+            tensor(t, [rays, posts], &device),
+        );
+        let boxed = cast_rays(t.clone(), o.clone(), d.clone(), r.clone());
+        let means = frustum_means(t.clone(), o.clone(), d.clone());
+        assert_eq!(vec(means), vec(boxed.mean), "{name}: box");
+        let unbounded = UnboundedConfig::new(1.5);
+        let contracted = unbounded.frustums(t.clone(), o.clone(), d.clone(), r);
+        let means = vec(unbounded.frustum_means(t, o, d));
+        assert!(
+            means
+                .chunks(3)
+                .any(|p| p.iter().map(|v| v * v).sum::<f32>() > 2.5)
+        );
+        assert_eq!(means, vec(contracted.mean), "{name}: unbounded");
+    }
+}

@@ -128,13 +128,7 @@ impl ProposalMlp {
     /// - `mean`, `cov_diag`: `[n, 3]`; output: `[n, 1]`.
     pub fn density_at(&self, mean: Tensor<2>, cov_diag: Tensor<2>) -> Tensor<2> {
         match &self.hash {
-            Some(grid) => {
-                let mut h = grid.forward(mean.detach());
-                for layer in &self.layers {
-                    h = relu(layer.forward(h));
-                }
-                exp_density(self.density.forward(h).add_scalar(self.density_shift))
-            }
+            Some(grid) => self.hash_density(grid, mean),
             None => self.density(integrated_pos_enc(
                 mean,
                 cov_diag,
@@ -142,6 +136,20 @@ impl ProposalMlp {
                 self.max_deg,
             )),
         }
+    }
+
+    /// The hash form's density of Gaussians of means `mean` (the hash
+    /// form reads no covariance): what [`ProposalMlp::density_at`] gives
+    /// them when `grid` is the MLP's own.
+    ///
+    /// # Shapes
+    /// - `mean`: `[n, 3]`; output: `[n, 1]`.
+    pub fn hash_density(&self, grid: &HashGrid, mean: Tensor<2>) -> Tensor<2> {
+        let mut h = grid.forward(mean.detach());
+        for layer in &self.layers {
+            h = relu(layer.forward(h));
+        }
+        exp_density(self.density.forward(h).add_scalar(self.density_shift))
     }
 
     /// Density from the integrated positional encoding.

@@ -10,7 +10,7 @@ use super::posts::{Posts, ProposalLevel};
 use super::sealed::{Sealed, Token};
 use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::composite::{composite, composite_features_mean};
-use crate::nerf::{OpenNerf, Rays};
+use crate::nerf::{OpenNerf, Radiance, Rays};
 
 /// The training pass: both levels of the rendered rays as tensors, with
 /// the autodiff graph when the model is on an autodiff device.
@@ -309,15 +309,23 @@ impl OpenNerf {
         (dir_norm, Tensor::cat(vec![enc, code], 1))
     }
 
-    /// The integrated positional encoding of the frustums between
-    /// consecutive fence posts, ray-major.
+    /// The field's encoding of the frustums between consecutive fence
+    /// posts, ray-major ([`OpenNerf::encode_gaussians`]); a field that reads
+    /// no covariance gets the frustums' means alone, and their covariances
+    /// are never formed.
     ///
     /// # Shapes
-    /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, ipe_dim]`.
+    /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, input]`.
     pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
-        let g = self.extent.frustums(t_vals, rays);
         let m = n * (posts - 1);
+        if let Radiance::Fast(fast) = self.radiance()
+            && !fast.reads_covariance()
+        {
+            let mean = self.extent.frustum_means(t_vals, rays);
+            return fast.encode_means(mean.reshape([m, 3]));
+        }
+        let g = self.extent.frustums(t_vals, rays);
         self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
     }
 

@@ -127,9 +127,19 @@ impl OpenNerf {
     ) -> Tensor<2> {
         let [n, posts] = t.dims();
         let count = posts - 1;
-        let g = self.extent.frustums(t.clone(), rays);
         let m = n * count;
-        let density = mlp.density_at(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]));
+        // The hash form reads the frustums' means alone: their covariances
+        // are never formed.
+        let density = match &mlp.hash {
+            Some(grid) => {
+                let mean = self.extent.frustum_means(t.clone(), rays);
+                mlp.hash_density(grid, mean.reshape([m, 3]))
+            }
+            None => {
+                let g = self.extent.frustums(t.clone(), rays);
+                mlp.density_at(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
+            }
+        };
         compute_weights(density.reshape([n, count]), t, dir_norm.clone())
     }
 }

@@ -11,9 +11,9 @@
 use burn::config::Config;
 use burn::tensor::Tensor;
 
-use super::contract::{cast_rays_contracted, contract_gaussian, cov_diagonal};
+use super::contract::{cast_rays_contracted, contract, contract_gaussian, cov_diagonal};
 use crate::geometry::NormalizedRay;
-use crate::mip::FrustumGaussians;
+use crate::mip::{FrustumGaussians, frustum_means};
 
 /// Contracted coordinates (in the ball of radius 2) are scaled by this
 /// (`pi / 2`) before the encoding.
@@ -91,6 +91,24 @@ impl UnboundedConfig {
             mean: g.mean.mul_scalar(CONTRACTED_SCALE),
             cov_diag: g.cov_diag.mul_scalar(CONTRACTED_SCALE * CONTRACTED_SCALE),
         }
+    }
+
+    /// The means of [`UnboundedConfig::frustums`]' Gaussians alone
+    /// (contracted and scaled the same way, the same bits), for a field
+    /// that reads no covariance.
+    ///
+    /// # Shapes
+    /// - `t_vals`: `[rays, samples + 1]`; `origins`, `directions`:
+    ///   `[rays, 3]`; output: `[rays, samples, 3]`.
+    pub fn frustum_means(
+        &self,
+        t_vals: Tensor<2>,
+        origins: Tensor<2>,
+        directions: Tensor<2>,
+    ) -> Tensor<3> {
+        let inv = 1.0 / self.radius;
+        let mean = frustum_means(t_vals, origins.mul_scalar(inv), directions.mul_scalar(inv));
+        contract(mean).mul_scalar(CONTRACTED_SCALE)
     }
 
     /// Points as isotropic Gaussians of standard deviation `std` (normalised
