@@ -15,7 +15,9 @@
 # measured only when SETTINGS names it: `fast` (`--field-model fast` at
 # the capture's own samples a ray, and on photographed objects at 16),
 # `fast_samples24` (at 24, photographed objects), `fast_proposal` (with
-# its hash-grid proposal networks, photographed objects).
+# its hash-grid proposal networks), `fast_proposal_fewer` (with proposal
+# rounds of 32 and 16 samples, then 24 on photographed objects and the
+# capture's 16 on forward-facing ones).
 #
 # Two ways to use the machine:
 # - default: one run at a time on every core, one run of the defaults per
@@ -55,6 +57,8 @@ fi
 . "$(dirname "$0")/frozen-bins.sh"
 freeze_bins "$out"
 mkdir -p "$out/runs"
+out=$(cd "$out" && pwd)
+echo '{"model": {"proposal": {"samples": [32, 16]}}}' >"$out/rounds_32_16.json"
 
 # The capture directory and the flags that flip each setting from its
 # default there (a photographed object: unbounded, codes, hash grid, no
@@ -71,11 +75,14 @@ capture_dir() {
 flips() {
   case $1 in
     fern) printf '%s\n' "rays:--rays 128" "hash:--hash-grid off" "appearance:--appearance embedding" \
-      "field:--field unbounded" "fast:--field-model fast" ;;
+      "field:--field unbounded" "fast:--field-model fast" \
+      "fast_proposal:--field-model fast --sampler proposal" \
+      "fast_proposal_fewer:--field-model fast --sampler proposal --config $out/rounds_32_16.json" ;;
     *) printf '%s\n' "rays:--rays 64" "hash:--hash-grid off" "appearance:--appearance none" \
       "sparse_depth:--sparse-depth on" "field:--field box" \
       "fast:--field-model fast --samples 16" "fast_samples24:--field-model fast --samples 24" \
-      "fast_proposal:--field-model fast --sampler proposal" ;;
+      "fast_proposal:--field-model fast --sampler proposal" \
+      "fast_proposal_fewer:--field-model fast --sampler proposal --samples 24 --config $out/rounds_32_16.json" ;;
   esac
 }
 
@@ -104,8 +111,30 @@ run() {
   read -r name capture setting flags <<<"$1"
   [ -n "$2" ] && pin=(env RAYON_NUM_THREADS=1 taskset -c "$2")
   rm -rf "$out/runs/$name"
+  local config=("${scoring[@]}")
+  # A setting's own configuration file and the scoring's go to `train`
+  # as one file, the setting's keys laid over the scoring's.
+  if [[ " $flags " == *" --config "* ]]; then
+    local own=${flags##*--config }
+    own=${own%% *}
+    flags=${flags/--config $own/}
+    if [ ${#scoring[@]} -gt 0 ]; then
+      python3 - "$out/sample.json" "$own" "$out/runs/$name.config.json" <<'PY'
+import json, sys
+def lay(base, over):
+    for k, v in over.items():
+        base[k] = lay(base.get(k, {}), v) if isinstance(v, dict) and isinstance(base.get(k), dict) else v
+    return base
+merged = lay(json.load(open(sys.argv[1])), json.load(open(sys.argv[2])))
+json.dump(merged, open(sys.argv[3], "w"))
+PY
+      config=(--no-final-render --config "$out/runs/$name.config.json")
+    else
+      config=(--config "$own")
+    fi
+  fi
   # shellcheck disable=SC2086
-  "${pin[@]}" "$bin/train" "${length[@]}" "${scoring[@]}" --seed 0 --quiet \
+  "${pin[@]}" "$bin/train" "${length[@]}" "${config[@]}" --seed 0 --quiet \
     --data "$(capture_dir "$capture")" --out "$out/runs/$name" $flags \
     >"$out/runs/$name.log" 2>&1 </dev/null
   echo "done: $name"
