@@ -163,6 +163,8 @@ for line in open(f"{out}/jobs.txt"):
     name, capture, setting, *flags = line.split()
     s = json.load(open(f"{out}/runs/{name}/summary.json"))
     whole = s.get("heldout_whole") or s["heldout_interior"]
+    # A configuration file is named without its directory (OUT).
+    flags = [f.rsplit("/", 1)[-1] if f.endswith(".json") else f for f in flags]
     run = dict(run=name, capture=capture, setting=setting, value=" ".join(flags),
                psnr=round(whole["psnr"], 3), iterations=s["iterations"],
                pixels=whole.get("pixels", ""))
