@@ -33,21 +33,14 @@ pub fn conical_frustum_to_gaussian(
     t1: Tensor<2>,
     radius: Tensor<2>,
 ) -> (Tensor<2>, Tensor<2>, Tensor<2>) {
-    let mu = t0.clone().add(t1.clone()).mul_scalar(0.5);
-    let hw = t1.sub(t0).mul_scalar(0.5);
-    let mu2 = mu.clone().square();
-    let hw2 = hw.square();
+    let FrustumTerms {
+        mu,
+        mu2,
+        hw2,
+        denom,
+    } = FrustumTerms::new(t0, t1);
     let hw4 = hw2.clone().square();
-    // 3 mu^2 + hw^2 is 0 only for the degenerate interval [0, 0]; the floor
-    // keeps that case finite (it then yields t_mean = 0 and zero variances).
-    let denom = mu2
-        .clone()
-        .mul_scalar(3.0)
-        .add(hw2.clone())
-        .clamp_min(1e-20);
-    let t_mean = mu
-        .clone()
-        .add(mu.mul(hw2.clone()).mul_scalar(2.0).div(denom.clone()));
+    let t_mean = frustum_t_mean(mu, hw2.clone(), denom.clone());
     let t_var = hw2.clone().div_scalar(3.0).sub(
         hw4.clone()
             .mul_scalar(4.0 / 15.0)
@@ -62,6 +55,43 @@ pub fn conical_frustum_to_gaussian(
     (t_mean, t_var, r_var)
 }
 
+/// The terms of an interval `[t0, t1]` the frustum's moments share: its
+/// middle `mu`, `mu^2`, its half-width squared and `3 mu^2 + hw^2`.
+struct FrustumTerms {
+    mu: Tensor<2>,
+    mu2: Tensor<2>,
+    hw2: Tensor<2>,
+    denom: Tensor<2>,
+}
+
+impl FrustumTerms {
+    fn new(t0: Tensor<2>, t1: Tensor<2>) -> Self {
+        let mu = t0.clone().add(t1.clone()).mul_scalar(0.5);
+        let hw = t1.sub(t0).mul_scalar(0.5);
+        let mu2 = mu.clone().square();
+        let hw2 = hw.square();
+        // 3 mu^2 + hw^2 is 0 only for the degenerate interval [0, 0]; the
+        // floor keeps that case finite (it then yields t_mean = 0 and zero
+        // variances).
+        let denom = mu2
+            .clone()
+            .mul_scalar(3.0)
+            .add(hw2.clone())
+            .clamp_min(1e-20);
+        Self {
+            mu,
+            mu2,
+            hw2,
+            denom,
+        }
+    }
+}
+
+/// `mu + 2 mu hw^2 / (3 mu^2 + hw^2)`: the frustum's mean `t`.
+fn frustum_t_mean(mu: Tensor<2>, hw2: Tensor<2>, denom: Tensor<2>) -> Tensor<2> {
+    mu.clone().add(mu.mul(hw2).mul_scalar(2.0).div(denom))
+}
+
 /// The mean `t` of a conical frustum, as [`conical_frustum_to_gaussian`]
 /// gives it (the same operations, so the same bits), without its
 /// variances: what a field that reads only the Gaussians' means needs.
@@ -69,12 +99,30 @@ pub fn conical_frustum_to_gaussian(
 /// # Shapes
 /// - `t0`, `t1`: `[rays, samples]` interval ends; output: `[rays, samples]`.
 pub fn conical_frustum_mean(t0: Tensor<2>, t1: Tensor<2>) -> Tensor<2> {
-    let mu = t0.clone().add(t1.clone()).mul_scalar(0.5);
-    let hw = t1.sub(t0).mul_scalar(0.5);
-    let mu2 = mu.clone().square();
-    let hw2 = hw.square();
-    let denom = mu2.mul_scalar(3.0).add(hw2.clone()).clamp_min(1e-20);
-    mu.clone().add(mu.mul(hw2).mul_scalar(2.0).div(denom))
+    let terms = FrustumTerms::new(t0, t1);
+    frustum_t_mean(terms.mu, terms.hw2, terms.denom)
+}
+
+/// The starts and ends of the intervals between consecutive fence posts.
+///
+/// # Shapes
+/// - `t_vals`: `[rays, samples + 1]`; outputs: `[rays, samples]` each.
+pub fn interval_ends(t_vals: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+    let [_, posts] = t_vals.dims();
+    let t0 = t_vals.clone().slice_dim(1, 0..posts - 1);
+    (t0, t_vals.slice_dim(1, 1..posts))
+}
+
+/// The points `o + t d` at distances `t` along each ray.
+///
+/// # Shapes
+/// - `origins`, `directions`: `[rays, 3]`; `t`: `[rays, samples]`;
+///   output: `[rays, samples, 3]`.
+pub fn points_along(origins: Tensor<2>, directions: Tensor<2>, t: Tensor<2>) -> Tensor<3> {
+    directions
+        .unsqueeze_dim::<3>(1)
+        .mul(t.unsqueeze_dim::<3>(2))
+        .add(origins.unsqueeze_dim::<3>(1))
 }
 
 /// The means of the conical frustums between consecutive fence posts
@@ -84,14 +132,8 @@ pub fn conical_frustum_mean(t0: Tensor<2>, t1: Tensor<2>) -> Tensor<2> {
 /// - `t_vals`: `[rays, samples + 1]`; `origins`, `directions`: `[rays, 3]`;
 ///   output: `[rays, samples, 3]`.
 pub fn frustum_means(t_vals: Tensor<2>, origins: Tensor<2>, directions: Tensor<2>) -> Tensor<3> {
-    let [_, posts] = t_vals.dims();
-    let t0 = t_vals.clone().slice_dim(1, 0..posts - 1);
-    let t1 = t_vals.slice_dim(1, 1..posts);
-    let t_mean = conical_frustum_mean(t0, t1);
-    directions
-        .unsqueeze_dim::<3>(1)
-        .mul(t_mean.unsqueeze_dim::<3>(2))
-        .add(origins.unsqueeze_dim::<3>(1))
+    let (t0, t1) = interval_ends(t_vals);
+    points_along(origins, directions, conical_frustum_mean(t0, t1))
 }
 
 /// Lifts the along-axis / across-axis statistics of a frustum into a 3D
@@ -133,9 +175,7 @@ pub fn cast_rays(
     directions: Tensor<2>,
     radii: Tensor<2>,
 ) -> FrustumGaussians {
-    let [_, posts] = t_vals.dims();
-    let t0 = t_vals.clone().slice_dim(1, 0..posts - 1);
-    let t1 = t_vals.slice_dim(1, 1..posts);
+    let (t0, t1) = interval_ends(t_vals);
     let (t_mean, t_var, r_var) = conical_frustum_to_gaussian(t0, t1, radii);
     let (offset, cov_diag) = lift_gaussian(directions, t_mean, t_var, r_var);
     FrustumGaussians {

@@ -16,7 +16,7 @@
 //! unnormalised), which keeps every intermediate within f32 range for
 //! `|x|` up to about `1e19` (where `|x|^2` overflows).
 
-use crate::mip::{FrustumGaussians, conical_frustum_to_gaussian};
+use crate::mip::{FrustumGaussians, conical_frustum_to_gaussian, interval_ends, points_along};
 use burn::tensor::{Bool, Device, Tensor, TensorData};
 
 /// Floor on `|x|^2` (f32 machine epsilon, as multinerf): `1/|x|` stays
@@ -166,15 +166,9 @@ pub fn cast_rays_contracted(
     directions: Tensor<2>,
     radii: Tensor<2>,
 ) -> FrustumGaussians {
-    let [_, posts] = t_vals.dims();
-    let t0 = t_vals.clone().slice_dim(1, 0..posts - 1);
-    let t1 = t_vals.slice_dim(1, 1..posts);
+    let (t0, t1) = interval_ends(t_vals);
     let (t_mean, t_var, r_var) = conical_frustum_to_gaussian(t0, t1, radii);
-    let mean = directions
-        .clone()
-        .unsqueeze_dim::<3>(1)
-        .mul(t_mean.unsqueeze_dim::<3>(2))
-        .add(origins.unsqueeze_dim::<3>(1));
+    let mean = points_along(origins, directions.clone(), t_mean);
     let cov = frustum_covariance(directions, t_var, r_var);
     let (mean, cov) = contract_gaussian(mean, cov);
     FrustumGaussians {
