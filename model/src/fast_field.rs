@@ -67,6 +67,12 @@ pub struct FastFieldConfig {
     /// never read it). `None` (and runs written before this key): the head
     /// reads the geometry feature alone.
     pub feature_grid: Option<HashGridConfig>,
+    /// Whether the open-set head reads the detached geometry feature beside
+    /// the feature grid's encoding. Off (with a feature grid): it reads the
+    /// feature grid alone, and its features vary in space only as finely as
+    /// that grid's finest level. `None` (and runs written before this
+    /// key): on.
+    pub head_reads_geometry: Option<bool>,
 }
 
 /// The raw output above which the density's exponential stops growing (and
@@ -126,6 +132,8 @@ impl FastFieldConfig {
             footprint_weights: self.footprint_weights.unwrap_or(false),
             density_shift: self.density_shift.unwrap_or(0.0),
             feature_grid: self.feature_grid.as_ref().map(|g| g.init(device)),
+            head_reads_geometry: self.head_reads_geometry.unwrap_or(true)
+                || self.feature_grid.is_none(),
         }
     }
 }
@@ -158,6 +166,9 @@ pub struct FastField {
     pub density_shift: f32,
     /// The open-set head's own hash grid, if the field has one.
     pub feature_grid: Option<HashGrid>,
+    /// Whether the open-set head reads the geometry feature (always, where
+    /// the field has no feature grid).
+    pub head_reads_geometry: bool,
 }
 
 impl FastField {
@@ -171,6 +182,17 @@ impl FastField {
     /// grid's encoding where the field has one.
     pub fn trunk_width(&self) -> usize {
         self.geo_features() + self.feature_grid.as_ref().map_or(0, HashGrid::output_dim)
+    }
+
+    /// Width of the open-set head's input ([`FastField::head_input`]): the
+    /// geometry feature where the head reads it, then the feature grid's
+    /// encoding.
+    pub fn head_width(&self) -> usize {
+        if self.head_reads_geometry {
+            self.trunk_width()
+        } else {
+            self.trunk_width() - self.geo_features()
+        }
     }
 
     /// The hash encoding of the samples' Gaussians (the field's input): of
@@ -257,11 +279,12 @@ impl FastField {
     }
 
     /// The open-set head's input from the trunk feature: the geometry
-    /// feature detached (the head does not shape the geometry), the
-    /// feature grid's encoding attached (the feature loss trains it).
+    /// feature detached (the head does not shape the geometry), unless the
+    /// head reads the feature grid alone; the feature grid's encoding
+    /// attached (the feature loss trains it).
     ///
     /// # Shapes
-    /// - `trunk`: `[n, trunk_width]`; output: the same.
+    /// - `trunk`: `[n, trunk_width]`; output: `[n, head_width]`.
     pub fn head_input(&self, trunk: Tensor<2>) -> Tensor<2> {
         let geo = self.geo_features();
         let [_, width] = trunk.dims();
@@ -269,6 +292,9 @@ impl FastField {
             return trunk.detach();
         }
         let feature = trunk.clone().narrow(1, geo, width - geo);
+        if !self.head_reads_geometry {
+            return feature;
+        }
         Tensor::cat(vec![trunk.narrow(1, 0, geo).detach(), feature], 1)
     }
 

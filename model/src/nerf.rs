@@ -79,10 +79,10 @@ impl OpenNerfConfig {
     /// Builds the model on `device`.
     pub fn init(&self, device: &Device) -> OpenNerf {
         let appearance_dim = self.appearance.as_ref().map_or(0, |a| a.dim.max(1));
-        let (mlp, fast, trunk_width) = match &self.fast {
+        let (mlp, fast, head_width) = match &self.fast {
             Some(fast) => {
                 let field = fast.init(appearance_dim, device);
-                let width = field.trunk_width();
+                let width = field.head_width();
                 (None, Some(field), width)
             }
             None => {
@@ -98,7 +98,7 @@ impl OpenNerfConfig {
         OpenNerf {
             mlp,
             fast,
-            head: self.head.init(trunk_width, device),
+            head: self.head.init(head_width, device),
             num_samples: self.num_samples.max(1),
             resample_padding: self.resample_padding as f64,
             head_top_k: self.head_top_k.unwrap_or(0),
@@ -188,7 +188,7 @@ impl OpenNerf {
     /// - `points`: `[n, 3]`; output: `[n, out_dim]`.
     pub fn query_features(&self, points: Tensor<2>, radius: f32) -> Tensor<2> {
         let (trunk, _) = self.query_trunk(points, radius);
-        self.head.forward(trunk)
+        self.head.forward(self.radiance().head_input(trunk))
     }
 
     /// Density at 3D points (normalised frame), per unit of normalised length.
@@ -323,12 +323,20 @@ impl Radiance<'_> {
         }
     }
 
+    /// Width of the open-set head's input ([`Radiance::head_input`]).
+    pub fn head_width(self) -> usize {
+        match self {
+            Radiance::Mip(_) => self.trunk_width(),
+            Radiance::Fast(fast) => fast.head_width(),
+        }
+    }
+
     /// The open-set head's input from the trunk feature: the trunk
     /// detached (the paper's head does not shape the field), but for the
     /// fast field's feature grid, which the feature loss trains.
     ///
     /// # Shapes
-    /// - `trunk`: `[n, trunk_width]`; output: the same.
+    /// - `trunk`: `[n, trunk_width]`; output: `[n, head_width]`.
     pub fn head_input(self, trunk: Tensor<2>) -> Tensor<2> {
         match self {
             Radiance::Mip(_) => trunk.detach(),

@@ -390,6 +390,76 @@ fn a_feature_grid_is_the_heads_and_the_feature_losss_alone() {
     assert_close(&got.rgb, &vec(want.rgb), 2e-5, 2e-5, "colour");
 }
 
+/// `m` with another geometry feature: the density MLP's outputs but the
+/// density moved by up to 1.
+fn another_geometry_feature(m: &OpenNerf, device: &Device) -> OpenNerf {
+    let mut other = m.clone();
+    let out = &mut other.fast.as_mut().expect("fast").density_out;
+    let [rows, cols] = out.weight.val().dims();
+    let step = Tensor::<2>::random(
+        [rows, cols - 1],
+        burn::tensor::Distribution::Uniform(-1.0, 1.0),
+        device,
+    );
+    let step = Tensor::cat(vec![Tensor::zeros([rows, 1], device), step], 1);
+    out.weight = Param::from_tensor(out.weight.val().add(step));
+    other
+}
+
+/// With `head_reads_geometry` off, the head reads the feature grid alone:
+/// its input is the grid's encoding, the features at points stay as they
+/// are when the geometry feature changes (they move when the head reads
+/// it), and the march renders the features the training pass does.
+#[test]
+fn a_head_reading_the_feature_grid_alone_ignores_the_geometry_feature() {
+    let device = Device::flex();
+    device.seed(23);
+    let points = Tensor::<2>::random(
+        [40, 3],
+        burn::tensor::Distribution::Uniform(-2.0, 2.0),
+        &device,
+    );
+    let features = |m: &OpenNerf| vec(m.query_features(points.clone(), 0.01));
+    let reads = |geometry: Option<bool>| {
+        let mut config = with_feature_grid(fast_config(8, false));
+        config.fast = config.fast.map(|f| f.with_head_reads_geometry(geometry));
+        config
+    };
+    let both = varied(&reads(None), &device);
+    assert_eq!(both.head.hidden[0].weight.dims(), [7 + 6, 8]);
+    let moved = another_geometry_feature(&both, &device);
+    assert_ne!(features(&both), features(&moved));
+
+    let m = varied(&reads(Some(false)), &device);
+    let fast = m.fast.as_ref().expect("fast");
+    assert_eq!((fast.trunk_width(), fast.head_width()), (7 + 6, 6));
+    assert_eq!(m.head.hidden[0].weight.dims(), [6, 8]);
+    let moved = another_geometry_feature(&m, &device);
+    assert_eq!(features(&m), features(&moved));
+
+    let rays = camera_rays(5, 2);
+    let want = m
+        .render(
+            &RenderRequest::train(&rays)
+                .with_randomized(false)
+                .with_features(FeatureMode::Composited),
+        )
+        .fine;
+    let off = Termination {
+        transmittance: 0.0,
+        segment: 3,
+    };
+    let got = m
+        .render(
+            &RenderRequest::inference(&rays)
+                .with_features(FeatureMode::Composited)
+                .with_termination(off),
+        )
+        .expect("no observer");
+    let want_feature = vec(want.feature.expect("a feature"));
+    assert_close(&got.feature, &want_feature, 2e-5, 2e-5, "feature");
+}
+
 /// The inference pass (the march, without termination) renders what the
 /// plain deterministic training pass does, with and without the hash
 /// proposal sampler, in every feature mode.

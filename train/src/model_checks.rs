@@ -84,6 +84,14 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
     if let Some(g) = &fast.feature_grid {
         grid(g, "model.fast.feature_grid")?;
     }
+    if fast.head_reads_geometry == Some(false) && fast.feature_grid.is_none() {
+        return Err(
+            "model.fast.head_reads_geometry is false, but the fast field has no \
+             model.fast.feature_grid: the open-set head would read nothing (give it a \
+             feature grid, or leave the key out)"
+                .into(),
+        );
+    }
     if model.hash.is_some() {
         return Err(
             "model.hash is a hash grid beside the Mip-NeRF MLP's IPE; the fast field \

@@ -66,6 +66,11 @@ fn bad_field_model_values_and_settings_are_refused() {
             "model.fast.feature_grid.log2_table",
         ),
         (
+            "alone.json",
+            r#"{"head_reads_geometry": false}"#,
+            "model.fast.head_reads_geometry",
+        ),
+        (
             "word.json",
             r#"{"color_width": "wide"}"#,
             "\"wide\", expected usize",
@@ -166,6 +171,23 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
     let grid = field.feature_grid.as_ref().expect("the feature grid");
     assert_eq!(grid.table.val().dims(), [2 << 8, 2]);
     assert_eq!(loaded.model.head.hidden[0].weight.dims()[0], 15 + 4);
+
+    // The head reading the feature grid alone is printed, saved and loaded.
+    let alone = {
+        let mut a: serde_json::Value = serde_json::from_str(&asked).expect("json");
+        a["model"]["fast"]["head_reads_geometry"] = serde_json::json!(false);
+        a.to_string()
+    };
+    let grid_alone = tmp.path().join("grid_alone");
+    let err = tiny_run(tmp.path(), &grid_alone, &alone, &[]);
+    assert!(
+        err.contains("a hash grid of its own (and not the geometry feature), 2 levels"),
+        "{err}"
+    );
+    let saved = json(&grid_alone.join("config.json"));
+    assert_eq!(saved["model"]["fast"]["head_reads_geometry"], false);
+    let loaded = field_ops::run_dir::load_run(&grid_alone, &device).expect("the run loads");
+    assert_eq!(loaded.model.head.hidden[0].weight.dims()[0], 4);
     let mip = tmp.path().join("mip");
     let err = tiny_run(tmp.path(), &mip, &asked, &["--field-model", "mip"]);
     assert!(

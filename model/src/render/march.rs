@@ -223,7 +223,7 @@ enum FeatureState {
     Sum(Tensor<2>),
     /// `sum w h` of the head's hidden activations.
     HiddenSum(Tensor<2>),
-    /// The `k` largest weights so far, `[m, k]`, and their trunk features, `[m, k, width]`.
+    /// The `k` largest weights so far, `[m, k]`, and the head's inputs there, `[m, k, width]`.
     TopK(Tensor<2>, Tensor<3>),
 }
 
@@ -356,7 +356,7 @@ impl OpenNerf {
         let s = self.num_samples;
         let m = alive.ids.len();
         let device = alive.tau.device();
-        let width = self.radiance().trunk_width();
+        let width = self.radiance().head_width();
         let k = self.head_top_k;
         let mut state = FineState {
             rgb: Tensor::zeros([m, 3], &device),
@@ -395,6 +395,10 @@ impl OpenNerf {
                 .add(composite_values(w.clone(), rgb.reshape([rows, len, 3])));
             state.depth = state.depth.add(w.clone().mul(t_mids(t)).sum_dim(1));
             state.acc = state.acc.add(w.clone().sum_dim(1));
+            let trunk = match state.feature {
+                FeatureState::None => trunk,
+                _ => self.radiance().head_input(trunk),
+            };
             state.feature = match state.feature {
                 FeatureState::None => FeatureState::None,
                 FeatureState::Sum(sum) => {

@@ -4,8 +4,8 @@
 
 use datasets::Scene;
 use model::{
-    AppearanceCodesConfig, ExposureConfig, HashGridConfig, OpenNerfConfig, PoseCorrectionConfig,
-    ProposalConfig, UnboundedConfig,
+    AppearanceCodesConfig, ExposureConfig, FastFieldConfig, HashGridConfig, OpenNerfConfig,
+    PoseCorrectionConfig, ProposalConfig, UnboundedConfig,
 };
 
 use super::choices::{By, Choices};
@@ -184,10 +184,15 @@ fn grid_sizes(g: &HashGridConfig) -> String {
 }
 
 /// What the field model line says of the fast field's feature grid.
-fn feature_grid_phrase(grid: Option<&HashGridConfig>) -> String {
-    grid.map_or_else(String::new, |g| {
+fn feature_grid_phrase(fast: &FastFieldConfig) -> String {
+    let alone = if fast.head_reads_geometry == Some(false) {
+        " (and not the geometry feature)"
+    } else {
+        ""
+    };
+    fast.feature_grid.as_ref().map_or_else(String::new, |g| {
         format!(
-            "; the open-set head reads a hash grid of its own, {}",
+            "; the open-set head reads a hash grid of its own{alone}, {}",
             grid_sizes(g)
         )
     })
@@ -210,7 +215,7 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
                 f.color_layers,
                 f.color_width,
                 f.sh_degree,
-                feature_grid_phrase(f.feature_grid.as_ref())
+                feature_grid_phrase(f)
             )
         }
         None => format!(
