@@ -372,15 +372,29 @@ fn a_feature_grid_is_the_heads_and_the_feature_losss_alone() {
     assert!(zero(table(&colour_grads)));
     assert!(!zero(fast.grid.table.val().grad(&colour_grads)));
 
-    let plain = m.valid();
-    let want = plain.render(&request).fine;
+    assert_the_march_renders_the_training_features(&m.valid(), &rays);
+}
+
+/// The march (without termination) renders the features and colours of
+/// the plain deterministic training pass.
+fn assert_the_march_renders_the_training_features(
+    m: &OpenNerf,
+    rays: &[model::geometry::NormalizedRay],
+) {
+    let want = m
+        .render(
+            &RenderRequest::train(rays)
+                .with_randomized(false)
+                .with_features(FeatureMode::Composited),
+        )
+        .fine;
     let off = Termination {
         transmittance: 0.0,
         segment: 3,
     };
-    let got = plain
+    let got = m
         .render(
-            &RenderRequest::inference(&rays)
+            &RenderRequest::inference(rays)
                 .with_features(FeatureMode::Composited)
                 .with_termination(off),
         )
@@ -437,27 +451,7 @@ fn a_head_reading_the_feature_grid_alone_ignores_the_geometry_feature() {
     let moved = another_geometry_feature(&m, &device);
     assert_eq!(features(&m), features(&moved));
 
-    let rays = camera_rays(5, 2);
-    let want = m
-        .render(
-            &RenderRequest::train(&rays)
-                .with_randomized(false)
-                .with_features(FeatureMode::Composited),
-        )
-        .fine;
-    let off = Termination {
-        transmittance: 0.0,
-        segment: 3,
-    };
-    let got = m
-        .render(
-            &RenderRequest::inference(&rays)
-                .with_features(FeatureMode::Composited)
-                .with_termination(off),
-        )
-        .expect("no observer");
-    let want_feature = vec(want.feature.expect("a feature"));
-    assert_close(&got.feature, &want_feature, 2e-5, 2e-5, "feature");
+    assert_the_march_renders_the_training_features(&m, &camera_rays(5, 2));
 }
 
 /// The inference pass (the march, without termination) renders what the
