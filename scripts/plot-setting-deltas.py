@@ -5,7 +5,8 @@ column (needs matplotlib).
 
     python3 scripts/plot-setting-deltas.py CSV COLUMN PNG "TITLE"
 
-Rows whose difference is exactly zero (the reference itself) are left out.
+A setting whose difference is zero on every capture (the reference
+itself) is left out, and so are rows with no difference.
 """
 import csv
 import sys
@@ -22,8 +23,10 @@ def main():
     path, column, png, title = sys.argv[1:]
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
-    if not rows or column not in rows[0]:
-        sys.exit(f"{path}: no column {column!r}")
+    for needed in ["capture", "setting", column]:
+        if not rows or needed not in rows[0]:
+            sys.exit(f"{path}: no column {needed!r} (or no rows)")
+    rows = [r for r in rows if r[column].strip()]
     captures = list(dict.fromkeys(r["capture"] for r in rows))
     settings = list(dict.fromkeys(r["setting"] for r in rows if float(r[column]) != 0.0))
     value = {(r["capture"], r["setting"]): float(r[column]) for r in rows}

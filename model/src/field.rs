@@ -264,19 +264,11 @@ pub struct FeatureHead {
 }
 
 impl FeatureHead {
-    /// Hidden activation (before the output layer) of the detached trunk feature.
-    ///
-    /// # Shapes
-    /// - `trunk`: `[n, trunk_width]`; output: `[n, hidden_width]`.
-    pub fn hidden(&self, trunk: Tensor<2>) -> Tensor<2> {
-        self.hidden_of(trunk.detach())
-    }
-
     /// Hidden activation of `input` as it is: the caller has detached what
     /// the feature loss must not train ([`crate::nerf::Radiance::head_input`]).
     ///
     /// # Shapes
-    /// - `input`: `[n, trunk_width]`; output: `[n, hidden_width]`.
+    /// - `input`: `[n, head_width]`; output: `[n, hidden_width]`.
     pub fn hidden_of(&self, input: Tensor<2>) -> Tensor<2> {
         let mut h = input;
         for layer in &self.hidden {
@@ -285,11 +277,12 @@ impl FeatureHead {
         h
     }
 
-    /// Per-sample feature (hidden layers and output layer).
+    /// Per-sample feature (hidden layers and output layer) of `input` as
+    /// it is ([`FeatureHead::hidden_of`]).
     ///
     /// # Shapes
-    /// - `trunk`: `[n, trunk_width]`; output: `[n, out_dim]`.
-    pub fn forward(&self, trunk: Tensor<2>) -> Tensor<2> {
-        self.output.forward(self.hidden(trunk))
+    /// - `input`: `[n, head_width]`; output: `[n, out_dim]`.
+    pub fn forward(&self, input: Tensor<2>) -> Tensor<2> {
+        self.output.forward(self.hidden_of(input))
     }
 }

@@ -262,7 +262,7 @@ impl OpenNerf {
             FeatureMode::None => None,
             FeatureMode::PerSample => {
                 let input = self.radiance().head_input(field.trunk);
-                let f = self.head.output.forward(self.head.hidden_of(input));
+                let f = self.head.forward(input);
                 let [_, c] = f.dims();
                 Some(composite_features_mean(
                     comp.weights.clone(),

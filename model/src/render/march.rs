@@ -395,19 +395,20 @@ impl OpenNerf {
                 .add(composite_values(w.clone(), rgb.reshape([rows, len, 3])));
             state.depth = state.depth.add(w.clone().mul(t_mids(t)).sum_dim(1));
             state.acc = state.acc.add(w.clone().sum_dim(1));
-            let trunk = match state.feature {
+            // The head's input, formed only where features are asked for.
+            let input = match state.feature {
                 FeatureState::None => trunk,
                 _ => self.radiance().head_input(trunk),
             };
             state.feature = match state.feature {
                 FeatureState::None => FeatureState::None,
                 FeatureState::Sum(sum) => {
-                    let f = self.head.forward(trunk);
+                    let f = self.head.forward(input);
                     let [_, c] = f.dims();
                     FeatureState::Sum(sum.add(composite_values(w, f.reshape([rows, len, c]))))
                 }
                 FeatureState::HiddenSum(sum) => {
-                    let h = self.head.hidden(trunk);
+                    let h = self.head.hidden_of(input);
                     let [_, hd] = h.dims();
                     FeatureState::HiddenSum(
                         sum.add(composite_values(w, h.reshape([rows, len, hd]))),
@@ -415,7 +416,7 @@ impl OpenNerf {
                 }
                 FeatureState::TopK(top_w, top_f) => {
                     let cand_w = Tensor::cat(vec![top_w, w], 1);
-                    let cand_f = Tensor::cat(vec![top_f, trunk.reshape([rows, len, width])], 1);
+                    let cand_f = Tensor::cat(vec![top_f, input.reshape([rows, len, width])], 1);
                     let (w, idx) = cand_w.topk_with_indices(k, 1);
                     let idx: Tensor<3, Int> = idx.unsqueeze_dim::<3>(2).expand([rows, k, width]);
                     FeatureState::TopK(w, cand_f.gather(1, idx))
@@ -461,7 +462,7 @@ impl OpenNerf {
             }
             FeatureState::TopK(w, f) => {
                 let [m, k, width] = f.dims();
-                let h = self.head.hidden(f.reshape([m * k, width]));
+                let h = self.head.hidden_of(f.reshape([m * k, width]));
                 let [_, hd] = h.dims();
                 let mean = composite_features_mean(w, h.reshape([m, k, hd]));
                 Some(self.head.output.forward(mean))
