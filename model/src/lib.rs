@@ -83,6 +83,7 @@ pub mod exposure;
 pub mod extent;
 pub mod fast_field;
 pub mod field;
+pub mod fused_adam;
 pub mod geometry;
 pub mod hash_footprint;
 pub mod hash_kernel;
@@ -107,6 +108,7 @@ pub use exposure::{Exposure, ExposureConfig};
 pub use extent::{Extent, Spacing};
 pub use fast_field::{FastField, FastFieldConfig};
 pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConfig};
+pub use fused_adam::{FusedAdam, FusedAdamConfig};
 pub use hashgrid::{HashGrid, HashGridConfig};
 pub use loss::{
     FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse,

@@ -4,19 +4,20 @@
 use std::path::{Path, PathBuf};
 
 use burn::module::Module;
-use burn::optim::{AdamConfig, ModuleOptimizer};
+use burn::optim::ModuleOptimizer;
 use burn::store::ModuleRecord;
 use burn::tensor::{Bytes, Device};
 use field_ops::run_dir::RunDir;
-use model::{OccupancyGrid, OpenNerf};
+use model::{FusedAdamConfig, OccupancyGrid, OpenNerf};
 
 use crate::checkpoint::{Checkpoint, CheckpointState, checkpoint_path, prune_checkpoints};
 use crate::config::TrainConfig;
 use crate::error::TrainError;
 
-/// A fresh optimiser of `config`.
+/// A fresh optimiser of `config`: Adam, in one pass a parameter on flex
+/// (its records the same as Burn's Adam's).
 pub(super) fn adam(config: &TrainConfig) -> ModuleOptimizer {
-    AdamConfig::new()
+    FusedAdamConfig::new()
         .with_beta_1(config.optimiser.beta_1)
         .with_beta_2(config.optimiser.beta_2)
         .with_epsilon(config.optimiser.epsilon)

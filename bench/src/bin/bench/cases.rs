@@ -4,7 +4,6 @@
 use std::time::Instant;
 
 use burn::module::Module;
-use burn::optim::AdamConfig;
 use burn::tensor::{Device, Tensor, TensorData};
 use model::geometry::NormalizedRay;
 use model::{
@@ -176,7 +175,8 @@ pub fn time_case(setup: &Setup<'_>, case: Case) -> Timing {
     if case.with_grid {
         model = model.with_occupancy(Some(grid.clone()));
     }
-    let mut optim = AdamConfig::new().init();
+    // The training's optimiser: Adam in one pass a parameter on flex.
+    let mut optim = model::FusedAdamConfig::new().init();
     let n = size.rays;
     let host_rays = rays(n, 1);
     let batch_of = |r: &[NormalizedRay]| {
