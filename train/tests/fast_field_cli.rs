@@ -135,6 +135,25 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
     assert!(proposal.hash.is_some());
     assert_eq!((field.density_shift, proposal.density_shift), (-1.0, -1.0));
 
+    // A file that gives some of the proposal sampler's keys changes only
+    // those: the fast field keeps its hash-grid proposal networks, and the
+    // Mip-NeRF field its proposal MLP.
+    let mut rounds: serde_json::Value = serde_json::from_str(TINY).expect("tiny json");
+    rounds["model"]["proposal"] = serde_json::json!({"samples": [12, 6]});
+    let rounds = rounds.to_string();
+    for (name, flags, hash, width) in [
+        ("fast-rounds", &["--field-model", "fast"][..], true, 16),
+        ("mip-rounds", &["--field-model", "mip"][..], false, 64),
+    ] {
+        let run = tmp.path().join(name);
+        let err = tiny_run(tmp.path(), &run, &rounds, flags);
+        assert!(err.contains("sampler: proposal"), "{name}: {err}");
+        let proposal = &json(&run.join("config.json"))["model"]["proposal"];
+        assert_eq!(proposal["samples"], serde_json::json!([12, 6]), "{name}");
+        assert_eq!(proposal["hash"].is_object(), hash, "{name}: {proposal}");
+        assert_eq!(proposal["width"], width, "{name}: {proposal}");
+    }
+
     // A configuration's own sizes are kept, and `mip` overrides it.
     let mut asked: serde_json::Value = serde_json::from_str(TINY).expect("tiny json");
     asked["model"]["fast"] = serde_json::json!({"grid": {"levels": 3, "log2_table": 8}});

@@ -107,6 +107,14 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         ));
     }
     sizes.inspect(|s| s.apply(&mut base));
+    // The proposal sampler the field takes, in the layer under the file, so
+    // that a file's proposal keys change only themselves (and the fast
+    // field keeps its hash-grid proposal networks).
+    if choices.sampler.value == table::Sampler::Proposal {
+        base.model
+            .proposal
+            .get_or_insert_with(|| write::default_proposal(&choices));
+    }
     let mut config = match (&patch, &cli.config) {
         (Some(patch), Some(path)) => {
             TrainConfig::merged(&base, patch.clone()).map_err(|e| TrainError::json(path, e))?

@@ -96,10 +96,20 @@ pub fn apply_field(choices: &Choices, model: &mut OpenNerfConfig, scene: &Scene)
     let proposal = choices.sampler.value == Sampler::Proposal;
     model.proposal = match model.proposal.take() {
         Some(given) if proposal => Some(given),
-        _ if proposal && fast => Some(fast_proposal()),
-        _ if proposal => Some(ProposalConfig::new()),
+        _ if proposal => Some(default_proposal(choices)),
         _ => None,
     };
+}
+
+/// The proposal sampler the field of `choices` takes unless a `--config`
+/// file changes its keys: the fast field's hash-grid proposal networks
+/// ([`fast_proposal`]), else Mip-NeRF 360's proposal MLP.
+pub fn default_proposal(choices: &Choices) -> ProposalConfig {
+    if choices.model.value == FieldModel::Fast {
+        fast_proposal()
+    } else {
+        ProposalConfig::new()
+    }
 }
 
 /// The field line.
