@@ -24,6 +24,8 @@ use burn::optim::{
 use burn::tensor::{DType, Device, Tensor, TensorData};
 use rayon::prelude::*;
 
+use crate::hash_kernel::host;
+
 /// Adam's hyper-parameters; Burn's defaults.
 #[derive(Config, Debug)]
 pub struct FusedAdamConfig {
@@ -172,11 +174,7 @@ pub trait AdamKernel: Backend {
         moment_2: FloatTensor<Self>,
         step: AdamStep,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        let device = param.device();
-        let [mut p, g, mut m, mut v] = [param, grad, moment_1, moment_2].map(host::<Self>);
-        adam_in_place(&mut p, &g, &mut m, &mut v, &step, false);
-        let [p, m, v] = [p, m, v].map(|x| back::<Self>(x, &device));
-        (p, m, v)
+        copied_step::<Self>(param, grad, Some((moment_1, moment_2)), step)
     }
 
     /// The parameter and moments after the first step ([`adam_in_place`]).
@@ -185,23 +183,28 @@ pub trait AdamKernel: Backend {
         grad: FloatTensor<Self>,
         step: AdamStep,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        let device = param.device();
-        let (mut p, g) = (host::<Self>(param), host::<Self>(grad));
-        let (mut m, mut v) = (vec![0.0; g.len()], vec![0.0; g.len()]);
-        adam_in_place(&mut p, &g, &mut m, &mut v, &step, true);
-        let [p, m, v] = [p, m, v].map(|x| back::<Self>(x, &device));
-        (p, m, v)
+        copied_step::<Self>(param, grad, None, step)
     }
 }
 
-/// A flat tensor's values on the host as f32 (a copy).
-fn host<B: Backend>(t: FloatTensor<B>) -> Vec<f32> {
-    let data = burn::tensor::try_read_sync(B::float_into_data(t))
-        .and_then(Result::ok)
-        .expect("a CPU backend's tensor reads synchronously");
-    data.convert::<f32>()
-        .into_vec::<f32>()
-        .expect("converted to f32")
+/// [`adam_in_place`] on copies of the tensors' values (any CPU backend),
+/// from `moments`, or from zero on the first step (`None`).
+fn copied_step<B: Backend>(
+    param: FloatTensor<B>,
+    grad: FloatTensor<B>,
+    moments: Option<(FloatTensor<B>, FloatTensor<B>)>,
+    step: AdamStep,
+) -> (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>) {
+    let device = param.device();
+    let (mut p, g) = (host::<B>(param), host::<B>(grad));
+    let first = moments.is_none();
+    let (mut m, mut v) = match moments {
+        Some((m, v)) => (host::<B>(m), host::<B>(v)),
+        None => (vec![0.0; g.len()], vec![0.0; g.len()]),
+    };
+    adam_in_place(&mut p, &g, &mut m, &mut v, &step, first);
+    let [p, m, v] = [p, m, v].map(|x| back::<B>(x, &device));
+    (p, m, v)
 }
 
 /// A flat tensor of `values` on `device`.
@@ -257,11 +260,9 @@ fn flex_step(
 ) -> (FloatTensor<Flex>, FloatTensor<Flex>, FloatTensor<Flex>) {
     let tensors = [param, grad, moment_1, moment_2];
     if tensors.iter().any(|t| t.dtype() != DType::F32) {
-        let device = Default::default();
-        let [mut p, g, mut m, mut v] = tensors.map(host::<Flex>);
-        adam_in_place(&mut p, &g, &mut m, &mut v, &step, first);
-        let [p, m, v] = [p, m, v].map(|x| back::<Flex>(x, &device));
-        return (p, m, v);
+        let [p, g, m, v] = tensors;
+        let moments = (!first).then_some((m, v));
+        return copied_step::<Flex>(p, g, moments, step);
     }
     let [mut p, g, mut m, mut v] = tensors.map(dense);
     adam_in_place(

@@ -302,7 +302,7 @@ fn backward_copied<B: Backend>(
 }
 
 /// A tensor's values on the host as f32 (a copy).
-fn host<B: Backend>(t: FloatTensor<B>) -> Vec<f32> {
+pub(crate) fn host<B: Backend>(t: FloatTensor<B>) -> Vec<f32> {
     let data = burn::tensor::try_read_sync(B::float_into_data(t))
         .and_then(Result::ok)
         .expect("a CPU backend's tensor reads synchronously");
