@@ -25,6 +25,7 @@ use burn::tensor::{DType, Device, Tensor, TensorData};
 use rayon::prelude::*;
 
 use crate::hash_kernel::host;
+use crate::host_work::is_cpu_backend;
 
 /// Adam's hyper-parameters; Burn's defaults.
 #[derive(Config, Debug)]
@@ -45,12 +46,17 @@ impl FusedAdamConfig {
     pub fn init(&self) -> ModuleOptimizer {
         ModuleOptimizer::from(FusedAdam {
             config: self.clone(),
-            tensor_ops: AdamConfig::new()
-                .with_beta_1(self.beta_1)
-                .with_beta_2(self.beta_2)
-                .with_epsilon(self.epsilon)
-                .build(),
         })
+    }
+
+    /// Burn's Adam of the same hyper-parameters, for the backends without
+    /// the one-pass form.
+    fn tensor_ops(&self) -> Adam {
+        AdamConfig::new()
+            .with_beta_1(self.beta_1)
+            .with_beta_2(self.beta_2)
+            .with_epsilon(self.epsilon)
+            .build()
     }
 }
 
@@ -58,8 +64,6 @@ impl FusedAdamConfig {
 #[derive(Clone)]
 pub struct FusedAdam {
     config: FusedAdamConfig,
-    /// Burn's Adam, for the backends without the one-pass form.
-    tensor_ops: Adam,
 }
 
 /// The scalars of one step, computed as Burn's Adam computes them.
@@ -286,8 +290,11 @@ impl Optimizer for FusedAdam {
         grad: Tensor<D>,
         state: Option<Self::State<D>>,
     ) -> (Tensor<D>, Option<Self::State<D>>) {
-        if !is_flex_or_ndarray(&tensor.device()) {
-            return self.tensor_ops.step(lr, tensor, grad, state);
+        // The optimiser's tensors are the parameters' inner values (no
+        // autodiff); other backends take Burn's Adam.
+        let device = tensor.device();
+        if !is_cpu_backend(&device) || device.is_autodiff() {
+            return self.config.tensor_ops().step(lr, tensor, grad, state);
         }
         let time = state.as_ref().map_or(1, |s| s.momentum.time + 1);
         let step = AdamStep::new(&self.config, time, lr);
@@ -312,11 +319,4 @@ impl Optimizer for FusedAdam {
     fn to_device<const D: usize>(state: Self::State<D>, device: &Device) -> Self::State<D> {
         <Adam as Optimizer>::to_device(state, device)
     }
-}
-
-/// Whether `device` is flex or ndarray without autodiff (the optimiser's
-/// tensors are the parameters' inner values).
-fn is_flex_or_ndarray(device: &Device) -> bool {
-    let name = format!("{:?}", device.as_dispatch());
-    (name.starts_with("Flex(") || name.starts_with("NdArray(")) && !name.contains("Autodiff")
 }

@@ -85,18 +85,12 @@ fn adam_ms(grid: HashGrid, points: &Tensor<2>, weights: &Tensor<2>, steps: usize
     };
     // Each step takes its grid by value (no other copy sharing the tables'
     // memory, as in training), so the one-pass form updates it in place.
-    let mut grids = [grid.clone(), grid];
+    let mut grids = [Some(grid.clone()), Some(grid)];
     let mut seconds = [0.0; 2];
     for step in 0..=steps {
-        for (i, optim) in optims.iter_mut().enumerate() {
-            let g = grads(&grids[i]);
-            let grid = std::mem::replace(
-                &mut grids[i],
-                HashGridConfig::new()
-                    .with_levels(1)
-                    .with_log2_table(4)
-                    .init(&points.device()),
-            );
+        for ((slot, optim), seconds) in grids.iter_mut().zip(&mut optims).zip(&mut seconds) {
+            let grid = slot.take().expect("each grid is put back after its step");
+            let g = grads(&grid);
             let start = Instant::now();
             let grid = optim.step(1e-3, grid, g);
             grid.table
@@ -106,9 +100,9 @@ fn adam_ms(grid: HashGrid, points: &Tensor<2>, weights: &Tensor<2>, steps: usize
                 .expect("the device finishes its work");
             // The first step, which creates the moments, is not timed.
             if step > 0 {
-                seconds[i] += start.elapsed().as_secs_f64();
+                *seconds += start.elapsed().as_secs_f64();
             }
-            grids[i] = grid;
+            *slot = Some(grid);
         }
     }
     seconds.map(|s| 1e3 * s / steps.max(1) as f64)
