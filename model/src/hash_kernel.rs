@@ -6,9 +6,12 @@
 //!
 //! The work goes level by level: one level's table (2^15 rows of two
 //! features: 256 KB) stays in the core's cache while every point reads it,
-//! where point by point each read lands in another level's table. Levels
-//! run in parallel, and since each level writes only its own rows of the
-//! table's gradient, the backward needs no atomics.
+//! where point by point each read lands in another level's table. Before
+//! its corners are read, a level's rows are read in order (the gradient's
+//! written), so that the random reads find them in the cache. The forward
+//! runs one task of points per thread; the backward runs levels in
+//! parallel, and since each level writes only its own rows of the table's
+//! gradient, it needs no atomics.
 //!
 //! It is a Burn backend extension ([`HashEncode`]): flex runs the loops on
 //! its tensors' memory, ndarray through copies, and the autodiff form
@@ -105,31 +108,66 @@ pub struct GridSpec {
     pub half_extent: f32,
 }
 
-/// Points a parallel task of [`encode`] takes: 2048 points' output of 16
-/// levels of two features is 256 KB, and a level's table of 2^15 rows
-/// another 256 KB, which stay in a core's cache together while the task
-/// goes level by level.
-const ENCODE_CHUNK: usize = 2048;
+/// The fewest points a parallel task of [`encode`] takes.
+const MIN_ENCODE_CHUNK: usize = 2048;
+
+/// Points a parallel task of [`encode`] takes: as few tasks as the pool
+/// has threads. Each task goes level by level over its points and reads
+/// every level's table from memory once, so fewer, larger tasks read the
+/// tables fewer times.
+fn encode_chunk(n: usize) -> usize {
+    n.div_ceil(rayon::current_num_threads().max(1))
+        .max(MIN_ENCODE_CHUNK)
+}
+
+/// f32 in a 64-byte cache line.
+const FLOATS_PER_LINE: usize = 16;
+
+/// The rows of a level's table of `rows` rows that its vertices can
+/// reach: the dense grid's where it fits, else every row.
+fn reachable_rows(res: u32, rows: usize) -> usize {
+    let side = res as u64 + 1;
+    (side * side * side).min(rows as u64) as usize
+}
+
+/// Reads `numbers` in order, one a cache line, where `reads` random reads
+/// of them follow (at least one a line), so that those reads find their
+/// lines in the cache: the hardware prefetcher streams an in-order read,
+/// where a random read of a line not in the cache waits for it alone.
+fn warm(numbers: &[f32], reads: usize) {
+    if reads < numbers.len() / FLOATS_PER_LINE {
+        return;
+    }
+    let mut acc = 0.0f32;
+    for line in numbers.chunks(FLOATS_PER_LINE) {
+        acc += line[0];
+    }
+    std::hint::black_box(acc);
+}
 
 /// The encoding of `points` (`[n, 3]`, flat) from `table` (`[levels *
 /// rows, features]`, flat): `[n, levels * features]`, flat.
 ///
 /// Chunks of points run in parallel (so a grid of few levels still keeps
-/// every core busy), and within a chunk the levels run one after another.
+/// every core busy), and within a chunk the levels run one after another,
+/// each level's reachable rows read in order before its corners.
 pub fn encode(points: &[f32], table: &[f32], spec: &GridSpec, features: usize) -> Vec<f32> {
     let n = points.len() / 3;
     let f = features.max(1);
     let levels = spec.resolutions.len();
     let width = levels * f;
     let mut out = vec![0.0f32; n * width];
-    if width == 0 {
+    if width == 0 || n == 0 {
         return out;
     }
-    out.par_chunks_mut(ENCODE_CHUNK * width)
-        .zip(points.par_chunks(ENCODE_CHUNK * 3))
+    let chunk = encode_chunk(n);
+    out.par_chunks_mut(chunk * width)
+        .zip(points.par_chunks(chunk * 3))
         .for_each(|(out, points)| {
             for (l, &res) in spec.resolutions.iter().enumerate() {
                 let level = &table[l * spec.rows * f..(l + 1) * spec.rows * f];
+                let reachable = &level[..reachable_rows(res, spec.rows) * f];
+                warm(reachable, points.len() / 3 * 8);
                 let at = Slot {
                     offset: l * f,
                     stride: width,
@@ -158,12 +196,20 @@ struct Slot {
 pub fn encode_backward(points: &[f32], grad: &[f32], spec: &GridSpec, features: usize) -> Vec<f32> {
     let f = features.max(1);
     let levels = spec.resolutions.len();
+    let n = points.len() / 3;
     let mut table = vec![0.0f32; levels * spec.rows * f];
     table
         .par_chunks_mut(spec.rows * f)
         .enumerate()
         .for_each(|(l, level)| {
             let res = spec.resolutions[l];
+            // Written in order first, so that the scatter's random writes
+            // find the rows in the cache (the fresh allocation's pages are
+            // mapped here, in order, and not one by one under the scatter).
+            let reachable = reachable_rows(res, spec.rows) * f;
+            if n * 8 >= reachable / FLOATS_PER_LINE {
+                level[..reachable].fill(0.0);
+            }
             let row_grad = |i: usize| &grad[(i * levels + l) * f..(i * levels + l + 1) * f];
             match f {
                 2 => scatter_level::<2>(points, row_grad, level, res, spec),

@@ -266,8 +266,13 @@ fn a_field_with_the_encoding_renders_finite_values_and_learns_its_table() {
 /// (the scatter-adds sum in another order), on flex and ndarray.
 #[test]
 fn the_fused_encoding_and_its_gradient_are_the_tensor_forms() {
-    // More points than two of the encoding's parallel tasks (2048 each)
-    // take, the last one short.
+    // In a pool of three threads the encoding's parallel tasks take 2048
+    // points each (their least), so 4500 points are three, the last one
+    // short.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .expect("a pool");
     let n = 4500;
     let pts: Vec<f32> = uniform(3 * n, 4, -3.5, 3.5)
         .into_iter()
@@ -291,14 +296,14 @@ fn the_fused_encoding_and_its_gradient_are_the_tensor_forms() {
             &device,
         );
         let points = tensor(pts.clone(), [n, 3], &device);
-        let fused = grid.forward_fused(points.clone());
+        let fused = pool.install(|| grid.forward_fused(points.clone()));
         let plain = grid.forward_device(points);
         assert_eq!(vec(fused.clone()), vec(plain.clone()), "{name}: encoding");
         let grad = |enc: Tensor<2>| {
             let grads = enc.mul(c.clone()).sum().backward();
             vec(grid.table.val().grad(&grads).expect("a table gradient"))
         };
-        let (g_fused, g_plain) = (grad(fused), grad(plain));
+        let (g_fused, g_plain) = (pool.install(|| grad(fused)), grad(plain));
         assert!(g_plain.iter().any(|&g| g != 0.0));
         assert_close(&g_fused, &g_plain, 1e-6, 1e-5, name);
     }

@@ -333,11 +333,15 @@ pub struct Cli {
     /// why.
     #[arg(long, value_enum, default_value_t = crate::settings::args::FieldArg::Auto)]
     pub field: crate::settings::args::FieldArg,
-    /// Where the MLP samples: `coarse-fine` (Mip-NeRF's two levels of the
-    /// one MLP, `--samples` each), `proposal` (Mip-NeRF 360: two rounds of
-    /// 64 samples of a small density MLP, trained by the interlevel loss,
-    /// then `--samples` of the MLP) or `auto` (coarse-fine, measured more
-    /// accurate and faster at the default sizes: docs/measurements/unbounded.md).
+    /// Where the field samples: `coarse-fine` (Mip-NeRF's two levels of the
+    /// one field, `--samples` each), `proposal` (proposal rounds trained by
+    /// the interlevel loss, then `--samples` of the field: for the Mip-NeRF
+    /// field Mip-NeRF 360's two rounds of 64 samples of a small density MLP,
+    /// for the fast field two rounds of 32 and 16 samples of a small
+    /// hash-grid density network) or `auto` (coarse-fine for the Mip-NeRF
+    /// field, measured more accurate and faster at the default sizes:
+    /// docs/measurements/unbounded.md; proposal for the fast field, measured
+    /// better than its coarse and fine levels: docs/measurements/fast-field.md).
     #[arg(long, value_enum, default_value_t = crate::settings::args::SamplerArg::Auto)]
     pub sampler: crate::settings::args::SamplerArg,
     /// The photographs' appearance: `exposure` learns a gain and an offset

@@ -34,7 +34,9 @@ pub const FAST_DENSITY_SHIFT: f32 = -1.0;
 /// The proposal sampler of the fast field unless the `--config` file sets
 /// one: nerfacto's small hash-grid density network (5 levels of 2^15 rows
 /// up to 128 cells across, one layer of 16, its density shifted as the
-/// fast field's), shared by two rounds of 64 and 32 samples.
+/// fast field's), shared by two rounds of 64 and 32 samples (nerfacto's
+/// 256 and 96 are for a GPU). Most kinds of capture take fewer rounds'
+/// samples: the `train::settings::table` rows.
 pub fn fast_proposal() -> ProposalConfig {
     ProposalConfig::new()
         .with_samples(vec![64, 32])

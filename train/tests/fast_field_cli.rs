@@ -115,7 +115,16 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
         "{err}"
     );
     assert!(!err.contains("hash grid: none"), "{err}");
+    // A room's rounds are the fast field's 64 and 32.
+    assert!(
+        err.contains("proposal rounds: 64 and 32 samples (auto: a room stood in:"),
+        "{err}"
+    );
     let saved = json(&fast.join("config.json"));
+    assert_eq!(
+        saved["model"]["proposal"]["samples"],
+        serde_json::json!([64, 32])
+    );
     assert_eq!(saved["model"]["fast"]["grid"]["log2_table"], 15);
     assert_eq!(saved["model"]["proposal"]["hash"]["levels"], 5);
     // The density shifts `train` builds are saved, so that eval renders
@@ -148,6 +157,13 @@ fn the_choice_is_printed_and_the_field_saved_and_loaded_with_the_run() {
         let run = tmp.path().join(name);
         let err = tiny_run(tmp.path(), &run, &rounds, flags);
         assert!(err.contains("sampler: proposal"), "{name}: {err}");
+        assert!(
+            err.contains(
+                "proposal rounds: 12 and 6 samples (auto: the configuration's \
+                 model.proposal.samples)"
+            ),
+            "{name}: {err}"
+        );
         let proposal = &json(&run.join("config.json"))["model"]["proposal"];
         assert_eq!(proposal["samples"], serde_json::json!([12, 6]), "{name}");
         assert_eq!(proposal["hash"].is_object(), hash, "{name}: {proposal}");

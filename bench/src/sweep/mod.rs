@@ -91,13 +91,14 @@ pub fn common_points(budget: f64) -> Vec<SweepPoint> {
     points
 }
 
-/// The fast field's points (`--field-model fast`): with the coarse and
-/// fine sampler and with its hash-grid proposal networks, at the budget, at
-/// half and at double it, and with nerfacto's learning rate (1e-2).
+/// The fast field's points (`--field-model fast`): with its hash-grid
+/// proposal networks (its own sampler) and with the coarse and fine
+/// sampler, at the budget, at half and at double it, and with nerfacto's
+/// learning rate (1e-2).
 pub fn fast_points(budget: f64) -> Vec<SweepPoint> {
     let b = budget;
     let fast = ["--field-model", "fast"];
-    let proposal = ["--field-model", "fast", "--sampler", "proposal"];
+    let coarse_fine = ["--field-model", "fast", "--sampler", "coarse-fine"];
     let with = |base: &[&'static str], more: &[&'static str]| -> Vec<&'static str> {
         base.iter().chain(more).copied().collect()
     };
@@ -106,12 +107,12 @@ pub fn fast_points(budget: f64) -> Vec<SweepPoint> {
         point("fast-budget-half", &fast, 0.5 * b),
         point("fast-budget-double", &fast, 2.0 * b),
         point("fast-lr-1e-2", &with(&fast, &["--lr", "1e-2"]), b),
-        point("fast-proposal", &proposal, b),
-        point("fast-proposal-budget-half", &proposal, 0.5 * b),
-        point("fast-proposal-budget-double", &proposal, 2.0 * b),
+        point("fast-coarse-fine", &coarse_fine, b),
+        point("fast-coarse-fine-budget-half", &coarse_fine, 0.5 * b),
+        point("fast-coarse-fine-budget-double", &coarse_fine, 2.0 * b),
         point(
-            "fast-proposal-lr-1e-2",
-            &with(&proposal, &["--lr", "1e-2"]),
+            "fast-coarse-fine-lr-1e-2",
+            &with(&coarse_fine, &["--lr", "1e-2"]),
             b,
         ),
     ]

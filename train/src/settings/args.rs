@@ -41,14 +41,19 @@ pub enum FieldArg {
 /// How the MLP's samples are placed (`--sampler`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum SamplerArg {
-    /// `coarse-fine`: at the default sizes the proposal sampler was both
-    /// slower and less accurate, with either field (docs/measurements/unbounded.md).
+    /// The field model's: `coarse-fine` for the Mip-NeRF field (at the
+    /// default sizes the proposal sampler was both slower and less accurate,
+    /// docs/measurements/unbounded.md), `proposal` for the fast field (its
+    /// hash-grid proposal networks trained better than its coarse and fine
+    /// levels, docs/measurements/fast-field.md).
     #[default]
     Auto,
-    /// Mip-NeRF's coarse and fine level of the one MLP.
+    /// The coarse and fine level of the one field.
     CoarseFine,
-    /// Mip-NeRF 360's proposal sampler: two rounds of 64 samples of a small
-    /// density MLP, then the MLP's samples where they found density.
+    /// Proposal rounds, then the field's samples where they found density:
+    /// for the Mip-NeRF field Mip-NeRF 360's (two rounds of 64 samples of a
+    /// small density MLP), for the fast field nerfacto's (two rounds of 32
+    /// and 16 samples of a small hash-grid density network).
     Proposal,
 }
 

@@ -82,6 +82,9 @@ pub struct Choices {
     pub pose: Decided<bool>,
     /// The occupancy grid.
     pub grid: Decided<bool>,
+    /// The samples of the fast field's two proposal rounds (the capture
+    /// kind's; a `--config` file's `model.proposal.samples` changes them).
+    pub fast_rounds: Decided<[usize; 2]>,
 }
 
 fn decided<T>(value: T, by: By) -> Option<Decided<T>> {
@@ -125,7 +128,28 @@ impl Choices {
                 value: false,
                 by: By::EveryKind("off unless a preset or --occupancy-grid asks for it"),
             },
+            fast_rounds: Decided {
+                value: row.fast_rounds,
+                by: by(row.fast_rounds_why),
+            },
         }
+    }
+
+    /// These choices once every layer is laid: a sampler nobody chose
+    /// follows the field model (the fast field's is its proposal networks,
+    /// the Mip-NeRF field's the coarse and fine levels of its MLP).
+    pub fn settled(self) -> Self {
+        let unchosen = self.sampler.by == By::EveryKind(super::table::SAMPLER_WHY);
+        if unchosen && self.model.value == FieldModel::Fast {
+            return Self {
+                sampler: Decided {
+                    value: Sampler::Proposal,
+                    by: By::EveryKind(super::table::FAST_SAMPLER_WHY),
+                },
+                ..self
+            };
+        }
+        self
     }
 
     /// These choices with what `layer` says laid over them.
@@ -138,6 +162,7 @@ impl Choices {
             hash: layer.hash.unwrap_or(self.hash),
             pose: layer.pose.unwrap_or(self.pose),
             grid: layer.grid.unwrap_or(self.grid),
+            fast_rounds: self.fast_rounds,
         }
     }
 }
@@ -313,11 +338,41 @@ mod tests {
         assert_eq!(c.hash.by.reason(), "auto: the configuration's model.hash");
         // What nobody overrode stays the row's.
         assert_eq!(c.appearance.value, Appearance::Embedding);
+        assert_eq!(
+            c.clone().settled(),
+            c,
+            "the Mip-NeRF field keeps its sampler"
+        );
         assert!(
             c.appearance
                 .by
                 .reason()
                 .starts_with("auto: a photographed object walked around:")
         );
+    }
+
+    #[test]
+    fn the_fast_field_takes_its_proposal_networks_unless_a_layer_chose_a_sampler() {
+        let row = super::super::table::row(CaptureKind::Room);
+        let fast = Layer::of_flags(&Flags {
+            field_model: FieldModelArg::Fast,
+            ..Flags::default()
+        });
+        let c = Choices::of_row(&row).overlaid(fast.clone()).settled();
+        assert_eq!(c.sampler.value, Sampler::Proposal);
+        assert!(c.sampler.by.reason().contains("proposal networks"), "{c:?}");
+        let flag = Layer::of_flags(&Flags {
+            field_model: FieldModelArg::Fast,
+            sampler: SamplerArg::CoarseFine,
+            ..Flags::default()
+        });
+        let file = Layer::of_file(&json!({"model": {"proposal": null}}));
+        for chosen in [
+            Choices::of_row(&row).overlaid(flag),
+            Choices::of_row(&row).overlaid(file).overlaid(fast),
+        ] {
+            let c = chosen.settled();
+            assert_eq!(c.sampler.value, Sampler::CoarseFine, "{c:?}");
+        }
     }
 }

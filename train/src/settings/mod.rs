@@ -60,7 +60,9 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     if let Some(patch) = &patch {
         choices = choices.overlaid(Layer::of_file(patch));
     }
-    choices = choices.overlaid(Layer::of_flags(&choices::Flags::of_cli(cli)));
+    choices = choices
+        .overlaid(Layer::of_flags(&choices::Flags::of_cli(cli)))
+        .settled();
     if choices.model.value == table::FieldModel::Fast
         && (cli.width.is_some() || cli.depth.is_some())
     {
@@ -86,7 +88,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
 
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
-    let sizes = Sizes::of_row(&row).filter(|_| cli.preset.is_none());
+    let sizes = Sizes::of_row(&row, choices.model.value).filter(|_| cli.preset.is_none());
     if let Some(p) = cli.preset {
         let unbounded = choices.extent.value == Extent::Unbounded;
         let s = p.apply(&mut base, row.preset, !unbounded);
@@ -131,11 +133,18 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     let samples_set = cli.samples.is_some() || set_by_file("model", "num_samples");
     let rays_set = cli.rays.is_some() || set_by_file("sampler", "rays_per_batch");
     if let Some(s) = sizes.filter(|s| s.kept(samples_set, rays_set)) {
-        lines.push(s.line(&choices::By::Kind(kind, row.sizes_why).reason()));
+        let why = row.sizes_why_for(choices.model.value);
+        lines.push(s.line(&choices::By::Kind(kind, why).reason()));
     }
     lines.extend(depth::apply(cli.sparse_depth, scene, &mut config)?);
     write::apply(&choices, &mut config, scene)?;
     lines.push(write::model_line(&choices, &config.model));
+    if let Some(proposal) = &config.model.proposal {
+        let by_file = patch
+            .as_ref()
+            .is_some_and(|p| !p["model"]["proposal"]["samples"].is_null());
+        lines.push(write::rounds_line(&choices, proposal, by_file));
+    }
     lines.extend(write::ray_start_line(&config.model));
     lines.push(write::appearance_line(&choices));
     lines.push(write::pose_line(&choices));
@@ -160,7 +169,9 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
 /// writes with [`write::apply`].
 pub fn choices_for(scene: &Scene, flags: &choices::Flags) -> Choices {
     let (kind, _) = capture_kind(scene);
-    Choices::of_row(&table::row(kind)).overlaid(Layer::of_flags(flags))
+    Choices::of_row(&table::row(kind))
+        .overlaid(Layer::of_flags(flags))
+        .settled()
 }
 
 /// The flags that override single keys of the configuration.

@@ -3,7 +3,7 @@
 //! built-in sizes (a run without `--iters` or `--time-budget` then takes
 //! about as long).
 
-use super::table::Row;
+use super::table::{FieldModel, Row};
 use crate::config::TrainConfig;
 
 /// The sizes a row sets (at least one of them).
@@ -16,10 +16,11 @@ pub struct Sizes {
 }
 
 impl Sizes {
-    /// The sizes `row` sets, if it sets any.
-    pub fn of_row(row: &Row) -> Option<Self> {
-        (row.samples.is_some() || row.rays.is_some()).then_some(Self {
-            samples: row.samples,
+    /// The sizes `row` sets for a field `model`, if it sets any.
+    pub fn of_row(row: &Row, model: FieldModel) -> Option<Self> {
+        let samples = row.samples_for(model);
+        (samples.is_some() || row.rays.is_some()).then_some(Self {
+            samples,
             rays: row.rays,
         })
     }
@@ -99,6 +100,33 @@ mod tests {
             "{line}"
         );
         assert!(line.contains("docs/test.md"), "{line}");
+    }
+
+    #[test]
+    fn the_fast_field_takes_its_own_samples_where_a_row_sets_them() {
+        use super::super::table::row;
+        use datasets::capture_kind::CaptureKind;
+        let object = row(CaptureKind::PhotographedObject);
+        assert_eq!(Sizes::of_row(&object, FieldModel::Mip), None);
+        let fast = Sizes::of_row(&object, FieldModel::Fast).expect("the fast field's samples");
+        assert_eq!((fast.samples, fast.rays), (Some(24), None));
+        assert!(
+            object
+                .sizes_why_for(FieldModel::Fast)
+                .contains("24 samples")
+        );
+        // Elsewhere the fast field samples as the row says for both fields.
+        let forward = row(CaptureKind::ForwardFacing);
+        for model in [FieldModel::Mip, FieldModel::Fast] {
+            let s = Sizes::of_row(&forward, model).expect("the row's samples");
+            assert_eq!(s.samples, Some(16), "{model:?}");
+            assert_eq!(forward.sizes_why_for(model), forward.sizes_why, "{model:?}");
+            assert_eq!(
+                Sizes::of_row(&row(CaptureKind::Room), model),
+                None,
+                "{model:?}"
+            );
+        }
     }
 
     #[test]

@@ -69,6 +69,15 @@ pub struct Row {
     pub rays: Option<usize>,
     /// Why these sizes (when the row sets any).
     pub sizes_why: &'static str,
+    /// The fast field's samples per ray (`None`: as the Mip-NeRF field's,
+    /// `samples`): fewer where its proposal networks place them well enough.
+    pub fast_samples: Option<usize>,
+    /// Why the fast field's samples (when the row sets them).
+    pub fast_samples_why: &'static str,
+    /// The samples of the fast field's two proposal rounds.
+    pub fast_rounds: [usize; 2],
+    /// Why these rounds.
+    pub fast_rounds_why: &'static str,
     /// The appearance model.
     pub appearance: Appearance,
     /// The hash encoding beside the IPE.
@@ -79,8 +88,41 @@ pub struct Row {
     pub preset: SceneKind,
 }
 
-/// Why every row keeps the coarse and fine sampler.
+impl Row {
+    /// The samples per ray this row sets for a field `model` (`None`: the
+    /// built-in number).
+    pub fn samples_for(&self, model: FieldModel) -> Option<usize> {
+        match model {
+            FieldModel::Fast => self.fast_samples.or(self.samples),
+            FieldModel::Mip => self.samples,
+        }
+    }
+
+    /// Why this row's sizes for a field `model`.
+    pub fn sizes_why_for(&self, model: FieldModel) -> &'static str {
+        match (model, self.fast_samples) {
+            (FieldModel::Fast, Some(_)) => self.fast_samples_why,
+            _ => self.sizes_why,
+        }
+    }
+}
+
+/// The fast field's proposal rounds where fewer samples were measured
+/// better.
+pub const FEWER_ROUNDS: [usize; 2] = [32, 16];
+
+/// Why [`FEWER_ROUNDS`].
+pub const FEWER_ROUNDS_WHY: &str = "more iterations in the same seconds: above rounds of 64 and 32 on \
+     lego at 120 s and on the statue, the cup and fern at 600 s \
+     (docs/measurements/fast-field.md)";
+
+/// Why every row keeps the coarse and fine sampler for the Mip-NeRF field.
 pub const SAMPLER_WHY: &str = "more accurate and faster than the proposal sampler at these sizes";
+
+/// Why the fast field takes its proposal networks unless told otherwise.
+pub const FAST_SAMPLER_WHY: &str = "the fast field's hash-grid proposal networks, above its coarse and \
+     fine sampler on lego, the bench room and the photographed objects \
+     (docs/measurements/fast-field.md)";
 
 /// Why every row keeps the poses as given.
 pub const POSE_WHY: &str = "not measured to lift held-out views (docs/measurements/unbounded.md)";
@@ -99,6 +141,10 @@ pub fn row(kind: CaptureKind) -> Row {
         samples: None,
         rays: None,
         sizes_why: "",
+        fast_samples: None,
+        fast_samples_why: "",
+        fast_rounds: FEWER_ROUNDS,
+        fast_rounds_why: FEWER_ROUNDS_WHY,
         appearance: Appearance::None,
         hash: false,
         photographs_why: NOT_MEASURED,
@@ -114,6 +160,10 @@ pub fn row(kind: CaptureKind) -> Row {
             extent: Extent::Unbounded,
             extent_why: "the unbounded field, its rays from the scene box, measured above the box \
                          (docs/measurements/unbounded.md)",
+            fast_samples: Some(24),
+            fast_samples_why: "the fast field's proposal networks place 24 samples well enough: \
+                               more iterations in the same seconds lifted the statue and the \
+                               cup at 600 s (docs/measurements/fast-field.md)",
             appearance: Appearance::Embedding,
             hash: true,
             photographs_why: "appearance codes and the hash encoding lifted the held-out views \
@@ -123,6 +173,9 @@ pub fn row(kind: CaptureKind) -> Row {
         },
         CaptureKind::Room => Row {
             extent_why: "the cameras stand inside its box",
+            fast_rounds: [64, 32],
+            fast_rounds_why: "rounds of 32 and 16 lowered the bench room's held-out PSNR at 300 s \
+                              (docs/measurements/fast-field.md)",
             preset: SceneKind::Room,
             ..plain
         },
@@ -141,6 +194,8 @@ pub fn row(kind: CaptureKind) -> Row {
         },
         CaptureKind::OpenScene => Row {
             extent: Extent::Unbounded,
+            fast_rounds: [64, 32],
+            fast_rounds_why: "no open scene measured with fewer (docs/measurements/fast-field.md)",
             extent_why: "its content reaches far past the box (docs/measurements/unbounded.md)",
             ..plain
         },
@@ -151,13 +206,14 @@ pub fn row(kind: CaptureKind) -> Row {
 /// them (the built-in 48 samples and 256 rays where a row keeps them).
 pub fn markdown() -> String {
     let mut s = String::from(
-        "| capture kind | field model | field | sampler | samples per ray and level | rays a \
-         batch | appearance | hash grid | preset settings |\n|---|---|---|---|---|---|---|---|---|\n",
+        "| capture kind | field model | field | sampler | samples per ray and level | the fast \
+         field's proposal rounds | the fast field's samples per ray | rays a batch | appearance | \
+         hash grid | preset settings |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for kind in CaptureKind::ALL {
         let r = row(kind);
         s.push_str(&format!(
-            "| {} | {} | {} | coarse-fine | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | coarse-fine | {} | {} and {} | {} | {} | {} | {} | {} |\n",
             kind.describe(),
             match r.model {
                 FieldModel::Mip => "mip",
@@ -168,6 +224,9 @@ pub fn markdown() -> String {
                 Extent::Unbounded => "unbounded",
             },
             r.samples.unwrap_or(48),
+            r.fast_rounds[0],
+            r.fast_rounds[1],
+            r.fast_samples.or(r.samples).unwrap_or(48),
             r.rays.unwrap_or(256),
             match r.appearance {
                 Appearance::None => "none",
@@ -210,6 +269,10 @@ mod tests {
             if r.samples.is_some() || r.rays.is_some() {
                 assert!(r.sizes_why.contains("docs/"), "{kind:?}");
             }
+            if r.fast_samples.is_some() {
+                assert!(r.fast_samples_why.contains("docs/"), "{kind:?}");
+            }
+            assert!(r.fast_rounds_why.contains("docs/"), "{kind:?}");
             if r.appearance != Appearance::None || r.hash {
                 assert!(r.photographs_why.contains("docs/"), "{kind:?}");
             }

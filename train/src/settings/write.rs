@@ -103,13 +103,28 @@ pub fn apply_field(choices: &Choices, model: &mut OpenNerfConfig, scene: &Scene)
 
 /// The proposal sampler the field of `choices` takes unless a `--config`
 /// file changes its keys: the fast field's hash-grid proposal networks
-/// ([`fast_proposal`]), else Mip-NeRF 360's proposal MLP.
+/// ([`fast_proposal`]) with the capture kind's rounds, else Mip-NeRF 360's
+/// proposal MLP.
 pub fn default_proposal(choices: &Choices) -> ProposalConfig {
     if choices.model.value == FieldModel::Fast {
-        fast_proposal()
+        fast_proposal().with_samples(choices.fast_rounds.value.to_vec())
     } else {
         ProposalConfig::new()
     }
+}
+
+/// The line of the proposal rounds' samples; `by_file`: the `--config`
+/// file gave them.
+pub fn rounds_line(choices: &Choices, proposal: &ProposalConfig, by_file: bool) -> String {
+    let rounds: Vec<String> = proposal.samples.iter().map(|n| n.to_string()).collect();
+    let why = if by_file {
+        "auto: the configuration's model.proposal.samples".to_string()
+    } else if choices.model.value == FieldModel::Fast {
+        choices.fast_rounds.by.reason()
+    } else {
+        "auto: Mip-NeRF 360's".to_string()
+    };
+    format!("proposal rounds: {} samples ({why})", rounds.join(" and "))
 }
 
 /// The field line.

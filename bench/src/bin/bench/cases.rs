@@ -33,7 +33,7 @@ pub enum CaseName {
     /// composited + top-k, the coarse and the fine level.
     Fast,
     /// The fast field with its hash-grid proposal networks (`train
-    /// --field-model fast --sampler proposal`'s: rounds of 64 and 32).
+    /// --field-model fast`'s on a room: rounds of 64 and 32).
     FastProposal,
 }
 
