@@ -130,12 +130,19 @@ fn reachable_rows(res: u32, rows: usize) -> usize {
     (side * side * side).min(rows as u64) as usize
 }
 
+/// Whether `reads` random reads (or writes) of `numbers` f32 are worth
+/// going over them in order first: at least one a cache line. An in-order
+/// pass is streamed by the hardware prefetcher, where a random read of a
+/// line not in the cache waits for it alone.
+fn worth_warming(reads: usize, numbers: usize) -> bool {
+    reads >= numbers / FLOATS_PER_LINE
+}
+
 /// Reads `numbers` in order, one a cache line, where `reads` random reads
-/// of them follow (at least one a line), so that those reads find their
-/// lines in the cache: the hardware prefetcher streams an in-order read,
-/// where a random read of a line not in the cache waits for it alone.
+/// of them follow ([`worth_warming`]), so that those reads find their
+/// lines in the cache.
 fn warm(numbers: &[f32], reads: usize) {
-    if reads < numbers.len() / FLOATS_PER_LINE {
+    if !worth_warming(reads, numbers.len()) {
         return;
     }
     let mut acc = 0.0f32;
@@ -207,7 +214,7 @@ pub fn encode_backward(points: &[f32], grad: &[f32], spec: &GridSpec, features: 
             // find the rows in the cache (the fresh allocation's pages are
             // mapped here, in order, and not one by one under the scatter).
             let reachable = reachable_rows(res, spec.rows) * f;
-            if n * 8 >= reachable / FLOATS_PER_LINE {
+            if worth_warming(n * 8, reachable) {
                 level[..reachable].fill(0.0);
             }
             let row_grad = |i: usize| &grad[(i * levels + l) * f..(i * levels + l + 1) * f];

@@ -48,7 +48,7 @@ fn auto_contracts_the_outdoor_scene_and_beats_the_box() {
     let scene = outdoor();
     let auto = choices_for(scene, &Flags::default());
     assert!(
-        auto.extent.value == Extent::Unbounded && auto.sampler.value == Sampler::CoarseFine,
+        auto.extent.value == Extent::Unbounded && auto.sampler().value == Sampler::CoarseFine,
         "{}",
         write::field_line(&auto)
     );

@@ -337,11 +337,13 @@ pub struct Cli {
     /// one field, `--samples` each), `proposal` (proposal rounds trained by
     /// the interlevel loss, then `--samples` of the field: for the Mip-NeRF
     /// field Mip-NeRF 360's two rounds of 64 samples of a small density MLP,
-    /// for the fast field two rounds of 32 and 16 samples of a small
-    /// hash-grid density network) or `auto` (coarse-fine for the Mip-NeRF
-    /// field, measured more accurate and faster at the default sizes:
-    /// docs/measurements/unbounded.md; proposal for the fast field, measured
-    /// better than its coarse and fine levels: docs/measurements/fast-field.md).
+    /// for the fast field two rounds of a small hash-grid density network,
+    /// of 32 and 16 samples, or 64 and 32 on a room or an open scene) or
+    /// `auto` (coarse-fine for the Mip-NeRF field, measured more accurate
+    /// and faster at the default sizes: docs/measurements/unbounded.md;
+    /// proposal for the fast field, measured better than its coarse and fine
+    /// levels on lego and the bench room in equal seconds:
+    /// docs/measurements/fast-field.md).
     #[arg(long, value_enum, default_value_t = crate::settings::args::SamplerArg::Auto)]
     pub sampler: crate::settings::args::SamplerArg,
     /// The photographs' appearance: `exposure` learns a gain and an offset

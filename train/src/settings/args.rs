@@ -45,15 +45,17 @@ pub enum SamplerArg {
     /// default sizes the proposal sampler was both slower and less accurate,
     /// docs/measurements/unbounded.md), `proposal` for the fast field (its
     /// hash-grid proposal networks trained better than its coarse and fine
-    /// levels, docs/measurements/fast-field.md).
+    /// levels on lego and the bench room in equal seconds,
+    /// docs/measurements/fast-field.md).
     #[default]
     Auto,
     /// The coarse and fine level of the one field.
     CoarseFine,
     /// Proposal rounds, then the field's samples where they found density:
     /// for the Mip-NeRF field Mip-NeRF 360's (two rounds of 64 samples of a
-    /// small density MLP), for the fast field nerfacto's (two rounds of 32
-    /// and 16 samples of a small hash-grid density network).
+    /// small density MLP), for the fast field nerfacto's (two rounds of a
+    /// small hash-grid density network, of 32 and 16 samples, or 64 and 32
+    /// on a room or an open scene).
     Proposal,
 }
 

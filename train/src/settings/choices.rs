@@ -72,8 +72,9 @@ pub struct Choices {
     pub model: Decided<FieldModel>,
     /// The field's extent.
     pub extent: Decided<Extent>,
-    /// The sampler.
-    pub sampler: Decided<Sampler>,
+    /// The sampler a layer chose; `None` leaves it to the field model
+    /// ([`Choices::sampler`]).
+    pub chosen_sampler: Option<Decided<Sampler>>,
     /// The appearance model.
     pub appearance: Decided<Appearance>,
     /// The hash encoding.
@@ -104,10 +105,7 @@ impl Choices {
                 value: row.extent,
                 by: by(row.extent_why),
             },
-            sampler: Decided {
-                value: Sampler::CoarseFine,
-                by: By::EveryKind(super::table::SAMPLER_WHY),
-            },
+            chosen_sampler: None,
             appearance: Decided {
                 value: row.appearance,
                 by: by(row.photographs_why),
@@ -135,21 +133,22 @@ impl Choices {
         }
     }
 
-    /// These choices once every layer is laid: a sampler nobody chose
-    /// follows the field model (the fast field's is its proposal networks,
-    /// the Mip-NeRF field's the coarse and fine levels of its MLP).
-    pub fn settled(self) -> Self {
-        let unchosen = self.sampler.by == By::EveryKind(super::table::SAMPLER_WHY);
-        if unchosen && self.model.value == FieldModel::Fast {
-            return Self {
-                sampler: Decided {
+    /// The sampler: the one a layer chose, else the field model's own (the
+    /// fast field's hash-grid proposal networks, the Mip-NeRF field's
+    /// coarse and fine levels of its MLP).
+    pub fn sampler(&self) -> Decided<Sampler> {
+        self.chosen_sampler
+            .clone()
+            .unwrap_or(match self.model.value {
+                FieldModel::Fast => Decided {
                     value: Sampler::Proposal,
                     by: By::EveryKind(super::table::FAST_SAMPLER_WHY),
                 },
-                ..self
-            };
-        }
-        self
+                FieldModel::Mip => Decided {
+                    value: Sampler::CoarseFine,
+                    by: By::EveryKind(super::table::SAMPLER_WHY),
+                },
+            })
     }
 
     /// These choices with what `layer` says laid over them.
@@ -157,7 +156,7 @@ impl Choices {
         Self {
             model: layer.model.unwrap_or(self.model),
             extent: layer.extent.unwrap_or(self.extent),
-            sampler: layer.sampler.unwrap_or(self.sampler),
+            chosen_sampler: layer.sampler.or(self.chosen_sampler),
             appearance: layer.appearance.unwrap_or(self.appearance),
             hash: layer.hash.unwrap_or(self.hash),
             pose: layer.pose.unwrap_or(self.pose),
@@ -339,8 +338,11 @@ mod tests {
         // What nobody overrode stays the row's.
         assert_eq!(c.appearance.value, Appearance::Embedding);
         assert_eq!(
-            c.clone().settled(),
-            c,
+            c.sampler(),
+            Decided {
+                value: Sampler::CoarseFine,
+                by: By::EveryKind(super::super::table::SAMPLER_WHY)
+            },
             "the Mip-NeRF field keeps its sampler"
         );
         assert!(
@@ -358,9 +360,9 @@ mod tests {
             field_model: FieldModelArg::Fast,
             ..Flags::default()
         });
-        let c = Choices::of_row(&row).overlaid(fast.clone()).settled();
-        assert_eq!(c.sampler.value, Sampler::Proposal);
-        assert!(c.sampler.by.reason().contains("proposal networks"), "{c:?}");
+        let c = Choices::of_row(&row).overlaid(fast.clone()).sampler();
+        assert_eq!(c.value, Sampler::Proposal);
+        assert!(c.by.reason().contains("proposal networks"), "{c:?}");
         let flag = Layer::of_flags(&Flags {
             field_model: FieldModelArg::Fast,
             sampler: SamplerArg::CoarseFine,
@@ -371,8 +373,8 @@ mod tests {
             Choices::of_row(&row).overlaid(flag),
             Choices::of_row(&row).overlaid(file).overlaid(fast),
         ] {
-            let c = chosen.settled();
-            assert_eq!(c.sampler.value, Sampler::CoarseFine, "{c:?}");
+            let c = chosen.sampler();
+            assert_eq!(c.value, Sampler::CoarseFine, "{c:?}");
         }
     }
 }

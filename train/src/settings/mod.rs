@@ -60,9 +60,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     if let Some(patch) = &patch {
         choices = choices.overlaid(Layer::of_file(patch));
     }
-    choices = choices
-        .overlaid(Layer::of_flags(&choices::Flags::of_cli(cli)))
-        .settled();
+    choices = choices.overlaid(Layer::of_flags(&choices::Flags::of_cli(cli)));
     if choices.model.value == table::FieldModel::Fast
         && (cli.width.is_some() || cli.depth.is_some())
     {
@@ -112,7 +110,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     // The proposal sampler the field takes, in the layer under the file, so
     // that a file's proposal keys change only themselves (and the fast
     // field keeps its hash-grid proposal networks).
-    if choices.sampler.value == table::Sampler::Proposal {
+    if choices.sampler().value == table::Sampler::Proposal {
         base.model
             .proposal
             .get_or_insert_with(|| write::default_proposal(&choices));
@@ -169,9 +167,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
 /// writes with [`write::apply`].
 pub fn choices_for(scene: &Scene, flags: &choices::Flags) -> Choices {
     let (kind, _) = capture_kind(scene);
-    Choices::of_row(&table::row(kind))
-        .overlaid(Layer::of_flags(flags))
-        .settled()
+    Choices::of_row(&table::row(kind)).overlaid(Layer::of_flags(flags))
 }
 
 /// The flags that override single keys of the configuration.

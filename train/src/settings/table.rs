@@ -113,7 +113,7 @@ pub const FEWER_ROUNDS: [usize; 2] = [32, 16];
 
 /// Why [`FEWER_ROUNDS`].
 pub const FEWER_ROUNDS_WHY: &str = "more iterations in the same seconds: above rounds of 64 and 32 on \
-     lego at 120 s and on the statue, the cup and fern at 600 s \
+     lego at 120 s and on the statue and fern at 600 s, level on the cup \
      (docs/measurements/fast-field.md)";
 
 /// Why every row keeps the coarse and fine sampler for the Mip-NeRF field.
@@ -121,7 +121,7 @@ pub const SAMPLER_WHY: &str = "more accurate and faster than the proposal sample
 
 /// Why the fast field takes its proposal networks unless told otherwise.
 pub const FAST_SAMPLER_WHY: &str = "the fast field's hash-grid proposal networks, above its coarse and \
-     fine sampler on lego, the bench room and the photographed objects \
+     fine levels on lego and the bench room in equal seconds \
      (docs/measurements/fast-field.md)";
 
 /// Why every row keeps the poses as given.
@@ -226,7 +226,7 @@ pub fn markdown() -> String {
             r.samples.unwrap_or(48),
             r.fast_rounds[0],
             r.fast_rounds[1],
-            r.fast_samples.or(r.samples).unwrap_or(48),
+            r.samples_for(FieldModel::Fast).unwrap_or(48),
             r.rays.unwrap_or(256),
             match r.appearance {
                 Appearance::None => "none",

@@ -93,7 +93,7 @@ pub fn apply_field(choices: &Choices, model: &mut OpenNerfConfig, scene: &Scene)
         _ if fast => Some(fast_field()),
         _ => None,
     };
-    let proposal = choices.sampler.value == Sampler::Proposal;
+    let proposal = choices.sampler().value == Sampler::Proposal;
     model.proposal = match model.proposal.take() {
         Some(given) if proposal => Some(given),
         _ if proposal => Some(default_proposal(choices)),
@@ -129,6 +129,7 @@ pub fn rounds_line(choices: &Choices, proposal: &ProposalConfig, by_file: bool) 
 
 /// The field line.
 pub fn field_line(choices: &Choices) -> String {
+    let sampler = choices.sampler();
     format!(
         "field: {} ({}); sampler: {} ({})",
         match choices.extent.value {
@@ -136,11 +137,11 @@ pub fn field_line(choices: &Choices) -> String {
             Extent::Unbounded => "unbounded",
         },
         choices.extent.by.reason(),
-        match choices.sampler.value {
+        match sampler.value {
             Sampler::CoarseFine => "coarse-fine",
             Sampler::Proposal => "proposal",
         },
-        choices.sampler.by.reason(),
+        sampler.by.reason(),
     )
 }
 
