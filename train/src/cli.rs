@@ -188,7 +188,8 @@ pub struct Cli {
     #[arg(long)]
     pub rays: Option<usize>,
     /// Override: samples per ray and level [default: 48; a forward-facing
-    /// capture: 16].
+    /// capture: 16; the fast field with its proposal networks on a
+    /// photographed object: 24].
     #[arg(long)]
     pub samples: Option<usize>,
     /// Override: width of the MLP trunk.

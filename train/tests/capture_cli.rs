@@ -342,3 +342,111 @@ fn presets_follow_where_the_cameras_stand() {
 
 #[path = "capture_cli/sparse_depth.rs"]
 mod sparse_depth;
+
+#[test]
+fn the_fast_field_takes_its_own_samples_only_with_its_proposal_networks() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let data = capture(tmp.path(), &model_text());
+    // The tiny sizes without the samples, so that the capture's row sets them.
+    let config = tmp.path().join("unsized.json");
+    std::fs::write(
+        &config,
+        r#"{"model": {"head": {"width": 8, "layers": 1}},
+            "sampler": {"rays_per_batch": 32, "border_margin": 2},
+            "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}}"#,
+    )
+    .expect("config");
+    let trained = |name: &str, extra: &[&str]| {
+        let out = tmp.path().join(name);
+        let args = [
+            &[
+                "--data",
+                s(&data),
+                "--config",
+                s(&config),
+                "--iters",
+                "1",
+                "--holdout-every",
+                "4",
+                "--no-final-render",
+                "--quiet",
+                "--out",
+                s(&out),
+                "--field-model",
+                "fast",
+            ][..],
+            extra,
+        ]
+        .concat();
+        let o = train(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        let saved: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("config.json")).expect("config.json"))
+                .expect("config.json parses");
+        (err, saved["model"]["num_samples"].as_u64())
+    };
+    let (err, samples) = trained("proposal", &[]);
+    assert_eq!(samples, Some(24), "{err}");
+    assert!(
+        err.contains("sampling: 24 samples per ray and level")
+            && err.contains("the fast field's proposal networks place 24 samples"),
+        "{err}"
+    );
+    // On its coarse and fine levels it samples as the row says for the
+    // Mip-NeRF field (the built-in 48), and says nothing of 24.
+    let (err, samples) = trained("coarse-fine", &["--sampler", "coarse-fine"]);
+    assert_eq!(samples, Some(48), "{err}");
+    assert!(!err.contains("24 samples"), "{err}");
+
+    // The sparse points' depth with the proposal sampler is warned of, for
+    // either field; with the coarse and fine levels it is not.
+    let mut text = model_text();
+    for i in 0..IMAGES {
+        text[1] = text[1].replace(
+            &format!(" img{i}.png\n\n"),
+            &format!(" img{i}.png\n20 15 1 21 16 2\n"),
+        );
+    }
+    let data = capture(&tmp.path().join("points"), &text);
+    let with_depth = |name: &str, extra: &[&str]| {
+        let out = tmp.path().join(name);
+        let o = train_tiny(
+            tmp.path(),
+            &data,
+            &out,
+            "1",
+            &[
+                &[
+                    "--holdout-every",
+                    "4",
+                    "--field-model",
+                    "fast",
+                    "--sparse-depth",
+                    "on",
+                ][..],
+                extra,
+            ]
+            .concat(),
+        );
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        assert!(
+            err.contains("depth: the sparse points give depth targets"),
+            "{err}"
+        );
+        err
+    };
+    let err = with_depth("depth-proposal", &[]);
+    assert!(
+        err.contains("warning: with the proposal sampler the sparse points' depth"),
+        "{err}"
+    );
+    let err = with_depth(
+        "mip-proposal",
+        &["--field-model", "mip", "--sampler", "proposal"],
+    );
+    assert!(err.contains("warning: with the proposal sampler"), "{err}");
+    let err = with_depth("depth-coarse-fine", &["--sampler", "coarse-fine"]);
+    assert!(!err.contains("warning: with the proposal sampler"), "{err}");
+}

@@ -86,25 +86,12 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
 
     let dim = scene.features.as_ref().map_or(0, |f| f.dim());
     let mut base = TrainConfig::default_run(dim);
-    let sizes = Sizes::of_row(&row, choices.model.value).filter(|_| cli.preset.is_none());
+    let sampler = choices.sampler().value;
+    let sizes = Sizes::of_row(&row, choices.model.value, sampler).filter(|_| cli.preset.is_none());
     if let Some(p) = cli.preset {
         let unbounded = choices.extent.value == Extent::Unbounded;
         let s = p.apply(&mut base, row.preset, !unbounded);
-        lines.push(format!(
-            "preset {} with the {} settings ({}): {} samples per ray and level, {} rays a \
-             batch, {} iterations{}",
-            p.name(),
-            row.preset.name(),
-            kind.describe(),
-            s.samples,
-            s.rays,
-            s.iterations,
-            if unbounded {
-                ", no occupancy grid (the field is unbounded)"
-            } else {
-                ""
-            },
-        ));
+        lines.push(preset_line(p, &row, kind, &s, unbounded));
     }
     sizes.inspect(|s| s.apply(&mut base));
     // The proposal sampler the field takes, in the layer under the file, so
@@ -131,10 +118,16 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     let samples_set = cli.samples.is_some() || set_by_file("model", "num_samples");
     let rays_set = cli.rays.is_some() || set_by_file("sampler", "rays_per_batch");
     if let Some(s) = sizes.filter(|s| s.kept(samples_set, rays_set)) {
-        let why = row.sizes_why_for(choices.model.value);
+        let why = row.sizes_why_for(choices.model.value, sampler);
         lines.push(s.line(&choices::By::Kind(kind, why).reason()));
     }
-    lines.extend(depth::apply(cli.sparse_depth, scene, &mut config)?);
+    let proposal = choices.sampler().value == table::Sampler::Proposal;
+    lines.extend(depth::apply(
+        cli.sparse_depth,
+        scene,
+        &mut config,
+        proposal,
+    )?);
     write::apply(&choices, &mut config, scene)?;
     lines.push(write::model_line(&choices, &config.model));
     if let Some(proposal) = &config.model.proposal {
@@ -160,6 +153,32 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         background,
         lines,
     })
+}
+
+/// The line `train` prints for a `--preset`: what it set on a capture of
+/// `kind` (its `row`).
+fn preset_line(
+    preset: crate::preset::Preset,
+    row: &table::Row,
+    kind: CaptureKind,
+    set: &crate::preset::PresetSettings,
+    unbounded: bool,
+) -> String {
+    format!(
+        "preset {} with the {} settings ({}): {} samples per ray and level, {} rays a batch, \
+         {} iterations{}",
+        preset.name(),
+        row.preset.name(),
+        kind.describe(),
+        set.samples,
+        set.rays,
+        set.iterations,
+        if unbounded {
+            ", no occupancy grid (the field is unbounded)"
+        } else {
+            ""
+        },
+    )
 }
 
 /// The settings of `scene`'s capture kind with `flags` laid over them (no

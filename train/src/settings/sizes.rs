@@ -3,7 +3,7 @@
 //! built-in sizes (a run without `--iters` or `--time-budget` then takes
 //! about as long).
 
-use super::table::{FieldModel, Row};
+use super::table::{FieldModel, Row, Sampler};
 use crate::config::TrainConfig;
 
 /// The sizes a row sets (at least one of them).
@@ -16,9 +16,10 @@ pub struct Sizes {
 }
 
 impl Sizes {
-    /// The sizes `row` sets for a field `model`, if it sets any.
-    pub fn of_row(row: &Row, model: FieldModel) -> Option<Self> {
-        let samples = row.samples_for(model);
+    /// The sizes `row` sets for a field `model` sampled by `sampler`, if
+    /// it sets any.
+    pub fn of_row(row: &Row, model: FieldModel, sampler: Sampler) -> Option<Self> {
+        let samples = row.samples_for(model, sampler);
         (samples.is_some() || row.rays.is_some()).then_some(Self {
             samples,
             rays: row.rays,
@@ -107,25 +108,44 @@ mod tests {
         use super::super::table::row;
         use datasets::capture_kind::CaptureKind;
         let object = row(CaptureKind::PhotographedObject);
-        assert_eq!(Sizes::of_row(&object, FieldModel::Mip), None);
-        let fast = Sizes::of_row(&object, FieldModel::Fast).expect("the fast field's samples");
+        for sampler in [Sampler::CoarseFine, Sampler::Proposal] {
+            assert_eq!(Sizes::of_row(&object, FieldModel::Mip, sampler), None);
+        }
+        let fast = Sizes::of_row(&object, FieldModel::Fast, Sampler::Proposal)
+            .expect("the fast field's samples");
         assert_eq!((fast.samples, fast.rays), (Some(24), None));
         assert!(
             object
-                .sizes_why_for(FieldModel::Fast)
+                .sizes_why_for(FieldModel::Fast, Sampler::Proposal)
                 .contains("24 samples")
+        );
+        // The fast field's own samples are for its proposal networks: on
+        // the coarse and fine levels it samples as the Mip-NeRF field does.
+        assert_eq!(
+            Sizes::of_row(&object, FieldModel::Fast, Sampler::CoarseFine),
+            None
+        );
+        assert_eq!(
+            object.sizes_why_for(FieldModel::Fast, Sampler::CoarseFine),
+            object.sizes_why
         );
         // Elsewhere the fast field samples as the row says for both fields.
         let forward = row(CaptureKind::ForwardFacing);
         for model in [FieldModel::Mip, FieldModel::Fast] {
-            let s = Sizes::of_row(&forward, model).expect("the row's samples");
-            assert_eq!(s.samples, Some(16), "{model:?}");
-            assert_eq!(forward.sizes_why_for(model), forward.sizes_why, "{model:?}");
-            assert_eq!(
-                Sizes::of_row(&row(CaptureKind::Room), model),
-                None,
-                "{model:?}"
-            );
+            for sampler in [Sampler::CoarseFine, Sampler::Proposal] {
+                let s = Sizes::of_row(&forward, model, sampler).expect("the row's samples");
+                assert_eq!(s.samples, Some(16), "{model:?}");
+                assert_eq!(
+                    forward.sizes_why_for(model, sampler),
+                    forward.sizes_why,
+                    "{model:?}"
+                );
+                assert_eq!(
+                    Sizes::of_row(&row(CaptureKind::Room), model, sampler),
+                    None,
+                    "{model:?}"
+                );
+            }
         }
     }
 

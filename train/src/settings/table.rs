@@ -89,19 +89,20 @@ pub struct Row {
 }
 
 impl Row {
-    /// The samples per ray this row sets for a field `model` (`None`: the
-    /// built-in number).
-    pub fn samples_for(&self, model: FieldModel) -> Option<usize> {
-        match model {
-            FieldModel::Fast => self.fast_samples.or(self.samples),
-            FieldModel::Mip => self.samples,
+    /// The samples per ray this row sets for a field `model` sampled by
+    /// `sampler` (`None`: the built-in number): the fast field's own where
+    /// its proposal networks place them, the row's otherwise.
+    pub fn samples_for(&self, model: FieldModel, sampler: Sampler) -> Option<usize> {
+        match (model, sampler) {
+            (FieldModel::Fast, Sampler::Proposal) => self.fast_samples.or(self.samples),
+            _ => self.samples,
         }
     }
 
-    /// Why this row's sizes for a field `model`.
-    pub fn sizes_why_for(&self, model: FieldModel) -> &'static str {
-        match (model, self.fast_samples) {
-            (FieldModel::Fast, Some(_)) => self.fast_samples_why,
+    /// Why this row's sizes for a field `model` sampled by `sampler`.
+    pub fn sizes_why_for(&self, model: FieldModel, sampler: Sampler) -> &'static str {
+        match (model, sampler, self.fast_samples) {
+            (FieldModel::Fast, Sampler::Proposal, Some(_)) => self.fast_samples_why,
             _ => self.sizes_why,
         }
     }
@@ -226,7 +227,8 @@ pub fn markdown() -> String {
             r.samples.unwrap_or(48),
             r.fast_rounds[0],
             r.fast_rounds[1],
-            r.samples_for(FieldModel::Fast).unwrap_or(48),
+            r.samples_for(FieldModel::Fast, Sampler::Proposal)
+                .unwrap_or(48),
             r.rays.unwrap_or(256),
             match r.appearance {
                 Appearance::None => "none",
