@@ -111,8 +111,8 @@ pub use field::{FeatureHead, FeatureHeadConfig, FieldOutputs, MipMlp, MipMlpConf
 pub use fused_adam::{FusedAdam, FusedAdamConfig};
 pub use hashgrid::{HashGrid, HashGridConfig};
 pub use loss::{
-    FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse,
-    weighted_rgb_mse,
+    FeatureSpace, capped_depth, depth_huber, depth_smoothness, depth_window, open_set_cosine,
+    rgb_mse, weighted_rgb_mse,
 };
 pub use nerf::{OpenNerf, OpenNerfConfig, Radiance, Rays};
 pub use occupancy::{ClippedRays, GridDecodeError, OccupancyConfig, OccupancyGrid};

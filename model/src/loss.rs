@@ -51,6 +51,36 @@ pub fn depth_huber(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>, delta:
     huber.mul(weight.mask_fill(invalid, 0.0)).sum().div(count)
 }
 
+/// The expected depth the depth loss compares with its target: the
+/// weighted mean of the intervals' midpoints, each capped at `cap` times
+/// the ray's target. The last interval of an unbounded ray can reach
+/// thousands of units past the scene; uncapped, a weight of `1e-4` there
+/// moves the expected depth by a unit, and the loss's gradient on that
+/// weight is as large as the interval is far. Capped, weight beyond the
+/// cap counts as if it were there: the loss is unchanged where the weight
+/// sits near the target. Rays without a target (`<= 0`) get the uncapped
+/// depth, which the loss ignores.
+///
+/// # Shapes
+/// - `weights`: `[rays, samples]`; `t_vals`: `[rays, samples + 1]`;
+///   `target`: `[rays, 1]`; output: `[rays, 1]`.
+pub fn capped_depth(
+    weights: Tensor<2>,
+    t_vals: Tensor<2>,
+    target: Tensor<2>,
+    cap: f32,
+) -> Tensor<2> {
+    let mids = crate::composite::t_mids(t_vals);
+    let [rays, samples] = mids.dims();
+    let limit = target
+        .clone()
+        .mul_scalar(cap)
+        .mask_fill(target.lower_equal_elem(0.0), f32::INFINITY)
+        .expand([rays, samples]);
+    let acc = weights.clone().sum_dim(1);
+    crate::composite::expected_depth(weights.mul(mids.min_pair(limit)).sum_dim(1), acc)
+}
+
 /// The compositing weight of each ray that lies away from its depth target,
 /// averaged over the rays with a valid target (`target > 0`): each
 /// sample's weight times its distance from the target in units of `width`

@@ -7,7 +7,10 @@ mod common;
 
 use burn::tensor::Device;
 use common::{assert_close, devices, tensor, uniform, vec};
-use model::{FeatureSpace, depth_huber, depth_smoothness, depth_window, open_set_cosine, rgb_mse};
+use model::{
+    FeatureSpace, capped_depth, depth_huber, depth_smoothness, depth_window, open_set_cosine,
+    rgb_mse,
+};
 
 #[test]
 fn rgb_mse_matches_direct() {
@@ -141,6 +144,101 @@ fn depth_window_matches_float64_and_bounds() {
             0.1,
         );
         assert_close(&vec(beyond), &[0.9], 1e-6, 1e-5, name);
+    }
+}
+
+/// The capped expected depth against float64: each midpoint counted at no
+/// more than `cap` times the ray's target, divided by the ray's total
+/// weight; its gradient on a weight is that capped midpoint less the depth,
+/// over the total weight, so a weight in a last interval thousands of units
+/// long pulls no harder than one at the cap. Rays without a target keep
+/// the uncapped depth.
+#[test]
+fn capped_depth_matches_float64_and_bounds_the_far_interval() {
+    let (n, k, cap) = (6usize, 8usize, 2.0f32);
+    let gaps = uniform(n * (k + 1), 7, 0.05, 0.6);
+    let w = uniform(n * k, 8, 0.0, 0.2);
+    let mut t = vec![0.0f64; n * (k + 1)];
+    for r in 0..n {
+        let mut acc = 0.5;
+        for j in 0..=k {
+            acc += gaps[r * (k + 1) + j];
+            t[r * (k + 1) + j] = acc;
+        }
+        // An unbounded ray's last post, far past the scene.
+        t[r * (k + 1) + k] = 25_000.0;
+    }
+    let mut target: Vec<f64> = uniform(n, 9, 0.8, 2.0);
+    target[4] = 0.0;
+    let mut want = vec![0.0f64; n];
+    let mut grad = vec![0.0f64; n * k];
+    for r in 0..n {
+        let limit = if target[r] > 0.0 {
+            cap as f64 * target[r]
+        } else {
+            f64::INFINITY
+        };
+        let mids: Vec<f64> = (0..k)
+            .map(|j| (0.5 * (t[r * (k + 1) + j] + t[r * (k + 1) + j + 1])).min(limit))
+            .collect();
+        let acc: f64 = (0..k).map(|j| w[r * k + j]).sum();
+        let sum: f64 = (0..k).map(|j| w[r * k + j] * mids[j]).sum();
+        want[r] = sum / acc;
+        for j in 0..k {
+            // d(sum / acc) / dw_j, summed into the loss `sum of depths`.
+            grad[r * k + j] = (mids[j] - want[r]) / acc;
+        }
+    }
+    let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    for (name, device) in devices(false) {
+        let device: Device = device.autodiff();
+        let weights = tensor(f(&w), [n, k], &device).require_grad();
+        let depth = capped_depth(
+            weights.clone(),
+            tensor(f(&t), [n, k + 1], &device),
+            tensor(f(&target), [n, 1], &device),
+            cap,
+        );
+        let got = vec(depth.clone());
+        assert_close(&got, &f(&want), 1e-5, 1e-5, name);
+        // Capped rays stay within the cap; the ray without a target does not.
+        for r in 0..n {
+            if target[r] > 0.0 {
+                assert!(
+                    got[r] <= (cap as f64 * target[r]) as f32 + 1e-4,
+                    "{name}: ray {r}"
+                );
+            }
+        }
+        assert!(got[4] > 1000.0, "{name}: {}", got[4]);
+        let g = depth.sum().backward();
+        let gw: Vec<f32> = weights
+            .grad(&g)
+            .expect("weights' gradient")
+            .into_data()
+            .try_to_vec()
+            .expect("f32");
+        for r in 0..n {
+            let row = r * k..(r + 1) * k;
+            let scale = if target[r] > 0.0 { 1e-4 } else { 1e-2 };
+            for i in row {
+                let tol = scale * grad[i].abs().max(1.0) as f32;
+                assert!(
+                    (gw[i] - grad[i] as f32).abs() <= tol,
+                    "{name}: {i}: {} vs {}",
+                    gw[i],
+                    grad[i]
+                );
+            }
+            if target[r] > 0.0 {
+                let last = r * k + k - 1;
+                assert!(
+                    gw[last].abs() < 20.0 * cap * target[r] as f32,
+                    "{name}: {}",
+                    gw[last]
+                );
+            }
+        }
     }
 }
 

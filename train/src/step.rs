@@ -39,10 +39,15 @@ pub struct LossTerms {
     pub distortion: Tensor<1>,
 }
 
+/// How far past its target an interval's midpoint counts in the depth
+/// loss, in multiples of the target ([`model::capped_depth`]).
+pub const DEPTH_CAP: f32 = 2.0;
+
 /// `L = L_rgb + lambda_open L_open + lambda_depth L_depth + c (L_rgb^c +
 /// lambda_depth L_depth^c)` with `c = coarse_weight`: the OpenNeRF training
 /// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
-/// fine level) with the coarse level's colour and depth terms weighted by
+/// fine level, its intervals' midpoints counted at no more than
+/// [`DEPTH_CAP`] times the target) with the coarse level's colour and depth terms weighted by
 /// `c`. Depth only where the target is valid (> 0); features only where the
 /// target is non-zero. With the proposal sampler (no coarse level) the
 /// interlevel loss of every proposal round is added (averaged over the fine
@@ -71,10 +76,18 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
         let d = |pred: Tensor<2>| {
             model::depth_huber(pred, target.clone(), weight.clone(), cfg.huber_delta)
         };
-        depth = d(out.fine.depth.clone());
+        let capped = |level: &model::LevelOutputs| {
+            model::capped_depth(
+                level.weights.clone(),
+                level.t_vals.clone(),
+                target.clone(),
+                DEPTH_CAP,
+            )
+        };
+        depth = d(capped(&out.fine));
         total = total + depth.clone().mul_scalar(cfg.lambda_depth);
         if let Some(coarse) = &out.coarse {
-            let coarse = d(coarse.depth.clone());
+            let coarse = d(capped(coarse));
             total = total + coarse.mul_scalar(cfg.lambda_depth * cfg.coarse_weight);
         }
         if cfg.depth_window_weight > 0.0 {
@@ -642,12 +655,19 @@ mod tests {
         };
         let t = losses(&out, &b, &cfg);
         let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
-        let coarse_depth = s(model::depth_huber(
-            out.coarse.as_ref().unwrap().depth.clone(),
-            b.depth.clone().unwrap().0,
-            b.depth.clone().unwrap().1,
-            0.2,
-        ));
+        // Each level's depth term is the Huber loss of its capped depth.
+        let level_depth = |l: &model::LevelOutputs| {
+            let (target, weight) = b.depth.clone().unwrap();
+            let capped = model::capped_depth(
+                l.weights.clone(),
+                l.t_vals.clone(),
+                target.clone(),
+                DEPTH_CAP,
+            );
+            s(model::depth_huber(capped, target, weight, 0.2))
+        };
+        let coarse_depth = level_depth(out.coarse.as_ref().unwrap());
+        assert!((s(t.depth.clone()) - level_depth(&out.fine)).abs() < 1e-7);
         let expected = s(t.rgb.clone())
             + 0.1 * s(t.coarse_rgb.clone())
             + 0.7 * s(t.open.clone())

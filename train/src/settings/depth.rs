@@ -112,47 +112,31 @@ pub fn choose(
     }))
 }
 
-/// The warning `train` prints when the sparse points' depth meets the
-/// proposal sampler.
-pub const PROPOSAL_WARNING: &str = "warning: with the proposal sampler the sparse points' depth \
-     was fitted for a few hundred iterations, then the step diverged and the depth stayed unfitted \
-     (both fields; for the fast field the held-out views failed on both captures measured, \
-     docs/measurements/fast-field.md); with --sampler coarse-fine the depth is fitted";
-
 /// Draws part of each batch of `config` from the sparse depth targets
 /// when `scene` has them (see [`choose`]), and returns the line that says
-/// so (and [`PROPOSAL_WARNING`] where `proposal`: the field samples with
-/// the proposal sampler); under `auto`, on a COLMAP capture
-/// without dense depth, the line that says they are left out.
+/// so; under `auto`, on a COLMAP capture without dense depth, the line
+/// that says they are left out.
 pub fn apply(
     arg: Option<SparseDepthArg>,
     scene: &Scene,
     config: &mut TrainConfig,
-    proposal: bool,
-) -> Result<Vec<String>, TrainError> {
+) -> Result<Option<String>, TrainError> {
     let sampler = &mut config.sampler;
     if let Some(s) = choose(arg, scene, sampler.rays_per_batch, sampler.depth_rays)? {
         sampler.depth_rays = s.rays;
-        let mut lines = vec![s.message()];
-        if proposal {
-            lines.push(PROPOSAL_WARNING.into());
-        }
-        return Ok(lines);
+        return Ok(Some(s.message()));
     }
     let colmap_without_depth = matches!(
         scene.source.base(),
         SceneSource::Disk { loader: LoaderOptions::Colmap(o), .. } if !o.depth
     );
     let auto = matches!(arg, None | Some(SparseDepthArg::Auto));
-    Ok((auto && colmap_without_depth)
-        .then(|| {
-            format!(
-                "depth: none from the sparse points ({AUTO_OFF_WHY}; --sparse-depth on draws a \
-                 quarter of each batch from them)"
-            )
-        })
-        .into_iter()
-        .collect())
+    Ok((auto && colmap_without_depth).then(|| {
+        format!(
+            "depth: none from the sparse points ({AUTO_OFF_WHY}; --sparse-depth on draws a \
+             quarter of each batch from them)"
+        )
+    }))
 }
 
 #[cfg(test)]

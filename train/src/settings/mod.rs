@@ -121,13 +121,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
         let why = row.sizes_why_for(choices.model.value, sampler);
         lines.push(s.line(&choices::By::Kind(kind, why).reason()));
     }
-    let proposal = choices.sampler().value == table::Sampler::Proposal;
-    lines.extend(depth::apply(
-        cli.sparse_depth,
-        scene,
-        &mut config,
-        proposal,
-    )?);
+    lines.extend(depth::apply(cli.sparse_depth, scene, &mut config)?);
     write::apply(&choices, &mut config, scene)?;
     lines.push(write::model_line(&choices, &config.model));
     if let Some(proposal) = &config.model.proposal {
