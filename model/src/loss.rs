@@ -58,8 +58,8 @@ pub fn depth_huber(pred: Tensor<2>, target: Tensor<2>, weight: Tensor<2>, delta:
 /// moves the expected depth by a unit, and the loss's gradient on that
 /// weight is as large as the interval is far. Capped, weight beyond the
 /// cap counts as if it were there: the loss is unchanged where the weight
-/// sits near the target. Rays without a target (`<= 0`) get the uncapped
-/// depth, which the loss ignores.
+/// sits near the target. Rays without a target (not `> 0`: zero, negative
+/// or NaN) get the uncapped depth, which the loss ignores.
 ///
 /// # Shapes
 /// - `weights`: `[rays, samples]`; `t_vals`: `[rays, samples + 1]`;
@@ -75,7 +75,7 @@ pub fn capped_depth(
     let limit = target
         .clone()
         .mul_scalar(cap)
-        .mask_fill(target.lower_equal_elem(0.0), f32::INFINITY)
+        .mask_fill(target.greater_elem(0.0).bool_not(), f32::INFINITY)
         .expand([rays, samples]);
     let acc = weights.clone().sum_dim(1);
     crate::composite::expected_depth(weights.mul(mids.min_pair(limit)).sum_dim(1), acc)

@@ -69,11 +69,10 @@ fn depth_huber_masks_and_weights() {
 /// over random posts, weights and targets (some invalid); zero with the
 /// weight inside the window, the whole weight beyond it; gradients only
 /// through the weights, equal to the capped distances.
-#[test]
-fn depth_window_matches_float64_and_bounds() {
-    let (n, k, width) = (7usize, 9usize, 0.1f32);
-    let gaps = uniform(n * (k + 1), 3, 0.05, 0.6);
-    let w = uniform(n * k, 4, 0.0, 0.2);
+/// `n` rays' `k + 1` increasing posts, from 0.5 on, in gaps of 0.05 to
+/// 0.6 drawn with `seed`, ray-major.
+fn increasing_posts(n: usize, k: usize, seed: u64) -> Vec<f64> {
+    let gaps = uniform(n * (k + 1), seed, 0.05, 0.6);
     let mut t = vec![0.0f64; n * (k + 1)];
     for r in 0..n {
         let mut acc = 0.5;
@@ -82,6 +81,14 @@ fn depth_window_matches_float64_and_bounds() {
             t[r * (k + 1) + j] = acc;
         }
     }
+    t
+}
+
+#[test]
+fn depth_window_matches_float64_and_bounds() {
+    let (n, k, width) = (7usize, 9usize, 0.1f32);
+    let t = increasing_posts(n, k, 3);
+    let w = uniform(n * k, 4, 0.0, 0.2);
     let mut target: Vec<f64> = uniform(n, 5, 1.0, 4.0);
     target[2] = 0.0;
     target[5] = -1.0;
@@ -156,20 +163,15 @@ fn depth_window_matches_float64_and_bounds() {
 #[test]
 fn capped_depth_matches_float64_and_bounds_the_far_interval() {
     let (n, k, cap) = (6usize, 8usize, 2.0f32);
-    let gaps = uniform(n * (k + 1), 7, 0.05, 0.6);
+    let mut t = increasing_posts(n, k, 7);
     let w = uniform(n * k, 8, 0.0, 0.2);
-    let mut t = vec![0.0f64; n * (k + 1)];
     for r in 0..n {
-        let mut acc = 0.5;
-        for j in 0..=k {
-            acc += gaps[r * (k + 1) + j];
-            t[r * (k + 1) + j] = acc;
-        }
         // An unbounded ray's last post, far past the scene.
         t[r * (k + 1) + k] = 25_000.0;
     }
     let mut target: Vec<f64> = uniform(n, 9, 0.8, 2.0);
     target[4] = 0.0;
+    target[5] = f64::NAN;
     let mut want = vec![0.0f64; n];
     let mut grad = vec![0.0f64; n * k];
     for r in 0..n {
@@ -210,7 +212,7 @@ fn capped_depth_matches_float64_and_bounds_the_far_interval() {
                 );
             }
         }
-        assert!(got[4] > 1000.0, "{name}: {}", got[4]);
+        assert!(got[4] > 1000.0 && got[5] > 1000.0, "{name}: {got:?}");
         let g = depth.sum().backward();
         let gw: Vec<f32> = weights
             .grad(&g)
