@@ -47,8 +47,8 @@ pub const DEPTH_CAP: f32 = 2.0;
 /// lambda_depth L_depth^c)` with `c = coarse_weight`: the OpenNeRF training
 /// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
 /// fine level, its intervals' midpoints counted at no more than
-/// [`DEPTH_CAP`] times the target) with the coarse level's colour and depth terms weighted by
-/// `c`. Depth only where the target is valid (> 0); features only where the
+/// [`DEPTH_CAP`] times the target) with the coarse level's colour and depth
+/// terms weighted by `c`. Depth only where the target is valid (> 0); features only where the
 /// target is non-zero. With the proposal sampler (no coarse level) the
 /// interlevel loss of every proposal round is added (averaged over the fine
 /// intervals and rays, as Mip-NeRF 360), and wherever the fine level has
@@ -698,6 +698,48 @@ mod tests {
         assert!(want > 1e-3, "{want}");
         let added = s(windowed.total) - s(t.total);
         assert!((added - want).abs() < 1e-5, "{added} vs {want}");
+    }
+
+    /// With a target nearer than half the ray's far end, the depth term is
+    /// the Huber loss of the capped depth, below that of the plain expected
+    /// depth: the weight past twice the target counts as if it were there.
+    #[test]
+    fn the_depth_term_counts_far_weight_at_twice_the_target() {
+        let device = Device::flex();
+        let model = tiny_model(&device);
+        let mut b = batch(&device, 0.3);
+        let n = b.rays.len();
+        // The rays run from 0.5 to 3.5: past 2.0 the cap binds.
+        b.depth = Some((
+            Tensor::full([n, 1], 1.0, &device),
+            Tensor::ones([n, 1], &device),
+        ));
+        let out = model.render(&RenderRequest::train(&b.rays).with_randomized(false));
+        let cfg = LossConfig {
+            lambda_depth: 0.2,
+            huber_delta: 0.2,
+            ..LossConfig::default()
+        };
+        let t = losses(&out, &b, &cfg);
+        let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
+        let (target, weight) = b.depth.clone().unwrap();
+        let huber = |pred: Tensor<2>| {
+            s(model::depth_huber(
+                pred,
+                target.clone(),
+                weight.clone(),
+                0.2,
+            ))
+        };
+        let capped = huber(model::capped_depth(
+            out.fine.weights.clone(),
+            out.fine.t_vals.clone(),
+            target.clone(),
+            DEPTH_CAP,
+        ));
+        let plain = huber(out.fine.depth.clone());
+        assert!((s(t.depth) - capped).abs() < 1e-7, "{capped}");
+        assert!(plain > capped + 1e-3, "plain {plain}, capped {capped}");
     }
 
     /// The box field's distortion term: off by default; with a weight, the

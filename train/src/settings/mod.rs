@@ -97,7 +97,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     // The proposal sampler the field takes, in the layer under the file, so
     // that a file's proposal keys change only themselves (and the fast
     // field keeps its hash-grid proposal networks).
-    if choices.sampler().value == table::Sampler::Proposal {
+    if sampler == table::Sampler::Proposal {
         base.model
             .proposal
             .get_or_insert_with(|| write::default_proposal(&choices));

@@ -311,4 +311,44 @@ mod tests {
         assert!(hash(file, Some(HashGridArg::Off)).is_none());
         assert!(hash(none, Some(HashGridArg::On)).is_some());
     }
+
+    /// The fast field's proposal rounds are its capture kind's, and say
+    /// so; the Mip-NeRF field's are Mip-NeRF 360's; a file's are named as
+    /// the file's.
+    #[test]
+    fn the_proposal_rounds_are_the_kinds_and_say_whose_they_are() {
+        use super::super::args::FieldModelArg;
+        use super::super::table::row;
+        use datasets::capture_kind::CaptureKind;
+        let fast = Layer::of_flags(&Flags {
+            field_model: FieldModelArg::Fast,
+            ..Flags::default()
+        });
+        for (kind, rounds) in [
+            (CaptureKind::PhotographedObject, vec![32, 16]),
+            (CaptureKind::Room, vec![64, 32]),
+        ] {
+            let choices = Choices::of_row(&row(kind)).overlaid(fast.clone());
+            let proposal = default_proposal(&choices);
+            assert_eq!(proposal.samples, rounds, "{kind:?}");
+            assert!(proposal.hash.is_some(), "{kind:?}: the hash-grid networks");
+            let line = rounds_line(&choices, &proposal, false);
+            assert!(
+                line.starts_with(&format!(
+                    "proposal rounds: {} and {} samples (auto: {}:",
+                    rounds[0],
+                    rounds[1],
+                    kind.describe()
+                )),
+                "{line}"
+            );
+            let by_file = rounds_line(&choices, &proposal, true);
+            assert!(by_file.ends_with("(auto: the configuration's model.proposal.samples)"));
+        }
+        let mip = Choices::of_row(&row(CaptureKind::PhotographedObject));
+        let proposal = default_proposal(&mip);
+        assert_eq!(proposal.samples, ProposalConfig::new().samples);
+        assert!(proposal.hash.is_none());
+        assert!(rounds_line(&mip, &proposal, false).ends_with("(auto: Mip-NeRF 360's)"));
+    }
 }
