@@ -355,6 +355,13 @@ impl TrainConfig {
                 return bad(format!("{k} must be finite and non-negative, got {v}"));
             }
         }
+        let cap = self.losses.depth_cap;
+        if !(cap.is_finite() && cap >= 1.0) {
+            return bad(format!(
+                "losses.depth_cap must be finite and at least 1 (a multiple of each ray's depth \
+                 target), got {cap}"
+            ));
+        }
         for (k, v) in [
             ("losses.unseen_patches", self.losses.unseen_patches),
             ("losses.unseen_patch_side", self.losses.unseen_patch_side),

@@ -15,6 +15,13 @@ pub struct LossConfig {
     pub coarse_weight: f32,
     /// Huber threshold in metres.
     pub huber_delta: f32,
+    /// With the proposal sampler, how far past its target an interval's
+    /// midpoint counts in the depth loss, in multiples of the target
+    /// (`model::capped_depth`; at least 1). The sampler pins each round's
+    /// last post at the ray's far end: uncapped, an unbounded ray's last
+    /// interval made the step diverge. Higher pulls the far weight in
+    /// harder. The coarse and fine levels' depth is never capped.
+    pub depth_cap: f32,
     /// Weight of the interlevel loss that trains the proposal sampler
     /// (Mip-NeRF 360: 1).
     pub interlevel_weight: f32,
@@ -63,6 +70,7 @@ impl Default for LossConfig {
             lambda_depth: 0.1,
             coarse_weight: 0.1,
             huber_delta: 0.2,
+            depth_cap: 2.0,
             interlevel_weight: 1.0,
             depth_window_weight: 0.0,
             depth_window_width: 0.05,

@@ -39,15 +39,11 @@ pub struct LossTerms {
     pub distortion: Tensor<1>,
 }
 
-/// How far past its target an interval's midpoint counts in the depth
-/// loss, in multiples of the target ([`model::capped_depth`]).
-pub const DEPTH_CAP: f32 = 2.0;
-
 /// `L = L_rgb + lambda_open L_open + lambda_depth L_depth + c (L_rgb^c +
 /// lambda_depth L_depth^c)` with `c = coarse_weight`: the OpenNeRF training
 /// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
-/// fine level, its intervals' midpoints counted at no more than
-/// [`DEPTH_CAP`] times the target) with the coarse level's colour and depth
+/// fine level, with the proposal sampler its intervals' midpoints counted
+/// at no more than `losses.depth_cap` times the target) with the coarse level's colour and depth
 /// terms weighted by `c`. Depth only where the target is valid (> 0); features only where the
 /// target is non-zero. With the proposal sampler (no coarse level) the
 /// interlevel loss of every proposal round is added (averaged over the fine
@@ -76,18 +72,21 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
         let d = |pred: Tensor<2>| {
             model::depth_huber(pred, target.clone(), weight.clone(), cfg.huber_delta)
         };
-        let capped = |level: &model::LevelOutputs| {
-            model::capped_depth(
+        // Capped with the proposal sampler alone: it pins its last post at
+        // the far end, thousands of units out on an unbounded ray.
+        let level_depth = |level: &model::LevelOutputs| match out.proposals.is_empty() {
+            true => level.depth.clone(),
+            false => model::capped_depth(
                 level.weights.clone(),
                 level.t_vals.clone(),
                 target.clone(),
-                DEPTH_CAP,
-            )
+                cfg.depth_cap,
+            ),
         };
-        depth = d(capped(&out.fine));
+        depth = d(level_depth(&out.fine));
         total = total + depth.clone().mul_scalar(cfg.lambda_depth);
         if let Some(coarse) = &out.coarse {
-            let coarse = d(capped(coarse));
+            let coarse = d(level_depth(coarse));
             total = total + coarse.mul_scalar(cfg.lambda_depth * cfg.coarse_weight);
         }
         if cfg.depth_window_weight > 0.0 {
@@ -514,8 +513,7 @@ mod tests {
         jitter: true,
     };
 
-    fn tiny_model(device: &Device) -> OpenNerf {
-        device.seed(3);
+    fn tiny_config() -> OpenNerfConfig {
         OpenNerfConfig::new(FeatureHeadConfig::new(4).with_width(8))
             .with_mlp(
                 MipMlpConfig::new()
@@ -525,7 +523,11 @@ mod tests {
                     .with_max_deg(4),
             )
             .with_num_samples(8)
-            .init(device)
+    }
+
+    fn tiny_model(device: &Device) -> OpenNerf {
+        device.seed(3);
+        tiny_config().init(device)
     }
 
     fn batch(device: &Device, rgb: f32) -> BatchTensors {
@@ -655,16 +657,11 @@ mod tests {
         };
         let t = losses(&out, &b, &cfg);
         let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
-        // Each level's depth term is the Huber loss of its capped depth.
+        // Each level's depth term is the Huber loss of its expected depth
+        // (the coarse and fine levels' depth is not capped).
         let level_depth = |l: &model::LevelOutputs| {
             let (target, weight) = b.depth.clone().unwrap();
-            let capped = model::capped_depth(
-                l.weights.clone(),
-                l.t_vals.clone(),
-                target.clone(),
-                DEPTH_CAP,
-            );
-            s(model::depth_huber(capped, target, weight, 0.2))
+            s(model::depth_huber(l.depth.clone(), target, weight, 0.2))
         };
         let coarse_depth = level_depth(out.coarse.as_ref().unwrap());
         assert!((s(t.depth.clone()) - level_depth(&out.fine)).abs() < 1e-7);
@@ -700,13 +697,24 @@ mod tests {
         assert!((added - want).abs() < 1e-5, "{added} vs {want}");
     }
 
-    /// With a target nearer than half the ray's far end, the depth term is
-    /// the Huber loss of the capped depth, below that of the plain expected
-    /// depth: the weight past twice the target counts as if it were there.
+    /// With the proposal sampler and a target nearer than half the ray's far
+    /// end, the depth term is the Huber loss of the capped depth, below that
+    /// of the plain expected depth: the weight past twice the target (the
+    /// default `losses.depth_cap`) counts as if it were there. With the
+    /// coarse and fine levels it is the plain one's, whatever the cap.
     #[test]
     fn the_depth_term_counts_far_weight_at_twice_the_target() {
         let device = Device::flex();
-        let model = tiny_model(&device);
+        device.seed(3);
+        let proposal = tiny_config()
+            .with_proposal(Some(
+                model::ProposalConfig::new()
+                    .with_samples(vec![8])
+                    .with_depth(1)
+                    .with_width(8)
+                    .with_max_deg(4),
+            ))
+            .init(&device);
         let mut b = batch(&device, 0.3);
         let n = b.rays.len();
         // The rays run from 0.5 to 3.5: past 2.0 the cap binds.
@@ -714,13 +722,11 @@ mod tests {
             Tensor::full([n, 1], 1.0, &device),
             Tensor::ones([n, 1], &device),
         ));
-        let out = model.render(&RenderRequest::train(&b.rays).with_randomized(false));
         let cfg = LossConfig {
             lambda_depth: 0.2,
             huber_delta: 0.2,
             ..LossConfig::default()
         };
-        let t = losses(&out, &b, &cfg);
         let s = |x: Tensor<1>| x.into_scalar::<f32>() as f64;
         let (target, weight) = b.depth.clone().unwrap();
         let huber = |pred: Tensor<2>| {
@@ -731,14 +737,49 @@ mod tests {
                 0.2,
             ))
         };
+        let out = proposal.render(&RenderRequest::train(&b.rays).with_randomized(false));
+        assert!(!out.proposals.is_empty() && out.coarse.is_none());
+        let t = losses(&out, &b, &cfg);
+        let capped_at = |cap: f32| {
+            huber(model::capped_depth(
+                out.fine.weights.clone(),
+                out.fine.t_vals.clone(),
+                target.clone(),
+                cap,
+            ))
+        };
+        assert_eq!(cfg.depth_cap, 2.0, "the default cap");
+        let capped = capped_at(2.0);
+        let plain = huber(out.fine.depth.clone());
+        assert!((s(t.depth) - capped).abs() < 1e-7, "{capped}");
+        assert!(plain > capped + 1e-3, "plain {plain}, capped {capped}");
+        // `losses.depth_cap` moves the cap: at 3 it binds past 3.0 only,
+        // so the term lies between the one capped at 2 and the plain one.
+        let wider = LossConfig {
+            depth_cap: 3.0,
+            ..cfg
+        };
+        let at_three = capped_at(3.0);
+        let t3 = s(losses(&out, &b, &wider).depth);
+        assert!((t3 - at_three).abs() < 1e-7, "{t3} against {at_three}");
+        assert!(
+            capped + 1e-4 < at_three && at_three + 1e-4 < plain,
+            "capped at 2 {capped}, at 3 {at_three}, plain {plain}"
+        );
+
+        // The coarse and fine levels: the plain expected depth, though the
+        // cap would bind on their far weight too.
+        let coarse_fine = tiny_model(&device);
+        let out = coarse_fine.render(&RenderRequest::train(&b.rays).with_randomized(false));
+        let t = s(losses(&out, &b, &cfg).depth);
+        let plain = huber(out.fine.depth.clone());
         let capped = huber(model::capped_depth(
             out.fine.weights.clone(),
             out.fine.t_vals.clone(),
             target.clone(),
-            DEPTH_CAP,
+            2.0,
         ));
-        let plain = huber(out.fine.depth.clone());
-        assert!((s(t.depth) - capped).abs() < 1e-7, "{capped}");
+        assert!((t - plain).abs() < 1e-7, "{t} against the plain {plain}");
         assert!(plain > capped + 1e-3, "plain {plain}, capped {capped}");
     }
 
