@@ -41,11 +41,11 @@ pub struct LossTerms {
 
 /// `L = L_rgb + lambda_open L_open + lambda_depth L_depth + c (L_rgb^c +
 /// lambda_depth L_depth^c)` with `c = coarse_weight`: the OpenNeRF training
-/// objective (colour MSE, open-set feature cosine loss, depth Huber loss on the
-/// fine level, with the proposal sampler its intervals' midpoints counted
-/// at no more than `losses.depth_cap` times the target) with the coarse level's colour and depth
-/// terms weighted by `c`. Depth only where the target is valid (> 0); features only where the
-/// target is non-zero. With the proposal sampler (no coarse level) the
+/// objective (colour MSE, open-set feature cosine loss, depth Huber loss on
+/// the fine level, with the proposal sampler its intervals' midpoints
+/// counted at no more than `losses.depth_cap` times the target) with the
+/// coarse level's colour and depth terms weighted by `c`. Depth only where
+/// the target is valid (> 0); features only where the target is non-zero. With the proposal sampler (no coarse level) the
 /// interlevel loss of every proposal round is added (averaged over the fine
 /// intervals and rays, as Mip-NeRF 360), and wherever the fine level has
 /// posts in `s` the distortion loss; elsewhere (the box field) the
@@ -74,13 +74,14 @@ pub fn losses(out: &RenderOutputs, batch: &BatchTensors, cfg: &LossConfig) -> Lo
         };
         // Capped with the proposal sampler alone: it pins its last post at
         // the far end, thousands of units out on an unbounded ray.
-        let level_depth = |level: &model::LevelOutputs| match out.proposals.is_empty() {
-            true => level.depth.clone(),
-            false => model::capped_depth(
+        let cap = (!out.proposals.is_empty()).then_some(cfg.depth_cap);
+        let level_depth = |level: &model::LevelOutputs| match cap {
+            None => level.depth.clone(),
+            Some(cap) => model::capped_depth(
                 level.weights.clone(),
                 level.t_vals.clone(),
                 target.clone(),
-                cfg.depth_cap,
+                cap,
             ),
         };
         depth = d(level_depth(&out.fine));

@@ -7,7 +7,7 @@ use std::process::Output;
 
 mod common;
 
-use common::{s, train, train_tiny};
+use common::{json, s, train, train_tiny};
 
 const IMAGES: usize = 4;
 
@@ -381,9 +381,7 @@ fn the_fast_field_takes_its_own_samples_only_with_its_proposal_networks() {
         let o = train(&args);
         let err = String::from_utf8_lossy(&o.stderr).into_owned();
         assert!(o.status.success(), "{err}");
-        let saved: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(out.join("config.json")).expect("config.json"))
-                .expect("config.json parses");
+        let saved = json(&out.join("config.json"));
         (err, saved["model"]["num_samples"].as_u64())
     };
     let (err, samples) = trained("proposal", &[]);

@@ -7,12 +7,10 @@ use std::path::Path;
 
 mod common;
 
-use common::{TINY, assert_config_refused, tiny_run};
+use common::{TINY, assert_config_refused, json, tiny_run};
 
 fn saved_cap(run: &Path) -> serde_json::Value {
-    let text = std::fs::read_to_string(run.join("config.json")).expect("read config.json");
-    let config: serde_json::Value = serde_json::from_str(&text).expect("json");
-    config["losses"]["depth_cap"].clone()
+    json(&run.join("config.json"))["losses"]["depth_cap"].clone()
 }
 
 #[test]

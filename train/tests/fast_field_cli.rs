@@ -4,15 +4,9 @@
 //! choice printed with its reason, the field saved with the run and loaded
 //! back as `eval` loads a run, and the flag refused with `--resume`.
 
-use std::path::Path;
-
 mod common;
 
-use common::{TINY, assert_config_refused, assert_refused, s, tiny_run, train};
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
-}
+use common::{TINY, assert_config_refused, assert_refused, json, s, tiny_run, train};
 
 #[test]
 fn bad_field_model_values_and_settings_are_refused() {

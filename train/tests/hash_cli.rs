@@ -4,15 +4,9 @@
 //! reason, and the tables saved with the run's configuration and weights
 //! and loaded back as `eval` loads a run.
 
-use std::path::Path;
-
 mod common;
 
-use common::{TINY, assert_config_refused, assert_refused, s, tiny_run};
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
-}
+use common::{TINY, assert_config_refused, assert_refused, json, s, tiny_run};
 
 #[test]
 fn bad_hash_grid_values_are_refused() {

@@ -4,15 +4,9 @@
 //! run's configuration and weights (one per frame of the scene, held-out
 //! frames left at zero) and loaded back as `eval` loads a run.
 
-use std::path::Path;
-
 mod common;
 
-use common::{TINY, assert_config_refused, assert_refused, s, tiny_run};
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
-}
+use common::{TINY, assert_config_refused, assert_refused, json, s, tiny_run};
 
 #[test]
 fn bad_pose_refine_values_are_refused() {

@@ -91,7 +91,7 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
     if let Some(p) = cli.preset {
         let unbounded = choices.extent.value == Extent::Unbounded;
         let s = p.apply(&mut base, row.preset, !unbounded);
-        lines.push(preset_line(p, &row, kind, &s, unbounded));
+        lines.push(preset_line(p, &row, &s, unbounded));
     }
     sizes.inspect(|s| s.apply(&mut base));
     // The proposal sampler the field takes, in the layer under the file, so
@@ -150,11 +150,10 @@ pub fn resolve(cli: &Cli, scene: &Scene) -> Result<Resolved, TrainError> {
 }
 
 /// The line `train` prints for a `--preset`: what it set on a capture of
-/// `kind` (its `row`).
+/// `row`'s kind.
 fn preset_line(
     preset: crate::preset::Preset,
     row: &table::Row,
-    kind: CaptureKind,
     set: &crate::preset::PresetSettings,
     unbounded: bool,
 ) -> String {
@@ -163,7 +162,7 @@ fn preset_line(
          {} iterations{}",
         preset.name(),
         row.preset.name(),
-        kind.describe(),
+        row.kind.describe(),
         set.samples,
         set.rays,
         set.iterations,

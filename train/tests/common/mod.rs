@@ -13,6 +13,11 @@ pub const TINY: &str = r#"{
   "logging": {"checkpoint_every": 2, "eval_every": 0, "eval_pixels": 64}
 }"#;
 
+/// The JSON file at `path` (a run's `config.json`, `summary.json`, ...).
+pub fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
+}
+
 /// Runs the `train` binary with `args`.
 pub fn train(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_train"))
