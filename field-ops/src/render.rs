@@ -19,7 +19,8 @@ pub struct RenderedView {
     pub height: u32,
     /// `height * width * 3` colours in `[0, 1]`.
     pub rgb: Vec<f32>,
-    /// `height * width` expected z-depths in metres.
+    /// `height * width` z-depths in metres of the median depth along each
+    /// ray (the expected depth where its weight never reaches a half).
     pub depth: Vec<f32>,
     /// `height * width` accumulated opacities in `[0, 1]`.
     pub acc: Vec<f32>,
@@ -171,7 +172,7 @@ pub fn render_view(
         width: camera.intrinsics.width,
         height: camera.intrinsics.height,
         rgb: r.rgb,
-        depth: r.depth,
+        depth: r.median_depth,
         acc: r.acc,
         feature: r.feature,
         feature_dim: r.feature_dim,

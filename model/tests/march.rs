@@ -2,7 +2,8 @@
 //! against a float64 oracle, the marcher (the inference pass) without
 //! termination against the plain deterministic render (the dense pass
 //! without jitter) in every feature mode, and an opaque field that ends its
-//! rays early and still renders what the plain render does.
+//! rays early and still renders what the plain render does (the median
+//! depth too, against the plain render's weights).
 
 mod common;
 
@@ -121,6 +122,41 @@ fn marched(
     m.render(&request).expect("no observer")
 }
 
+/// The median depth of the dense level: its weights turned back into
+/// optical depths in float64 (the weight reaches a half where the optical
+/// depth reaches `ln 2`), or its expected depth where the weight never
+/// reaches a half.
+fn dense_median(want: &LevelOutputs) -> Vec<f32> {
+    let (w, t, mean) = (
+        vec(want.weights.clone()),
+        vec(want.t_vals.clone()),
+        vec(want.depth.clone()),
+    );
+    let n = mean.len();
+    let s = w.len() / n;
+    (0..n)
+        .map(|r| {
+            let mut ahead = 0.0f64;
+            for i in 0..s {
+                let wi = w[r * s + i] as f64;
+                if ahead + wi >= 0.5 {
+                    let trans = 1.0 - ahead;
+                    let alpha = (wi / trans).min(1.0);
+                    let f = if alpha >= 1.0 {
+                        0.0
+                    } else {
+                        ((0.5 / trans).ln() / (1.0 - alpha).ln()).clamp(0.0, 1.0)
+                    };
+                    let (lo, hi) = (t[r * (s + 1) + i] as f64, t[r * (s + 1) + i + 1] as f64);
+                    return (lo + f * (hi - lo)) as f32;
+                }
+                ahead += wi;
+            }
+            mean[r]
+        })
+        .collect()
+}
+
 fn compare(got: &RenderedRays, want: &LevelOutputs, tol: f32, what: &str) {
     assert_close(
         &got.rgb,
@@ -142,6 +178,16 @@ fn compare(got: &RenderedRays, want: &LevelOutputs, tol: f32, what: &str) {
         tol,
         tol,
         &format!("{what} depth"),
+    );
+    // The march finds the median from the densities, the oracle from the
+    // weights in float32: good to about 1e-4 of the depth.
+    let median_tol = tol.max(1e-4);
+    assert_close(
+        &got.median_depth,
+        &dense_median(want),
+        median_tol,
+        median_tol,
+        &format!("{what} median depth"),
     );
     match &want.feature {
         Some(f) => assert_close(

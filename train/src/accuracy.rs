@@ -85,7 +85,8 @@ impl EvalAccumulator {
 pub struct EvalMetrics {
     /// Colour PSNR in dB.
     pub psnr: f64,
-    /// Mean absolute depth error in metres (`None` without depth).
+    /// Mean absolute error of the rendered median depth in metres (`None`
+    /// without depth; see `model::RenderedRays::median_depth`).
     pub depth_mae: Option<f64>,
     /// Mean cosine similarity of rendered vs target features (`None` without features).
     pub feature_cosine: Option<f64>,

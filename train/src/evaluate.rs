@@ -96,7 +96,9 @@ pub fn evaluate_pixels(
         let out = model
             .render(&request)
             .expect("never cancelled without an observer");
-        let (rgb, depth) = (out.rgb, out.depth);
+        // The median depth, as the depth images show it (see
+        // `model::RenderedRays::median_depth`).
+        let (rgb, depth) = (out.rgb, out.median_depth);
         let feat = match (out.feature_dim > 0, pixels.feature.as_ref()) {
             (true, Some(_)) => Some(lift_features(scene, out.feature)),
             _ => None,

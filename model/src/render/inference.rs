@@ -3,7 +3,8 @@
 //! cancellation.
 
 use super::grid::clip_for_inference;
-use super::march::{RenderedRays, Termination};
+use super::march::Termination;
+use super::rendered::RenderedRays;
 use super::sealed::{Sealed, Token};
 use super::{FeatureMode, RenderPass, RenderRequest};
 use crate::geometry::NormalizedRay;
@@ -118,7 +119,7 @@ impl OpenNerf {
 
 /// The outputs of the rendered rays `out` (input rays `kept`) spread over
 /// all `n` input rays: the others get the background (black without one)
-/// and zero depth, opacity and feature.
+/// and zero depths, opacity and feature.
 fn scatter(
     out: RenderedRays,
     kept: &[usize],
@@ -130,6 +131,7 @@ fn scatter(
     let mut full = RenderedRays {
         rgb: bg.repeat(n),
         depth: vec![0.0; n],
+        median_depth: vec![0.0; n],
         acc: vec![0.0; n],
         feature: vec![0.0; n * dim],
         feature_dim: dim,
@@ -138,6 +140,7 @@ fn scatter(
     for (j, &i) in kept.iter().enumerate() {
         full.rgb[3 * i..3 * i + 3].copy_from_slice(&out.rgb[3 * j..3 * j + 3]);
         full.depth[i] = out.depth[j];
+        full.median_depth[i] = out.median_depth[j];
         full.acc[i] = out.acc[j];
         full.feature[i * dim..(i + 1) * dim].copy_from_slice(&out.feature[j * dim..(j + 1) * dim]);
     }

@@ -10,9 +10,10 @@ use burn::tensor::{Device, Int, Tensor, TensorData};
 use super::FeatureMode;
 use super::levels::{Level, LevelField, LevelPass};
 use super::posts::Posts;
+use super::rendered::RenderedRays;
 use crate::composite::{
-    FEATURE_ACC_EPS, composite_features_mean, composite_values, expected_depth, over_background,
-    segment_weights, t_mids,
+    FEATURE_ACC_EPS, composite_features_mean, composite_values, depth_crossing, expected_depth,
+    over_background, segment_weights, t_mids,
 };
 use crate::host_work::{ReadReason, read_back};
 use crate::nerf::{OpenNerf, Rays};
@@ -51,55 +52,6 @@ impl Termination {
             transmittance: 0.0,
             segment: usize::MAX,
         }
-    }
-}
-
-/// The fine level of rendered rays, on the host, ray after ray.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct RenderedRays {
-    /// `3 n` colours (with the background behind the unoccluded part).
-    pub rgb: Vec<f32>,
-    /// `n` expected depths along the ray (metres of `t`).
-    pub depth: Vec<f32>,
-    /// `n` accumulated opacities.
-    pub acc: Vec<f32>,
-    /// `n * feature_dim` features (empty with [`FeatureMode::None`]).
-    pub feature: Vec<f32>,
-    /// Channels per ray of `feature`.
-    pub feature_dim: usize,
-    /// Samples evaluated over all levels (of `2 n samples` in all with the
-    /// coarse and the fine level; the proposal rounds count too).
-    pub samples_evaluated: usize,
-}
-
-impl RenderedRays {
-    /// No rays, with `feature_dim` channels per feature.
-    pub(super) fn empty(feature_dim: usize) -> Self {
-        RenderedRays {
-            feature_dim,
-            ..RenderedRays::default()
-        }
-    }
-
-    /// `n` rays of zeros.
-    fn zeros(n: usize, feature_dim: usize) -> Self {
-        RenderedRays {
-            rgb: vec![0.0; 3 * n],
-            depth: vec![0.0; n],
-            acc: vec![0.0; n],
-            feature: vec![0.0; n * feature_dim],
-            feature_dim,
-            samples_evaluated: 0,
-        }
-    }
-
-    /// Appends the rays of `more` (with as many feature channels).
-    pub(super) fn append(&mut self, more: RenderedRays) {
-        self.rgb.extend(more.rgb);
-        self.depth.extend(more.depth);
-        self.acc.extend(more.acc);
-        self.feature.extend(more.feature);
-        self.samples_evaluated += more.samples_evaluated;
     }
 }
 
@@ -245,6 +197,10 @@ impl FeatureState {
 struct FineState {
     rgb: Tensor<2>,
     depth: Tensor<2>,
+    /// Where the accumulated weight reached a half (zero until it has).
+    median: Tensor<2>,
+    /// 1 once the accumulated weight has reached a half.
+    crossed: Tensor<2>,
     acc: Tensor<2>,
     feature: FeatureState,
 }
@@ -256,6 +212,8 @@ impl FineState {
         FineState {
             rgb: s(&self.rgb),
             depth: s(&self.depth),
+            median: s(&self.median),
+            crossed: s(&self.crossed),
             acc: s(&self.acc),
             feature: self.feature.select(&idx),
         }
@@ -361,6 +319,8 @@ impl OpenNerf {
         let mut state = FineState {
             rgb: Tensor::zeros([m, 3], &device),
             depth: Tensor::zeros([m, 1], &device),
+            median: Tensor::zeros([m, 1], &device),
+            crossed: Tensor::zeros([m, 1], &device),
             acc: Tensor::zeros([m, 1], &device),
             feature: match mode {
                 FeatureMode::None => FeatureState::None,
@@ -387,6 +347,15 @@ impl OpenNerf {
             let rgb = self
                 .radiance()
                 .color(trunk.clone(), alive.view_enc.clone(), len);
+            let (median, crossed) = depth_crossing(
+                density.clone(),
+                t.clone(),
+                alive.dir_norm.clone(),
+                alive.tau.clone(),
+                0.5,
+            );
+            state.median = state.median.add(median);
+            state.crossed = state.crossed.add(crossed);
             let (w, tau) = segment_weights(density, t.clone(), alive.dir_norm.clone(), alive.tau);
             alive.tau = tau;
             evaluated += rows * len;
@@ -453,6 +422,10 @@ impl OpenNerf {
     ) {
         let rgb = over_background(state.rgb, state.acc.clone(), background);
         let depth = expected_depth(state.depth, state.acc.clone());
+        // The median where the weight reached a half, else the mean.
+        let median = state
+            .median
+            .mask_where(state.crossed.lower_elem(0.5), depth.clone());
         let feature = match state.feature {
             FeatureState::None => None,
             FeatureState::Sum(sum) => Some(sum.div(state.acc.clone().clamp_min(FEATURE_ACC_EPS))),
@@ -469,9 +442,11 @@ impl OpenNerf {
             }
         };
         let (rgb, depth, acc) = (host(rgb), host(depth), host(state.acc));
+        let median = host(median);
         for (row, &ray) in ids.iter().enumerate() {
             out.rgb[3 * ray..3 * ray + 3].copy_from_slice(&rgb[3 * row..3 * row + 3]);
             out.depth[ray] = depth[row];
+            out.median_depth[ray] = median[row];
             out.acc[ray] = acc[row];
         }
         if let Some(f) = feature {

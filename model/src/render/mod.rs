@@ -51,6 +51,7 @@ mod inference;
 mod levels;
 mod march;
 mod posts;
+mod rendered;
 
 use crate::geometry::NormalizedRay;
 use crate::nerf::OpenNerf;
@@ -60,8 +61,9 @@ pub use dense::{LevelOutputs, PerPhotograph, RenderOutputs, Train};
 pub use grid::ClipStats;
 pub use inference::{Cancelled, Inference};
 pub use levels::{Level, LevelField};
-pub use march::{RenderedRays, Termination};
+pub use march::Termination;
 pub use posts::ProposalLevel;
+pub use rendered::RenderedRays;
 
 /// How the open-set feature is computed at a level.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
