@@ -37,6 +37,70 @@ pub fn compute_weights(density: Tensor<2>, t_vals: Tensor<2>, dir_norm: Tensor<2
     segment_weights(density, t_vals, dir_norm, none).0
 }
 
+/// The optical depths of one segment of consecutive samples, given the
+/// optical depth `tau_before` already accumulated along each ray: what the
+/// segment's weights ([`SegmentOptics::weights`]) and the depth where a
+/// ray's weight crosses a level ([`depth_crossing`]) are both read from.
+#[derive(Debug, Clone)]
+pub struct SegmentOptics {
+    /// Each interval's optical depth `sigma_i delta_i`, `[rays, samples]`.
+    pub tau: Tensor<2>,
+    /// The optical depth ahead of each interval (from the ray's start),
+    /// `[rays, samples]`.
+    pub ahead: Tensor<2>,
+    /// The optical depth after the segment, `[rays, 1]` (`exp(-after)` is
+    /// the transmittance left for what lies behind).
+    pub after: Tensor<2>,
+}
+
+impl SegmentOptics {
+    /// `delta_i = (t_{i+1} - t_i) |d|`, `tau_i = sigma_i delta_i`, and the
+    /// exclusive sum of the `tau` before each interval.
+    ///
+    /// # Shapes
+    /// - `density`: `[rays, samples]`; `t_vals`: `[rays, samples + 1]`.
+    /// - `dir_norm`, `tau_before`: `[rays, 1]`.
+    pub fn new(
+        density: Tensor<2>,
+        t_vals: Tensor<2>,
+        dir_norm: Tensor<2>,
+        tau_before: Tensor<2>,
+    ) -> Self {
+        let [_, s] = density.dims();
+        let delta = t_vals
+            .clone()
+            .slice_dim(1, 1..s + 1)
+            .sub(t_vals.slice_dim(1, 0..s))
+            .mul(dir_norm);
+        let tau = density.mul(delta);
+        // Exclusive scan by shifting (an inclusive scan minus tau would cancel
+        // catastrophically after a huge tau).
+        let ahead = if s > 1 {
+            Tensor::cat(
+                vec![
+                    tau_before.clone(),
+                    tau.clone()
+                        .slice_dim(1, 0..s - 1)
+                        .cumsum(1)
+                        .add(tau_before.clone()),
+                ],
+                1,
+            )
+        } else {
+            tau_before.clone()
+        };
+        let after = tau.clone().sum_dim(1).add(tau_before);
+        SegmentOptics { tau, ahead, after }
+    }
+
+    /// The compositing weights `w_i = (1 - exp(-tau_i)) exp(-ahead_i)`,
+    /// `[rays, samples]`.
+    pub fn weights(&self) -> Tensor<2> {
+        let alpha = self.tau.clone().neg().exp().neg().add_scalar(1.0);
+        alpha.mul(self.ahead.clone().neg().exp())
+    }
+}
+
 /// Compositing weights of one segment of consecutive samples, given the
 /// optical depth `tau_before` already accumulated along each ray: the
 /// segments of a ray, composited in order, give [`compute_weights`] of the
@@ -53,32 +117,8 @@ pub fn segment_weights(
     dir_norm: Tensor<2>,
     tau_before: Tensor<2>,
 ) -> (Tensor<2>, Tensor<2>) {
-    let [_, s] = density.dims();
-    let delta = t_vals
-        .clone()
-        .slice_dim(1, 1..s + 1)
-        .sub(t_vals.slice_dim(1, 0..s))
-        .mul(dir_norm);
-    let tau = density.mul(delta);
-    let alpha = tau.clone().neg().exp().neg().add_scalar(1.0);
-    // Exclusive scan by shifting (an inclusive scan minus tau would cancel
-    // catastrophically after a huge tau).
-    let exclusive = if s > 1 {
-        Tensor::cat(
-            vec![
-                tau_before.clone(),
-                tau.clone()
-                    .slice_dim(1, 0..s - 1)
-                    .cumsum(1)
-                    .add(tau_before.clone()),
-            ],
-            1,
-        )
-    } else {
-        tau_before.clone()
-    };
-    let after = tau.sum_dim(1).add(tau_before);
-    (alpha.mul(exclusive.neg().exp()), after)
+    let optics = SegmentOptics::new(density, t_vals, dir_norm, tau_before);
+    (optics.weights(), optics.after)
 }
 
 /// Midpoints of consecutive fence posts.
@@ -190,50 +230,31 @@ pub fn over_background(
 /// ray does not cross here) and 1 where it crosses here, 0 elsewhere.
 ///
 /// # Shapes
-/// - `density`: `[rays, samples]`; `t_vals`: `[rays, samples + 1]`.
-/// - `dir_norm`, `tau_before` (the optical depth ahead of the segment, as
-///   [`segment_weights`] takes it): `[rays, 1]`.
+/// - `optics`: the segment's ([`SegmentOptics::new`]); `t_vals`:
+///   `[rays, samples + 1]`, its posts.
 /// - output: (`[rays, 1]`, `[rays, 1]`).
 pub fn depth_crossing(
-    density: Tensor<2>,
+    optics: &SegmentOptics,
     t_vals: Tensor<2>,
-    dir_norm: Tensor<2>,
-    tau_before: Tensor<2>,
     level: f32,
 ) -> (Tensor<2>, Tensor<2>) {
-    let [rays, s] = density.dims();
+    let [_, s] = optics.tau.dims();
     let lo = t_vals.clone().slice_dim(1, 0..s);
     let width = t_vals.slice_dim(1, 1..s + 1).sub(lo.clone());
-    let tau = density.mul(width.clone().mul(dir_norm));
-    // Exclusive scan by shifting, as in `segment_weights`: a scan minus a
-    // huge tau would lose the small optical depth ahead of it.
-    let ahead = if s > 1 {
-        let inner = tau.clone().slice_dim(1, 0..s - 1).cumsum(1);
-        Tensor::cat(
-            vec![
-                tau_before.clone(),
-                inner.add(tau_before.expand([rays, s - 1])),
-            ],
-            1,
-        )
-    } else {
-        tau_before
-    };
     let target = -(1.0 - level).ln();
-    let crossing = ahead
+    let (tau, ahead) = (optics.tau.clone(), optics.ahead.clone());
+    let hit = ahead
         .clone()
         .lower_elem(target)
-        .bool_and(ahead.clone().add(tau.clone()).greater_equal_elem(target));
+        .bool_and(ahead.clone().add(tau.clone()).greater_equal_elem(target))
+        .float();
     let fraction = ahead
         .neg()
         .add_scalar(target)
         .div(tau.clamp_min(1e-30))
         .clamp(0.0, 1.0);
     let t = lo.add(width.mul(fraction));
-    let found = Tensor::zeros([rays, s], &t.device())
-        .mask_fill(crossing.clone(), 1.0)
-        .sum_dim(1);
-    (t.mask_fill(crossing.bool_not(), 0.0).sum_dim(1), found)
+    (t.mul(hit.clone()).sum_dim(1), hit.sum_dim(1))
 }
 
 /// The median depth of each ray: where its accumulated weight reaches a
@@ -255,6 +276,7 @@ pub fn median_depth(
 ) -> Tensor<2> {
     let [rays, _] = density.dims();
     let none = Tensor::zeros([rays, 1], &density.device());
-    let (median, found) = depth_crossing(density, t_vals, dir_norm, none, 0.5);
+    let optics = SegmentOptics::new(density, t_vals.clone(), dir_norm, none);
+    let (median, found) = depth_crossing(&optics, t_vals, 0.5);
     median.mask_where(found.lower_elem(0.5), expected)
 }

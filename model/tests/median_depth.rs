@@ -8,7 +8,7 @@
 mod common;
 
 use common::{devices, tensor, vec};
-use model::composite::{compute_weights, depth_crossing, median_depth};
+use model::composite::{SegmentOptics, compute_weights, depth_crossing, median_depth};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -139,21 +139,16 @@ fn crossing_split_over_segments_sums_to_the_whole() {
         let density = tensor(r.density.clone(), [r.n, r.s], &device);
         let dnorm = tensor(r.dnorm.clone(), [r.n, 1], &device);
         let zero = tensor(vec![0.0; r.n], [r.n, 1], &device);
-        let (whole, whole_found) =
-            depth_crossing(density.clone(), t.clone(), dnorm.clone(), zero.clone(), 0.5);
+        let optics = SegmentOptics::new(density.clone(), t.clone(), dnorm.clone(), zero.clone());
+        let (whole, whole_found) = depth_crossing(&optics, t.clone(), 0.5);
         let (whole, whole_found) = (vec(whole), vec(whole_found));
         let (mut sum, mut found) = (vec![0.0f32; r.n], vec![0.0f32; r.n]);
         let mut tau_before = zero;
         for (a, b) in [(0, 5), (5, 9), (9, 12)] {
             let d = density.clone().slice_dim(1, a..b);
             let ts = t.clone().slice_dim(1, a..b + 1);
-            let (part, part_found) = depth_crossing(
-                d.clone(),
-                ts.clone(),
-                dnorm.clone(),
-                tau_before.clone(),
-                0.5,
-            );
+            let optics = SegmentOptics::new(d, ts.clone(), dnorm.clone(), tau_before);
+            let (part, part_found) = depth_crossing(&optics, ts, 0.5);
             let (part, part_found) = (vec(part), vec(part_found));
             for i in 0..r.n {
                 assert!(
@@ -163,11 +158,7 @@ fn crossing_split_over_segments_sums_to_the_whole() {
                 sum[i] += part[i];
                 found[i] += part_found[i];
             }
-            let width = ts
-                .clone()
-                .slice_dim(1, 1..b - a + 1)
-                .sub(ts.slice_dim(1, 0..b - a));
-            tau_before = tau_before.add(d.mul(width.mul(dnorm.clone())).sum_dim(1));
+            tau_before = optics.after;
         }
         assert_eq!(found, whole_found, "{name}: the same rays cross");
         for i in 0..r.n {

@@ -12,8 +12,8 @@ use super::levels::{Level, LevelField, LevelPass};
 use super::posts::Posts;
 use super::rendered::RenderedRays;
 use crate::composite::{
-    FEATURE_ACC_EPS, composite_features_mean, composite_values, depth_crossing, expected_depth,
-    over_background, segment_weights, t_mids,
+    FEATURE_ACC_EPS, SegmentOptics, composite_features_mean, composite_values, depth_crossing,
+    expected_depth, over_background, segment_weights, t_mids,
 };
 use crate::host_work::{ReadReason, read_back};
 use crate::nerf::{OpenNerf, Rays};
@@ -347,17 +347,12 @@ impl OpenNerf {
             let rgb = self
                 .radiance()
                 .color(trunk.clone(), alive.view_enc.clone(), len);
-            let (median, crossed) = depth_crossing(
-                density.clone(),
-                t.clone(),
-                alive.dir_norm.clone(),
-                alive.tau.clone(),
-                0.5,
-            );
+            let optics = SegmentOptics::new(density, t.clone(), alive.dir_norm.clone(), alive.tau);
+            let (median, crossed) = depth_crossing(&optics, t.clone(), 0.5);
             state.median = state.median.add(median);
             state.crossed = state.crossed.add(crossed);
-            let (w, tau) = segment_weights(density, t.clone(), alive.dir_norm.clone(), alive.tau);
-            alive.tau = tau;
+            let w = optics.weights();
+            alive.tau = optics.after;
             evaluated += rows * len;
             state.rgb = state
                 .rgb
@@ -441,13 +436,15 @@ impl OpenNerf {
                 Some(self.head.output.forward(mean))
             }
         };
-        let (rgb, depth, acc) = (host(rgb), host(depth), host(state.acc));
-        let median = host(median);
+        // One read for the three per-ray values: depth, median depth, opacity.
+        let rgb = host(rgb);
+        let scalars = host(Tensor::cat(vec![depth, median, state.acc], 1));
         for (row, &ray) in ids.iter().enumerate() {
             out.rgb[3 * ray..3 * ray + 3].copy_from_slice(&rgb[3 * row..3 * row + 3]);
-            out.depth[ray] = depth[row];
-            out.median_depth[ray] = median[row];
-            out.acc[ray] = acc[row];
+            let [depth, median, acc] = [0, 1, 2].map(|c| scalars[3 * row + c]);
+            out.depth[ray] = depth;
+            out.median_depth[ray] = median;
+            out.acc[ray] = acc;
         }
         if let Some(f) = feature {
             let d = out.feature_dim;
