@@ -252,6 +252,36 @@ impl FlexTensor {
         }
     }
 
+    /// A tensor of `shape` whose elements `fill` writes through the pointer
+    /// it is given, to a buffer of `shape.num_elements()` elements that is
+    /// not initialised first: no pass zeroes a buffer about to be
+    /// overwritten (a matrix product's output).
+    ///
+    /// # Safety
+    /// `fill` must write every one of the buffer's elements, and read none
+    /// before writing it.
+    pub unsafe fn from_writer<E: bytemuck::Pod + Send + Sync>(
+        shape: Shape,
+        dtype: DType,
+        fill: impl FnOnce(*mut E),
+    ) -> Self {
+        assert_eq!(
+            dtype_size(dtype),
+            core::mem::size_of::<E>(),
+            "from_writer: dtype size mismatch"
+        );
+        let n = shape.num_elements();
+        let mut data: Vec<E> = Vec::with_capacity(n);
+        fill(data.as_mut_ptr());
+        // SAFETY: the caller's `fill` wrote all `n` elements.
+        unsafe { data.set_len(n) };
+        Self {
+            data: Arc::new(Bytes::from_elems(data)),
+            layout: Layout::contiguous(shape),
+            dtype,
+        }
+    }
+
     /// Create a tensor filled with zeros.
     pub fn zeros(shape: Shape, dtype: DType) -> Self {
         Self::empty(shape, dtype)

@@ -261,17 +261,13 @@ fn matmul_2d_strided<T: GemmScalar>(lhs: FlexTensor, rhs: FlexTensor) -> FlexTen
     let rhs_ptr = unsafe { rhs_data.as_ptr().add(rhs.layout().start_offset()) };
 
     let out_shape = Shape::from(vec![m, n]);
-    let mut output = FlexTensor::empty(out_shape, T::dtype());
-    let out_data: &mut [T] = output.storage_mut();
-
     let parallelism = get_parallelism(m, n, k);
-
-    unsafe {
+    let write = |out: *mut T| unsafe {
         gemm_call(
             m,
             n,
             k,
-            out_data.as_mut_ptr(),
+            out,
             1,
             n as isize,
             lhs_ptr,
@@ -282,9 +278,17 @@ fn matmul_2d_strided<T: GemmScalar>(lhs: FlexTensor, rhs: FlexTensor) -> FlexTen
             rhs_row_stride,
             parallelism,
         );
+    };
+    if k == 0 {
+        // An empty sum: the output is zeros, and gemm is not relied on to
+        // write them.
+        let mut output = FlexTensor::empty(out_shape, T::dtype());
+        write(output.storage_mut::<T>().as_mut_ptr());
+        return output;
     }
-
-    output
+    // SAFETY: with k > 0 and the destination not read (`read_dst` false),
+    // gemm writes every element of the m x n output.
+    unsafe { FlexTensor::from_writer(out_shape, T::dtype(), write) }
 }
 
 /// Strided gemm call for one matrix. Wraps `gemm::gemm` with GemmScalar zero/one.
@@ -364,13 +368,10 @@ fn matmul_batched_gemm<T: GemmScalar>(lhs: FlexTensor, rhs: FlexTensor) -> FlexT
     out_dims.push(n);
     let out_shape = Shape::from(out_dims);
 
-    let mut output = FlexTensor::empty(out_shape, T::dtype());
-
     let lhs_data: &[T] = lhs.storage();
     let rhs_data: &[T] = rhs.storage();
     let lhs_start = lhs.layout().start_offset() as isize;
     let rhs_start = rhs.layout().start_offset() as isize;
-    let out_data: &mut [T] = output.storage_mut();
 
     let per_matrix_ops = m.saturating_mul(n).saturating_mul(k);
 
@@ -397,53 +398,70 @@ fn matmul_batched_gemm<T: GemmScalar>(lhs: FlexTensor, rhs: FlexTensor) -> FlexT
         }
     };
 
+    // Every batch slice's gemm, each writing its own m x n block of `out`.
     // Strategy:
     // 1. Large matrices: let gemm parallelize internally
     // 2. Small matrices, large batch: parallelize batch loop
     // 3. Small total work: single-threaded
-    #[cfg(feature = "rayon")]
-    {
-        let total_ops = batch_size.saturating_mul(per_matrix_ops);
-        let prefer_batch_parallel = batch_size >= 4 && total_ops >= BATCH_PARALLEL_THRESHOLD;
+    let write_all = |out: *mut T| {
+        // SAFETY (of each `add`): `out` holds `batch_size` blocks of
+        // `out_matrix_size` elements.
+        #[cfg(feature = "rayon")]
+        {
+            let total_ops = batch_size.saturating_mul(per_matrix_ops);
+            let prefer_batch_parallel =
+                batch_size >= 4 && total_ops >= BATCH_PARALLEL_THRESHOLD;
 
-        if per_matrix_ops >= PARALLEL_THRESHOLD && !prefer_batch_parallel {
-            let parallelism = gemm::Parallelism::Rayon(0);
-            for b in 0..batch_size {
-                run_one(out_data[b * out_matrix_size..].as_mut_ptr(), b, parallelism);
-            }
-        } else if total_ops >= BATCH_PARALLEL_THRESHOLD && batch_size > 1 {
-            use rayon::prelude::*;
+            if per_matrix_ops >= PARALLEL_THRESHOLD && !prefer_batch_parallel {
+                let parallelism = gemm::Parallelism::Rayon(0);
+                for b in 0..batch_size {
+                    run_one(unsafe { out.add(b * out_matrix_size) }, b, parallelism);
+                }
+            } else if total_ops >= BATCH_PARALLEL_THRESHOLD && batch_size > 1 {
+                use rayon::prelude::*;
 
-            out_data
-                .par_chunks_mut(out_matrix_size)
-                .enumerate()
-                .for_each(|(b, out_chunk)| {
-                    run_one(out_chunk.as_mut_ptr(), b, gemm::Parallelism::None);
+                // The address as an integer, so that the closure is `Send`;
+                // the blocks the tasks write are disjoint.
+                let base = out as usize;
+                (0..batch_size).into_par_iter().for_each(|b| {
+                    let block = (base as *mut T).wrapping_add(b * out_matrix_size);
+                    run_one(block, b, gemm::Parallelism::None);
                 });
-        } else {
+            } else {
+                for b in 0..batch_size {
+                    run_one(
+                        unsafe { out.add(b * out_matrix_size) },
+                        b,
+                        gemm::Parallelism::None,
+                    );
+                }
+            }
+        }
+
+        #[cfg(not(feature = "rayon"))]
+        {
+            let _ = per_matrix_ops;
             for b in 0..batch_size {
                 run_one(
-                    out_data[b * out_matrix_size..].as_mut_ptr(),
+                    unsafe { out.add(b * out_matrix_size) },
                     b,
                     gemm::Parallelism::None,
                 );
             }
         }
-    }
+    };
 
-    #[cfg(not(feature = "rayon"))]
-    {
-        let _ = per_matrix_ops;
-        for b in 0..batch_size {
-            run_one(
-                out_data[b * out_matrix_size..].as_mut_ptr(),
-                b,
-                gemm::Parallelism::None,
-            );
-        }
+    if k == 0 || batch_size == 0 {
+        // An empty sum (or no matrix): the output is zeros, and gemm is not
+        // relied on to write them.
+        let mut output = FlexTensor::empty(out_shape, T::dtype());
+        write_all(output.storage_mut::<T>().as_mut_ptr());
+        return output;
     }
-
-    output
+    // SAFETY: with k > 0 and the destination not read (`read_dst` false),
+    // each slice's gemm writes every element of its block, and the blocks
+    // cover the output.
+    unsafe { FlexTensor::from_writer(out_shape, T::dtype(), write_all) }
 }
 
 // ============================================================================
