@@ -279,15 +279,8 @@ fn matmul_2d_strided<T: GemmScalar>(lhs: FlexTensor, rhs: FlexTensor) -> FlexTen
             parallelism,
         );
     };
-    if k == 0 {
-        // An empty sum: the output is zeros, and gemm is not relied on to
-        // write them.
-        let mut output = FlexTensor::empty(out_shape, T::dtype());
-        write(output.storage_mut::<T>().as_mut_ptr());
-        return output;
-    }
-    // SAFETY: with k > 0 and the destination not read (`read_dst` false),
-    // gemm writes every element of the m x n output.
+    // SAFETY: with the destination not read (`read_dst` false), gemm writes
+    // every element of the m x n output (zeros where k is 0).
     unsafe { FlexTensor::from_writer(out_shape, T::dtype(), write) }
 }
 
@@ -451,16 +444,9 @@ fn matmul_batched_gemm<T: GemmScalar>(lhs: FlexTensor, rhs: FlexTensor) -> FlexT
         }
     };
 
-    if k == 0 || batch_size == 0 {
-        // An empty sum (or no matrix): the output is zeros, and gemm is not
-        // relied on to write them.
-        let mut output = FlexTensor::empty(out_shape, T::dtype());
-        write_all(output.storage_mut::<T>().as_mut_ptr());
-        return output;
-    }
-    // SAFETY: with k > 0 and the destination not read (`read_dst` false),
-    // each slice's gemm writes every element of its block, and the blocks
-    // cover the output.
+    // SAFETY: with the destination not read (`read_dst` false), each
+    // slice's gemm writes every element of its block (zeros where k is 0),
+    // and the blocks cover the output.
     unsafe { FlexTensor::from_writer(out_shape, T::dtype(), write_all) }
 }
 
