@@ -9,18 +9,9 @@ Each RATIO_CSV has the columns `capture` and `fast_over_mip` (one row a
 round); LABEL names its machine. PROFILE_CSV has `where` and
 `share_percent`.
 """
-import csv
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-
-def rows(path):
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
+from plot_csv import plt, rows
 
 
 def main():

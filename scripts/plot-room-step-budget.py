@@ -9,18 +9,9 @@ MULADDS_CSV has the columns `field`, `part` and `multiply_adds_a_ray`
 (a row `all` a field, skipped); BUDGET_CSV has `bar`, `part` and
 `microseconds_a_ray` (the parts of a bar stacked in their order).
 """
-import csv
 import sys
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-
-def rows(path):
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
+from plot_csv import plt, rows
 
 
 def main():
