@@ -9,7 +9,12 @@
 //! on all alike. Last, Adam's update of the tables alone (every row):
 //! Burn's Adam against the one-pass Adam the training uses.
 //!
-//! `cargo run -p bench --release --bin hash_encoding -- [--points N] [--steps N] [--backend flex,ndarray]`
+//! The points are drawn uniformly in the grid's cube, or, as a training
+//! step orders them, ray by ray (`--layout rays`): consecutive points a
+//! short step apart along a ray, so that at the coarse levels many of them
+//! fall in one cell.
+//!
+//! `cargo run -p bench --release --bin hash_encoding -- [--points N] [--steps N] [--layout uniform|rays] [--backend flex,ndarray]`
 
 use std::time::Instant;
 
@@ -44,9 +49,57 @@ struct Args {
     /// Rows of each level's table, as a power of two.
     #[arg(long, default_value_t = 15)]
     log2_table: usize,
+    /// Where the points lie: `uniform` in the grid's cube, or `rays`:
+    /// `--samples` points a ray, ray after ray, evenly spaced along a
+    /// random line through the cube (the order of a training step's
+    /// samples).
+    #[arg(long, value_enum, default_value_t = Layout::Uniform)]
+    layout: Layout,
+    /// Points a ray with `--layout rays` (the bench room's field samples
+    /// 48 a ray).
+    #[arg(long, default_value_t = 48)]
+    samples: usize,
     /// Backends to measure and wgpu's adapter.
     #[command(flatten)]
     compute: BackendListArgs,
+}
+
+/// Where the points lie.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Layout {
+    /// Uniformly in the grid's cube.
+    Uniform,
+    /// Ray by ray, a ray's points in order along it.
+    Rays,
+}
+
+/// `n` points of `layout` (`samples` a ray for [`Layout::Rays`]) in the
+/// cube of half side `half`.
+///
+/// # Shapes
+/// - output: `[n, 3]`.
+fn draw_points(layout: Layout, n: usize, samples: usize, half: f32, device: &Device) -> Tensor<2> {
+    let uniform = |dims: [usize; 3], lo: f32, hi: f32| {
+        Tensor::<3>::random(dims, Distribution::Uniform(lo as f64, hi as f64), device)
+    };
+    match layout {
+        Layout::Uniform => uniform([n, 1, 3], -half, half).reshape([n, 3]),
+        Layout::Rays => {
+            let s = samples.min(n);
+            let rays = n.div_ceil(s);
+            // From a point inside the cube, along a random direction, one
+            // side's length in even steps.
+            let origins = uniform([rays, 1, 3], -half, half);
+            let dirs = Tensor::<3>::random([rays, 1, 3], Distribution::Normal(0.0, 1.0), device);
+            let dirs = dirs
+                .clone()
+                .div(dirs.square().sum_dim(2).sqrt().clamp_min(1e-6));
+            let steps: Vec<f32> = (0..s).map(|i| 2.0 * half * i as f32 / s as f32).collect();
+            let t = Tensor::<1>::from_floats(steps.as_slice(), device).reshape([1, s, 1]);
+            let points = origins.add(dirs.mul(t)).reshape([rays * s, 3]);
+            points.narrow(0, 0, n)
+        }
+    }
 }
 
 /// A form of the encoding.
@@ -116,6 +169,7 @@ fn main() -> Result<()> {
         ("--points", args.points),
         ("--steps", args.steps),
         ("--levels", args.levels),
+        ("--samples", args.samples),
     ] {
         if value == 0 {
             anyhow::bail!("{flag} 0: at least 1");
@@ -127,8 +181,12 @@ fn main() -> Result<()> {
             args.log2_table
         );
     }
+    let layout = match args.layout {
+        Layout::Uniform => "uniform in the cube".to_string(),
+        Layout::Rays => format!("{} a ray, in order along it", args.samples),
+    };
     println!(
-        "{} points a step, {} levels of 2^{} rows x 2 features, {} timed steps of each form",
+        "{} points a step ({layout}), {} levels of 2^{} rows x 2 features, {} timed steps of each form",
         args.points, args.levels, args.log2_table, args.steps
     );
     println!("backend   device (ms/step)   fused (ms/step)   fused / device");
@@ -139,8 +197,7 @@ fn main() -> Result<()> {
             .with_levels(args.levels)
             .with_log2_table(args.log2_table)
             .init(&device);
-        let points =
-            Tensor::<2>::random([args.points, 3], Distribution::Uniform(-3.0, 3.0), &device);
+        let points = draw_points(args.layout, args.points, args.samples, 3.0, &device);
         let weights = Tensor::<2>::random(
             [args.points, grid.output_dim()],
             Distribution::Uniform(-1.0, 1.0),

@@ -66,12 +66,7 @@ pub fn resample_on_host(round: &Round, s: Tensor<2>, w: Tensor<2>) -> Tensor<2> 
                 max_dilate_weights_host(&host(s), &host(w), n, d, (0.0, 1.0), true);
             let m = 3 * (posts - 1);
             // The outermost dilated intervals are clamped to zero width.
-            let ends: Vec<f32> = ends.chunks(m + 1).flat_map(|r| r[1..m].to_vec()).collect();
-            let weights: Vec<f32> = weights
-                .chunks(m)
-                .flat_map(|r| r[1..m - 1].to_vec())
-                .collect();
-            (ends, weights)
+            (inner_rows(&ends, m + 1), inner_rows(&weights, m))
         }
         None => (host(s), host(w)),
     };
@@ -83,6 +78,15 @@ pub fn resample_on_host(round: &Round, s: Tensor<2>, w: Tensor<2>) -> Tensor<2> 
         row[count] = 1.0;
     }
     Tensor::from_data(TensorData::new(drawn, [n, count + 1]), &device)
+}
+
+/// Each row of `width` numbers of `values` without its first and last.
+fn inner_rows(values: &[f32], width: usize) -> Vec<f32> {
+    let mut inner = Vec::with_capacity(values.len() / width.max(1) * width.saturating_sub(2));
+    for row in values.chunks_exact(width) {
+        inner.extend_from_slice(&row[1..width - 1]);
+    }
+    inner
 }
 
 /// Elements of the dilation's comparison tensor of one chunk of rays in
