@@ -23,6 +23,7 @@ use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Distribution, Tensor};
 use clap::Parser;
 use field_ops::backend::BackendListArgs;
+use model::mip::points_along;
 use model::{FusedAdamConfig, HashGrid, HashGridConfig};
 
 #[cfg(not(target_env = "msvc"))]
@@ -79,25 +80,26 @@ enum Layout {
 /// # Shapes
 /// - output: `[n, 3]`.
 fn draw_points(layout: Layout, n: usize, samples: usize, half: f32, device: &Device) -> Tensor<2> {
-    let uniform = |dims: [usize; 3], lo: f32, hi: f32| {
-        Tensor::<3>::random(dims, Distribution::Uniform(lo as f64, hi as f64), device)
-    };
+    let uniform = Distribution::Uniform(-half as f64, half as f64);
     match layout {
-        Layout::Uniform => uniform([n, 1, 3], -half, half).reshape([n, 3]),
+        Layout::Uniform => Tensor::<2>::random([n, 3], uniform, device),
         Layout::Rays => {
             let s = samples.min(n);
             let rays = n.div_ceil(s);
             // From a point inside the cube, along a random direction, one
             // side's length in even steps.
-            let origins = uniform([rays, 1, 3], -half, half);
-            let dirs = Tensor::<3>::random([rays, 1, 3], Distribution::Normal(0.0, 1.0), device);
+            let origins = Tensor::<2>::random([rays, 3], uniform, device);
+            let dirs = Tensor::<2>::random([rays, 3], Distribution::Normal(0.0, 1.0), device);
             let dirs = dirs
                 .clone()
-                .div(dirs.square().sum_dim(2).sqrt().clamp_min(1e-6));
+                .div(dirs.square().sum_dim(1).sqrt().clamp_min(1e-6));
             let steps: Vec<f32> = (0..s).map(|i| 2.0 * half * i as f32 / s as f32).collect();
-            let t = Tensor::<1>::from_floats(steps.as_slice(), device).reshape([1, s, 1]);
-            let points = origins.add(dirs.mul(t)).reshape([rays * s, 3]);
-            points.narrow(0, 0, n)
+            let t = Tensor::<1>::from_floats(steps.as_slice(), device)
+                .reshape([1, s])
+                .expand([rays, s]);
+            points_along(origins, dirs, t)
+                .reshape([rays * s, 3])
+                .narrow(0, 0, n)
         }
     }
 }

@@ -80,9 +80,10 @@ pub fn resample_on_host(round: &Round, s: Tensor<2>, w: Tensor<2>) -> Tensor<2> 
     Tensor::from_data(TensorData::new(drawn, [n, count + 1]), &device)
 }
 
-/// Each row of `width` numbers of `values` without its first and last.
+/// Each row of `width` (at least 2) numbers of `values` without its first
+/// and last.
 fn inner_rows(values: &[f32], width: usize) -> Vec<f32> {
-    let mut inner = Vec::with_capacity(values.len() / width.max(1) * width.saturating_sub(2));
+    let mut inner = Vec::with_capacity(values.len() / width * (width - 2));
     for row in values.chunks_exact(width) {
         inner.extend_from_slice(&row[1..width - 1]);
     }
