@@ -17,11 +17,12 @@ use burn::config::Config;
 use burn::module::Module;
 use burn::nn::{Linear, LinearConfig};
 use burn::tensor::activation::{relu, sigmoid};
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{Device, Tensor, TensorData};
 
 use crate::field::{FieldOutputs, split_linear};
 use crate::hash_footprint::{isotropic_variance, level_weights, weigh_levels};
 use crate::hashgrid::{HashGrid, HashGridConfig};
+use crate::level_ramp::{ramp_done, ramp_weights};
 use crate::sh::sh_dim;
 
 /// Configuration of [`FastField`].
@@ -73,6 +74,12 @@ pub struct FastFieldConfig {
     /// that grid's finest level. `None` (and runs written before this
     /// key): on.
     pub head_reads_geometry: Option<bool>,
+    /// Coarse-to-fine training ([`crate::level_ramp`]): the fraction of
+    /// training by which every level of the grid reaches the MLP, a
+    /// quarter of them from the start and the finer ones let in one after
+    /// another. `None` or 0 (and runs written before this key): every
+    /// level from the first step.
+    pub coarse_to_fine: Option<f32>,
 }
 
 /// The raw output above which the density's exponential stops growing (and
@@ -134,6 +141,7 @@ impl FastFieldConfig {
             feature_grid: self.feature_grid.as_ref().map(|g| g.init(device)),
             head_reads_geometry: self.head_reads_geometry.unwrap_or(true)
                 || self.feature_grid.is_none(),
+            coarse_to_fine: self.coarse_to_fine.unwrap_or(0.0),
         }
     }
 }
@@ -169,6 +177,9 @@ pub struct FastField {
     /// Whether the open-set head reads the geometry feature (always, where
     /// the field has no feature grid).
     pub head_reads_geometry: bool,
+    /// The fraction of training by which every level reaches the MLP (0:
+    /// from the first step).
+    pub coarse_to_fine: f32,
 }
 
 impl FastField {
@@ -242,6 +253,31 @@ impl FastField {
             Some(grid) => Tensor::cat(vec![encoded, grid.forward(mean)], 1),
             None => encoded,
         }
+    }
+
+    /// `encoded` ([`FastField::encode`]'s) with the field grid's levels
+    /// weighed by the coarse-to-fine ramp at `progress`, the fraction of
+    /// training done ([`crate::level_ramp::ramp_weights`]); the feature
+    /// grid's columns as they are. Unchanged once the ramp is done.
+    ///
+    /// # Shapes
+    /// - `encoded`: `[n, width]`; output: as `encoded`.
+    pub fn ramp_levels(&self, encoded: Tensor<2>, progress: f32) -> Tensor<2> {
+        if ramp_done(progress, self.coarse_to_fine) {
+            return encoded;
+        }
+        let levels = self.grid.resolutions.len();
+        let features = self.grid.output_dim() / levels.max(1);
+        let [_, width] = encoded.dims();
+        let mut scale = vec![1.0f32; width];
+        for (l, w) in ramp_weights(levels, progress, self.coarse_to_fine)
+            .into_iter()
+            .enumerate()
+        {
+            scale[l * features..(l + 1) * features].fill(w);
+        }
+        let scale = Tensor::<2>::from_data(TensorData::new(scale, [1, width]), &encoded.device());
+        encoded.mul(scale)
     }
 
     /// Trunk feature (the geometry feature, then the feature grid's

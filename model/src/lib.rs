@@ -89,6 +89,7 @@ pub mod hash_footprint;
 pub mod hash_kernel;
 pub mod hashgrid;
 pub mod host_work;
+pub mod level_ramp;
 pub mod loss;
 pub mod mip;
 pub mod nerf;

@@ -116,6 +116,14 @@ pub fn hash(model: &OpenNerfConfig) -> Result<(), String> {
             ));
         }
     }
+    if let Some(until) = fast.coarse_to_fine
+        && !(until.is_finite() && (0.0..=1.0).contains(&until))
+    {
+        return Err(format!(
+            "model.fast.coarse_to_fine is the fraction of training by which every level \
+             of the grid is on, in 0..=1 (0: from the start), got {until}"
+        ));
+    }
     density_shift(fast.density_shift, "model.fast.density_shift")
 }
 

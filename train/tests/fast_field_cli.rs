@@ -65,6 +65,16 @@ fn bad_field_model_values_and_settings_are_refused() {
             "model.fast.head_reads_geometry",
         ),
         (
+            "ramp.json",
+            r#"{"coarse_to_fine": 1.5}"#,
+            "model.fast.coarse_to_fine",
+        ),
+        (
+            "ramp_negative.json",
+            r#"{"coarse_to_fine": -0.1}"#,
+            "model.fast.coarse_to_fine",
+        ),
+        (
             "word.json",
             r#"{"color_width": "wide"}"#,
             "\"wide\", expected usize",

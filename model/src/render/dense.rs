@@ -131,6 +131,7 @@ impl OpenNerf {
             mode: request.features,
             coarse: None,
             proposals: Vec::new(),
+            progress: request.pass.progress,
         };
         let (randomized, progress) = (request.pass.randomized, request.pass.progress);
         let mut out = model.run_levels(&rays, randomized, progress, pass);
@@ -152,6 +153,9 @@ struct TrainLevels<'r> {
     coarse: Option<LevelOutputs>,
     /// The proposal rounds, in order.
     proposals: Vec<ProposalLevel>,
+    /// The fraction of training done (the fast field's coarse-to-fine
+    /// ramp reads it).
+    progress: f32,
 }
 
 impl LevelPass for TrainLevels<'_> {
@@ -222,6 +226,7 @@ struct LevelInputs {
     view_enc: Tensor<2>,
     dir_norm: Tensor<2>,
     background: Option<[f32; 3]>,
+    progress: f32,
 }
 
 impl TrainLevels<'_> {
@@ -230,6 +235,7 @@ impl TrainLevels<'_> {
             view_enc: self.view_enc.clone(),
             dir_norm: self.dir_norm.clone(),
             background: self.background,
+            progress: self.progress,
         }
     }
 }
@@ -246,10 +252,11 @@ impl OpenNerf {
             view_enc,
             dir_norm,
             background,
+            progress,
         } = inputs;
         let [n, posts] = t_vals.dims();
         let s = posts - 1;
-        let ipe = self.encode_samples(t_vals.clone(), rays);
+        let ipe = self.encode_samples(t_vals.clone(), rays, progress);
         let field = self.radiance().forward(ipe, view_enc, s);
         let comp = composite(
             field.density.reshape([n, s]),
@@ -312,18 +319,29 @@ impl OpenNerf {
     /// The field's encoding of the frustums between consecutive fence
     /// posts, ray-major ([`OpenNerf::encode_gaussians`]); a field that reads
     /// no covariance gets the frustums' means alone, and their covariances
-    /// are never formed.
+    /// are never formed. The fast field's levels are weighed by its
+    /// coarse-to-fine ramp at `progress`, the fraction of training done (1
+    /// for inference: every level).
     ///
     /// # Shapes
     /// - `t_vals`: `[n, samples + 1]`; output: `[n * samples, input]`.
-    pub(super) fn encode_samples(&self, t_vals: Tensor<2>, rays: &Rays) -> Tensor<2> {
+    pub(super) fn encode_samples(
+        &self,
+        t_vals: Tensor<2>,
+        rays: &Rays,
+        progress: f32,
+    ) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
         let m = n * (posts - 1);
-        if let Radiance::Fast(fast) = self.radiance()
-            && !fast.reads_covariance()
-        {
-            let mean = self.extent.frustum_means(t_vals, rays);
-            return fast.encode_means(mean.reshape([m, 3]));
+        if let Radiance::Fast(fast) = self.radiance() {
+            let encoded = if fast.reads_covariance() {
+                let g = self.extent.frustums(t_vals, rays);
+                fast.encode(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
+            } else {
+                let mean = self.extent.frustum_means(t_vals, rays);
+                fast.encode_means(mean.reshape([m, 3]))
+            };
+            return fast.ramp_levels(encoded, progress);
         }
         let g = self.extent.frustums(t_vals, rays);
         self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))

@@ -267,7 +267,7 @@ impl OpenNerf {
             .t_vals
             .clone()
             .slice_dim(1, range.start..range.end + 1);
-        let ipe = self.encode_samples(t.clone(), &alive.rays);
+        let ipe = self.encode_samples(t.clone(), &alive.rays, 1.0);
         let (trunk, density) = self.radiance().trunk_density(ipe);
         (density.reshape([m, len]), trunk, t)
     }

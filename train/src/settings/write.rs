@@ -209,6 +209,17 @@ fn grid_sizes(g: &HashGridConfig) -> String {
     )
 }
 
+/// What the field model line says of the grid's coarse-to-fine ramp.
+fn ramp_phrase(fast: &FastFieldConfig) -> String {
+    match fast.coarse_to_fine {
+        Some(until) if until > 0.0 => format!(
+            ", its finer levels let in one by one over the first {:.0}% of training",
+            100.0 * until
+        ),
+        _ => String::new(),
+    }
+}
+
 /// What the field model line says of the fast field's feature grid.
 fn feature_grid_phrase(fast: &FastFieldConfig) -> String {
     let alone = if fast.head_reads_geometry == Some(false) {
@@ -233,7 +244,7 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
                 "field model: fast, a hash grid of {}, a density MLP of {} x {} (density {}) \
                  with a {}-wide geometry feature, a colour MLP of {} x {} on {} \
                  spherical-harmonics bands{} ({reason})",
-                grid_sizes(&f.grid),
+                format!("{}{}", grid_sizes(&f.grid), ramp_phrase(f)),
                 f.density_layers,
                 f.density_width,
                 density_formula(f.density_shift.unwrap_or(0.0)),
