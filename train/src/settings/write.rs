@@ -241,10 +241,11 @@ pub fn model_line(choices: &Choices, model: &OpenNerfConfig) -> String {
     match &model.fast {
         Some(f) => {
             format!(
-                "field model: fast, a hash grid of {}, a density MLP of {} x {} (density {}) \
+                "field model: fast, a hash grid of {}{}, a density MLP of {} x {} (density {}) \
                  with a {}-wide geometry feature, a colour MLP of {} x {} on {} \
                  spherical-harmonics bands{} ({reason})",
-                format!("{}{}", grid_sizes(&f.grid), ramp_phrase(f)),
+                grid_sizes(&f.grid),
+                ramp_phrase(f),
                 f.density_layers,
                 f.density_width,
                 density_formula(f.density_shift.unwrap_or(0.0)),
