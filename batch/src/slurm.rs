@@ -238,6 +238,12 @@ while [ "$status" -gt 128 ] && kill -0 "$child" 2>/dev/null; do
   wait "$child"
   status=$?
 done
+# A child that ended between the signal and the check above has an exit
+# status the interrupted `wait` did not return: the shell keeps it.
+if [ "$status" -gt 128 ]; then
+  wait "$child"
+  status=$?
+fi
 if [ "$status" -eq {code} ]; then
   echo "== checkpoint written; requeueing ${{SLURM_ARRAY_JOB_ID}}_${{SLURM_ARRAY_TASK_ID}}" >> "$log"
   # Preemption and `scontrol requeue` requeue the task themselves; the time
