@@ -333,18 +333,24 @@ impl OpenNerf {
     ) -> Tensor<2> {
         let [n, posts] = t_vals.dims();
         let m = n * (posts - 1);
-        if let Radiance::Fast(fast) = self.radiance() {
-            let encoded = if fast.reads_covariance() {
-                let g = self.extent.frustums(t_vals, rays);
-                fast.encode(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
-            } else {
+        let fast = match self.radiance() {
+            Radiance::Fast(fast) => Some(fast),
+            Radiance::Mip(_) => None,
+        };
+        let encoded = match fast {
+            Some(fast) if !fast.reads_covariance() => {
                 let mean = self.extent.frustum_means(t_vals, rays);
                 fast.encode_means(mean.reshape([m, 3]))
-            };
-            return fast.ramp_levels(encoded, progress);
+            }
+            _ => {
+                let g = self.extent.frustums(t_vals, rays);
+                self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
+            }
+        };
+        match fast {
+            Some(fast) => fast.ramp_levels(encoded, progress),
+            None => encoded,
         }
-        let g = self.extent.frustums(t_vals, rays);
-        self.encode_gaussians(g.mean.reshape([m, 3]), g.cov_diag.reshape([m, 3]))
     }
 
     /// Feature by averaging the head's hidden activations of its input
